@@ -1,0 +1,57 @@
+"""The ``grainplug`` command line: a thin layer over the library.
+
+Errors the user can fix print one line (``error: ...``) and exit with status 2;
+``--debug`` shows the traceback instead.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+
+import click
+
+from ..errors import GrainplugError
+from .app import cli
+
+log = logging.getLogger("grainplug")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the console script; returns the exit status."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in args
+    try:
+        cli.main(args=args, prog_name="grainplug", standalone_mode=False)
+    except click.exceptions.Exit as exc:
+        return int(exc.exit_code or 0)
+    except click.exceptions.Abort:
+        click.echo("error: interrupted", err=True)
+        return 130
+    except click.UsageError as exc:
+        if debug:
+            raise
+        hint = f" (see 'grainplug {exc.ctx.info_name} --help')" if exc.ctx and exc.ctx.parent else " (see 'grainplug --help')"
+        click.echo(f"error: {exc.format_message()}{hint}", err=True)
+        return 2
+    except GrainplugError as exc:
+        if debug:
+            raise
+        click.echo(f"error: {exc}", err=True)
+        return 2
+    except KeyboardInterrupt:
+        click.echo("error: interrupted", err=True)
+        return 130
+    except Exception as exc:  # a bug: say so in one line, traceback with --debug
+        if debug:
+            raise
+        click.echo(
+            f"error: unexpected {type(exc).__name__}: {exc} — rerun with --debug and report it",
+            err=True,
+        )
+        return 1
+    return 0
+
+
+def run() -> None:  # pragma: no cover - console script wrapper
+    sys.exit(main())

@@ -1,0 +1,159 @@
+"""Common interface of every movie reader."""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class MovieInfo:
+    """What a movie file says about itself.
+
+    Attributes
+    ----------
+    path : str
+        The file or folder that was opened.
+    format : str
+        Reader name and container/codec, e.g. ``"video:ffv1"`` or ``"tiff-stack"``.
+    width, height : int
+        Frame size in pixels.
+    n_frames : int
+        Number of frames.
+    fps : float or None
+        Frame rate in frames per second, ``None`` when the file does not hold one
+        (image folders, TIFF stacks without metadata); pass ``fps=`` to set it.
+    channels : int
+        1 for grey, 3 for RGB.
+    bit_depth : int
+        Bits per sample (8 or 16 for the arrays handed out).
+    dtype : str
+        numpy dtype of the frames (``"uint8"`` or ``"uint16"``).
+    fps_source : str
+        Where ``fps`` came from: ``"file"``, ``"user"`` or ``"none"``.
+    """
+
+    path: str
+    format: str
+    width: int
+    height: int
+    n_frames: int
+    fps: float | None
+    channels: int
+    bit_depth: int
+    dtype: str
+    fps_source: str = "file"
+
+    @property
+    def duration_s(self) -> float | None:
+        """Duration in seconds, ``None`` when the frame rate is unknown."""
+        if not self.fps:
+            return None
+        return self.n_frames / self.fps
+
+    @property
+    def frame_shape(self) -> tuple[int, ...]:
+        """Shape of one frame array."""
+        if self.channels == 1:
+            return (self.height, self.width)
+        return (self.height, self.width, self.channels)
+
+    @property
+    def frame_nbytes(self) -> int:
+        """Bytes of one decoded frame."""
+        return int(np.prod(self.frame_shape)) * np.dtype(self.dtype).itemsize
+
+    def as_dict(self) -> dict[str, object]:
+        """JSON-ready description, with duration."""
+        return {
+            "path": self.path,
+            "format": self.format,
+            "width": self.width,
+            "height": self.height,
+            "n_frames": self.n_frames,
+            "fps": self.fps,
+            "fps_source": self.fps_source,
+            "channels": self.channels,
+            "bit_depth": self.bit_depth,
+            "dtype": self.dtype,
+            "duration_s": self.duration_s,
+        }
+
+
+class Movie(abc.ABC):
+    """A movie opened for streaming.
+
+    Frames come out one at a time as numpy arrays (``H x W`` or ``H x W x 3``,
+    ``uint8`` or ``uint16``); memory use does not depend on the movie's length.
+    Use as a context manager so the file is closed.
+    """
+
+    def __init__(self, path: Path, info: MovieInfo) -> None:
+        self.path = path
+        self.info = info
+
+    # -- streaming -----------------------------------------------------------
+    @abc.abstractmethod
+    def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
+        """Yield frames ``start, start+step, ... < stop``."""
+
+    def frames(self, start: int = 0, stop: int | None = None, step: int = 1) -> Iterator[np.ndarray]:
+        """Iterate over frames ``start:stop:step`` in order.
+
+        Parameters
+        ----------
+        start, stop, step : int
+            Frame range, as for a Python slice (non-negative, ``step >= 1``).
+        """
+        n = self.info.n_frames
+        stop = n if stop is None else min(stop, n)
+        if start < 0 or step < 1:
+            raise ValueError("start must be >= 0 and step >= 1")
+        if start >= stop:
+            return iter(())
+        return self._iter(start, stop, step)
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return self.frames()
+
+    def __len__(self) -> int:
+        return self.info.n_frames
+
+    def read(self, index: int) -> np.ndarray:
+        """Return one frame by index (may be slow for compressed video)."""
+        if not 0 <= index < self.info.n_frames:
+            raise IndexError(f"frame {index} out of range 0..{self.info.n_frames - 1}")
+        return next(iter(self.frames(index, index + 1)))
+
+    def timestamps_s(self) -> np.ndarray:
+        """Per-frame time stamps in seconds from the first frame.
+
+        Where the file records presentation times they are used; otherwise the
+        times are ``index / fps``. Raises ``ValueError`` when neither exists.
+        """
+        if not self.info.fps:
+            raise ValueError("the frame rate is unknown: pass fps=")
+        return np.arange(self.info.n_frames) / self.info.fps
+
+    @property
+    def has_file_timestamps(self) -> bool:
+        """Whether :meth:`timestamps_s` comes from times stored in the file."""
+        return False
+
+    # -- context manager ----------------------------------------------------
+    def close(self) -> None:  # noqa: B027 - optional hook
+        """Release the file."""
+
+    def __enter__(self) -> Movie:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        i = self.info
+        return f"<{type(self).__name__} {i.path!r} {i.width}x{i.height}x{i.channels} n={i.n_frames}>"

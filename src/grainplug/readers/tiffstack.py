@@ -1,0 +1,118 @@
+"""Multi-page TIFF stacks, read page by page (or memory-mapped when contiguous)."""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import tifffile
+
+from ..errors import MovieError
+from .base import Movie, MovieInfo
+
+log = logging.getLogger(__name__)
+
+
+def _fps_from_metadata(tif: tifffile.TiffFile) -> float | None:
+    """Frame rate from grainplug/tifffile JSON, ImageJ or OME metadata, if any."""
+    try:
+        shaped = tif.shaped_metadata
+        if shaped:
+            for key in ("fps", "frame_rate"):
+                if key in shaped[0]:
+                    return float(shaped[0][key])
+    except (ValueError, TypeError, json.JSONDecodeError):
+        pass
+    ij = tif.imagej_metadata or {}
+    if ij.get("fps"):
+        return float(ij["fps"])
+    if ij.get("finterval"):
+        return 1.0 / float(ij["finterval"])
+    return None
+
+
+class TiffStackMovie(Movie):
+    """A multi-page TIFF (8/16-bit, grey or RGB): one page is one frame.
+
+    Pages are decoded one at a time; an uncompressed contiguous stack is
+    memory-mapped so that only the bytes asked for are read.
+    """
+
+    def __init__(self, path: Path, *, fps: float | None = None) -> None:
+        try:
+            self._tif = tifffile.TiffFile(str(path))
+        except (tifffile.TiffFileError, ValueError, OSError) as exc:
+            raise MovieError(f"cannot read {path} as a TIFF stack ({exc}) — is the file complete?") from None
+        try:
+            series = self._tif.series[0]
+            page0 = self._tif.pages.first
+            shape = page0.shape
+            dtype = np.dtype(page0.dtype)
+        except (IndexError, ValueError, tifffile.TiffFileError) as exc:
+            self._tif.close()
+            raise MovieError(f"{path} holds no readable image ({exc}) — the file is corrupt") from None
+        if dtype not in (np.uint8, np.uint16):
+            self._tif.close()
+            raise MovieError(f"{path}: {dtype} samples are not supported — export 8- or 16-bit frames")
+        if len(shape) == 3 and shape[-1] in (3, 4):
+            height, width, channels = shape[0], shape[1], 3
+        elif len(shape) == 2:
+            height, width, channels = shape[0], shape[1], 1
+        else:
+            self._tif.close()
+            raise MovieError(f"{path}: pages of shape {shape} are not frames — export H x W or H x W x 3")
+        self._page_shape = shape
+        self._memmap: np.ndarray | None = None
+        n_frames = int(np.prod(series.shape[: series.ndim - len(shape)])) if series.ndim > len(shape) else 1
+        if series.dataoffset is not None and not page0.is_tiled and page0.compression == 1:
+            try:
+                mm = np.memmap(str(path), dtype=series.dtype.newbyteorder(self._tif.byteorder),
+                               mode="r", offset=series.dataoffset, shape=(n_frames, *shape))
+                self._memmap = mm
+            except (ValueError, OSError) as exc:  # truncated file: fewer bytes than announced
+                self._tif.close()
+                raise MovieError(f"{path} is truncated ({exc}) — copy the file again") from None
+        else:
+            n_frames = len(self._tif.pages)
+        file_fps = _fps_from_metadata(self._tif)
+        use_fps, source = (fps, "user") if fps else (file_fps, "file" if file_fps else "none")
+        info = MovieInfo(
+            path=str(path), format="tiff-stack", width=width, height=height, n_frames=n_frames,
+            fps=use_fps, channels=channels, bit_depth=8 * dtype.itemsize, dtype=dtype.name,
+            fps_source=source,
+        )
+        super().__init__(path, info)
+
+    def _page(self, index: int) -> np.ndarray:
+        if self._memmap is not None:
+            arr = np.asarray(self._memmap[index])
+        else:
+            try:
+                arr = self._tif.pages[index].asarray()
+            except Exception as exc:  # tifffile raises many types on corrupt pages
+                raise MovieError(f"{self.path}: page {index} cannot be decoded ({exc})") from None
+        if arr.ndim == 3 and arr.shape[-1] == 4:
+            arr = arr[..., :3]
+        return np.ascontiguousarray(arr, dtype=arr.dtype.newbyteorder("="))
+
+    def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
+        for i in range(start, stop, step):
+            yield self._page(i)
+
+    def read(self, index: int) -> np.ndarray:
+        if not 0 <= index < self.info.n_frames:
+            raise IndexError(f"frame {index} out of range 0..{self.info.n_frames - 1}")
+        return self._page(index)
+
+    def region(self, index: int, rows: slice, cols: slice) -> np.ndarray:
+        """Read only a rectangle of one frame (fast on memory-mapped stacks)."""
+        if self._memmap is not None:
+            return np.asarray(self._memmap[index, rows, cols])
+        return self._page(index)[rows, cols]
+
+    def close(self) -> None:
+        self._memmap = None
+        self._tif.close()

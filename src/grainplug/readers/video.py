@@ -1,0 +1,152 @@
+"""Compressed and raw video containers through PyAV (FFmpeg)."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterator
+from fractions import Fraction
+from pathlib import Path
+
+import av
+import numpy as np
+
+from ..errors import MovieError
+from .base import Movie, MovieInfo
+
+log = logging.getLogger(__name__)
+
+_GRAY8 = {"gray", "gray8", "pal8"}
+_GRAY16 = {"gray16le", "gray16be", "gray10le", "gray12le", "gray10be", "gray12be", "y16"}
+_RGB16 = {"rgb48le", "rgb48be", "bgr48le", "bgr48be", "rgba64le", "rgba64be", "gbrp16le",
+          "gbrp12le", "gbrp10le", "yuv444p16le", "yuv420p16le"}
+
+
+def _output_format(pix_fmt: str | None) -> tuple[str, int, int]:
+    """Map a stream pixel format to (ffmpeg target format, channels, bit depth)."""
+    name = (pix_fmt or "").lower()
+    if name in _GRAY8 or name.startswith("gray") and "16" not in name and "1" not in name[4:]:
+        return "gray", 1, 8
+    if name in _GRAY16 or name.startswith(("gray1", "gray9")):
+        return "gray16le", 1, 16
+    if name in _RGB16 or "48" in name or "64" in name:
+        return "rgb48le", 3, 16
+    return "rgb24", 3, 8
+
+
+class VideoMovie(Movie):
+    """A movie in any container FFmpeg reads (AVI, MP4, MKV, MOV; MJPEG, H.264, FFV1, raw).
+
+    Decoding uses FFmpeg's frame and slice threads on every core.
+    """
+
+    def __init__(self, path: Path, *, fps: float | None = None, threads: int = 0,
+                 verify: bool = False) -> None:
+        self._threads = threads
+        try:
+            container = av.open(str(path), mode="r")
+        except av.error.FFmpegError as exc:  # not a movie, truncated header, ...
+            raise MovieError(
+                f"cannot read {path}: {exc.strerror or exc} — is it a complete movie file? "
+                "grainplug reads AVI/MP4/MKV/MOV videos, TIFF stacks, image folders, .cine and .mraw"
+            ) from None
+        try:
+            if not container.streams.video:
+                raise MovieError(f"{path} holds no video stream — pass a movie file")
+            stream = container.streams.video[0]
+            ctx = stream.codec_context
+            width, height = ctx.width, ctx.height
+            if not width or not height:
+                raise MovieError(f"{path}: the video stream has no frame size — the file is corrupt")
+            self._target, channels, depth = _output_format(ctx.format.name if ctx.format else None)
+            rate = stream.average_rate or stream.guessed_rate or stream.base_rate
+            file_fps = float(rate) if rate else None
+            n_frames = int(stream.frames or 0)
+            self._pts: np.ndarray | None = None
+            self._time_base = stream.time_base or Fraction(1, 1)
+            announced = n_frames
+            if announced <= 0 and container.duration and file_fps:
+                # containers without a frame count (Matroska) still record a duration
+                announced = int(round(container.duration / 1e6 * file_fps))
+            if verify or n_frames <= 0:
+                counted, pts = self._demux_count(container)
+                if announced > 0 and counted < announced - 1:
+                    raise MovieError(
+                        f"{path} is truncated: its header announces {announced} frames but it "
+                        f"holds only {counted} — copy the file again from the camera or recorder"
+                    )
+                n_frames = counted
+                self._pts = pts
+            if n_frames <= 0:
+                raise MovieError(f"{path} holds no video frames — pass a movie with frames")
+            codec = ctx.name
+            fmt_name = container.format.name.split(",")[0]
+        finally:
+            container.close()
+        use_fps, source = (fps, "user") if fps else (file_fps, "file" if file_fps else "none")
+        info = MovieInfo(
+            path=str(path), format=f"video:{fmt_name}/{codec}", width=width, height=height,
+            n_frames=n_frames, fps=use_fps, channels=channels, bit_depth=depth,
+            dtype="uint16" if depth == 16 else "uint8", fps_source=source,
+        )
+        super().__init__(path, info)
+
+    @staticmethod
+    def _demux_count(container: av.container.InputContainer) -> tuple[int, np.ndarray | None]:
+        stream = container.streams.video[0]
+        pts: list[int] = []
+        count = 0
+        try:
+            for packet in container.demux(stream):
+                if packet.size == 0:
+                    continue  # flush packet
+                count += 1
+                if packet.pts is not None:
+                    pts.append(packet.pts)
+        except av.error.FFmpegError as exc:
+            log.warning("demuxing stopped early: %s", exc)
+        arr = np.sort(np.asarray(pts, dtype=np.int64)) if len(pts) == count and pts else None
+        return count, arr
+
+    @property
+    def has_file_timestamps(self) -> bool:
+        return True
+
+    def timestamps_s(self) -> np.ndarray:
+        """Presentation time of every frame from the container, first frame at 0."""
+        if self._pts is None:
+            with av.open(str(self.path)) as container:
+                _, self._pts = self._demux_count(container)
+        if self._pts is None or len(self._pts) != self.info.n_frames:
+            return super().timestamps_s()
+        return (self._pts - self._pts[0]) * float(self._time_base)
+
+    def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
+        try:
+            container = av.open(str(self.path))
+        except av.error.FFmpegError as exc:
+            raise MovieError(f"cannot reopen {self.path}: {exc}") from None
+        index = 0
+        try:
+            stream = container.streams.video[0]
+            stream.thread_type = "AUTO"
+            if self._threads:
+                stream.codec_context.thread_count = self._threads
+            for frame in container.decode(stream):
+                if index >= stop:
+                    break
+                if index >= start and (index - start) % step == 0:
+                    arr = frame.to_ndarray(format=self._target)
+                    yield arr
+                index += 1
+        except av.error.FFmpegError as exc:
+            raise MovieError(
+                f"{self.path} is corrupt or truncated: decoding failed at frame {index} ({exc}) — "
+                "re-export or copy the movie again"
+            ) from None
+        finally:
+            container.close()
+        if index < stop and stop <= self.info.n_frames and index < self.info.n_frames:
+            raise MovieError(
+                f"{self.path} is truncated: only {index} of {self.info.n_frames} frames decode — "
+                "copy the file again from the camera or recorder"
+            )

@@ -1,0 +1,310 @@
+"""Streaming movie writers for every format grainplug reads.
+
+Each writer takes frames one at a time, so a movie of any length is written in
+constant memory. Output is deterministic: the same frames give the same bytes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError
+
+
+@dataclass(frozen=True)
+class FormatSpec:
+    """A writable format: its name, file suffix (or folder) and whether it is lossless."""
+
+    name: str
+    suffix: str  # "" for folders
+    lossless: bool
+    description: str
+
+
+FORMATS: dict[str, FormatSpec] = {f.name: f for f in (
+    FormatSpec("tiff", ".tif", True, "multi-page TIFF stack (8/16-bit, grey or RGB)"),
+    FormatSpec("png", "", True, "folder of numbered PNG images"),
+    FormatSpec("tiff-folder", "", True, "folder of numbered TIFF images"),
+    FormatSpec("bmp", "", True, "folder of numbered BMP images (8-bit)"),
+    FormatSpec("jpeg", "", False, "folder of numbered JPEG images (8-bit, quality 95)"),
+    FormatSpec("avi", ".avi", True, "AVI, uncompressed (rawvideo)"),
+    FormatSpec("mjpeg", ".avi", False, "AVI, Motion-JPEG"),
+    FormatSpec("ffv1", ".mkv", True, "Matroska, FFV1 lossless (8/16-bit)"),
+    FormatSpec("mov", ".mov", True, "QuickTime, uncompressed (rawvideo)"),
+    FormatSpec("h264", ".mp4", False, "MP4, H.264 (lossy, libx264 crf 20)"),
+    FormatSpec("mraw", ".mraw", True, "Photron .mraw + .cih (grey)"),
+    FormatSpec("cine", ".cine", True, "Phantom .cine (16-bit grey)"),
+)}
+
+
+def movie_path(out_dir: Path, fmt: str, stem: str = "movie") -> Path:
+    """Where a movie of format ``fmt`` is written inside ``out_dir``."""
+    spec = FORMATS[fmt]
+    return out_dir / (f"{stem}_frames" if not spec.suffix else stem + spec.suffix)
+
+
+class MovieWriter:
+    """Write frames one by one to ``path`` in format ``fmt``.
+
+    Parameters
+    ----------
+    path : Path
+        Destination file (or folder for image formats).
+    fmt : str
+        One of :data:`FORMATS`.
+    fps : float
+        Frame rate recorded in the file where the format holds one.
+    metadata : dict, optional
+        JSON-able description stored where the format allows (TIFF, containers).
+    """
+
+    def __init__(self, path: Path, fmt: str, *, fps: float, metadata: dict | None = None) -> None:
+        if fmt not in FORMATS:
+            raise ParameterError(f"unknown movie format {fmt!r}; choose one of {', '.join(FORMATS)}")
+        self.path, self.fmt, self.fps = Path(path), fmt, float(fps)
+        self.metadata = dict(metadata or {})
+        self.count = 0
+        self._impl: object | None = None
+        self._shape: tuple[int, ...] | None = None
+        self._dtype: np.dtype | None = None
+
+    # -- public --------------------------------------------------------------
+    def write(self, frame: np.ndarray) -> None:
+        if self._shape is None:
+            self._shape, self._dtype = frame.shape, frame.dtype
+            self._open(frame)
+        elif frame.shape != self._shape or frame.dtype != self._dtype:
+            raise ValueError("all frames must share one shape and dtype")
+        getattr(self, f"_write_{self.fmt.replace('-', '_')}", self._write_av)(frame)
+        self.count += 1
+
+    def close(self) -> None:
+        impl = self._impl
+        if impl is None:
+            return
+        if self.fmt == "tiff":
+            impl.close()
+        elif self.fmt in ("mraw",):
+            impl.close()
+            self._write_cih()
+        elif self.fmt == "cine":
+            self._finish_cine()
+        elif self.fmt in ("avi", "mjpeg", "ffv1", "mov", "h264"):
+            container, stream = impl
+            for packet in stream.encode():
+                container.mux(packet)
+            container.close()
+        self._impl = None
+
+    def __enter__(self) -> MovieWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- opening -------------------------------------------------------------
+    def _open(self, frame: np.ndarray) -> None:
+        fmt = self.fmt
+        if FORMATS[fmt].suffix == "":
+            self.path.mkdir(parents=True, exist_ok=True)
+            self._impl = True
+            return
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if fmt == "tiff":
+            import tifffile
+
+            self._impl = tifffile.TiffWriter(str(self.path), bigtiff=False)
+        elif fmt == "mraw":
+            if frame.ndim != 2:
+                raise ParameterError("the .mraw writer takes grey frames — render with rgb=False")
+            self._impl = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        elif fmt == "cine":
+            if frame.ndim != 2:
+                raise ParameterError("the .cine writer takes grey frames — render with rgb=False")
+            self._cine_frames: list[int] = []
+            self._impl = open(self.path.with_suffix(".cine.part"), "wb")  # noqa: SIM115
+        else:
+            self._open_av(frame)
+
+    def _open_av(self, frame: np.ndarray) -> None:
+        import av
+
+        h, w = frame.shape[:2]
+        grey = frame.ndim == 2
+        deep = frame.dtype == np.uint16
+        codec, pix = {
+            "avi": ("rawvideo", "gray" if grey else "bgr24"),
+            "mov": ("rawvideo", "rgb24"),  # QuickTime tags grey raw as a palette: store RGB
+            "mjpeg": ("mjpeg", "yuvj444p"),
+            "ffv1": ("ffv1", ("gray16le" if deep else "gray") if grey else ("gbrp16le" if deep else "bgr0")),
+            "h264": ("libx264", "yuv420p"),
+        }[self.fmt]
+        if deep and self.fmt not in ("ffv1",):
+            raise ParameterError(f"format {self.fmt} stores 8-bit frames only — use tiff, png or ffv1 for 16-bit")
+        if self.fmt in ("avi", "mov") and deep:
+            raise ParameterError("16-bit raw video is not supported — use ffv1")
+        container = av.open(str(self.path), mode="w", options={"fflags": "+bitexact"})
+        from fractions import Fraction
+
+        rate = Fraction(self.fps).limit_denominator(1001)
+        stream = container.add_stream(codec, rate=rate)
+        stream.width, stream.height, stream.pix_fmt = w, h, pix
+        stream.codec_context.flags |= av.codec.context.Flags.bitexact
+        if self.fmt == "h264":
+            stream.options = {"crf": "20", "preset": "veryfast", "threads": "1"}
+        elif self.fmt == "mjpeg":
+            stream.codec_context.qmin = stream.codec_context.qmax = 2
+        elif self.fmt == "ffv1":
+            stream.options = {"level": "3", "slices": "4", "threads": "1"}
+        for key, value in self.metadata.items():
+            container.metadata[str(key)] = str(value)
+        self._impl = (container, stream)
+        self._grey = grey
+
+    # -- per format ----------------------------------------------------------
+    def _frame_name(self, ext: str) -> Path:
+        # deliberately not zero-padded: readers must sort naturally (frame_2 < frame_10)
+        return self.path / f"frame_{self.count + 1}{ext}"
+
+    def _write_png(self, frame: np.ndarray) -> None:
+        from PIL import Image
+
+        if frame.dtype == np.uint16:
+            if frame.ndim == 3:
+                raise ParameterError("16-bit RGB PNG is not supported — use tiff or ffv1")
+            Image.fromarray(frame).save(self._frame_name(".png"), compress_level=1)
+        else:
+            Image.fromarray(frame).save(self._frame_name(".png"), compress_level=1)
+
+    def _write_bmp(self, frame: np.ndarray) -> None:
+        from PIL import Image
+
+        if frame.dtype != np.uint8:
+            raise ParameterError("BMP stores 8-bit frames only — use tiff or png for 16-bit")
+        Image.fromarray(frame).save(self._frame_name(".bmp"))
+
+    def _write_jpeg(self, frame: np.ndarray) -> None:
+        from PIL import Image
+
+        if frame.dtype != np.uint8:
+            raise ParameterError("JPEG stores 8-bit frames only — use tiff or png for 16-bit")
+        Image.fromarray(frame).save(self._frame_name(".jpg"), quality=95, subsampling=0)
+
+    def _write_tiff_folder(self, frame: np.ndarray) -> None:
+        import tifffile
+
+        tifffile.imwrite(str(self._frame_name(".tif")), frame,
+                         photometric="rgb" if frame.ndim == 3 else "minisblack")
+
+    def _write_tiff(self, frame: np.ndarray) -> None:
+        meta = None
+        if self.count == 0:
+            meta = {"fps": self.fps, **self.metadata}
+        self._impl.write(frame, contiguous=True, metadata=meta,
+                         photometric="rgb" if frame.ndim == 3 else "minisblack")
+
+    def _write_av(self, frame: np.ndarray) -> None:
+        import av
+
+        container, stream = self._impl
+        if frame.ndim == 2 and self.fmt == "mov":
+            frame = np.repeat(frame[..., None], 3, axis=2)
+        if frame.ndim == 2:
+            vf = av.VideoFrame.from_ndarray(frame, format="gray16le" if frame.dtype == np.uint16 else "gray")
+        else:
+            vf = av.VideoFrame.from_ndarray(frame, format="rgb48le" if frame.dtype == np.uint16 else "rgb24")
+        vf.pts = self.count
+        for packet in stream.encode(vf):
+            container.mux(packet)
+
+    def _write_mraw(self, frame: np.ndarray) -> None:
+        self._impl.write(np.ascontiguousarray(frame).tobytes())
+
+    def _write_cih(self) -> None:
+        # same header layout as pyMRAW.save_mraw writes
+        bits = 8 * self._dtype.itemsize
+        info = {
+            "Record Rate(fps)": f"{round(self.fps):d}",
+            "Shutter Speed(s)": f"{1 / self.fps:.6f}",
+            "Total Frame": f"{self.count:d}",
+            "Original Total Frame": f"{self.count:d}",
+            "Start Frame": "0",
+            "Image Width": f"{self._shape[1]:d}",
+            "Image Height": f"{self._shape[0]:d}",
+            "Color Type": "Mono",
+            "Color Bit": bits,
+            "File Format": "MRaw",
+            "EffectiveBit Depth": bits if bits < 16 else 16,
+            "Comment Text": "grainplug synthetic movie",
+            "EffectiveBit Side": "Lower",
+        }
+        with open(self.path.with_suffix(".cih"), "w") as fh:
+            fh.write("#Camera Information Header\n")
+            for key, value in info.items():
+                fh.write(f"{key} : {value}\n")
+
+    def _write_cine(self, frame: np.ndarray) -> None:
+        data = np.flipud(frame.astype("<u2")).tobytes()  # .cine stores rows bottom-up
+        self._cine_frames.append(len(data))
+        self._impl.write(data)
+
+    def _finish_cine(self) -> None:
+        """Assemble a 16-bit grey .cine with pycine's own header structures."""
+        import ctypes
+
+        from pycine import cine
+
+        self._impl.close()
+        part = self.path.with_suffix(".cine.part")
+        h, w = self._shape
+        n = self.count
+        cfh, bih, setup = cine.CINEFILEHEADER(), cine.BITMAPINFOHEADER(), cine.SETUP()
+        off_bih = ctypes.sizeof(cfh)
+        off_setup = off_bih + ctypes.sizeof(bih)
+        off_offsets = off_setup + ctypes.sizeof(setup)
+        first_image = off_offsets + 8 * n
+        cfh.Type, cfh.Headersize, cfh.Compression, cfh.Version = 0x4943, off_bih, 0, 1
+        cfh.TotalImageCount = cfh.ImageCount = n
+        cfh.FirstImageNo = cfh.FirstMovieImage = 0
+        cfh.OffImageHeader, cfh.OffSetup, cfh.OffImageOffsets = off_bih, off_setup, off_offsets
+        bih.biSize, bih.biWidth, bih.biHeight = ctypes.sizeof(bih), w, h
+        bih.biPlanes, bih.biBitCount, bih.biCompression = 1, 16, 0
+        bih.biSizeImage = w * h * 2
+        setup.FrameRate = int(round(self.fps))
+        setup.RealBPP = 16
+        setup.BlackLevel, setup.WhiteLevel = 0, 65535
+        offsets, pos = [], first_image
+        for size in self._cine_frames:
+            offsets.append(pos)
+            pos += 8 + size
+        with open(self.path, "wb") as out, open(part, "rb") as src:
+            out.write(bytes(cfh))
+            out.write(bytes(bih))
+            out.write(bytes(setup))
+            out.write(np.asarray(offsets, dtype="<i8").tobytes())
+            for size in self._cine_frames:
+                out.write(np.asarray([8, size], dtype="<u4").tobytes())  # annotation size, image size
+                out.write(src.read(size))
+        os.remove(part)
+
+
+def write_json(path: Path, data: object) -> None:
+    """Write JSON atomically (temporary name, then rename)."""
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
+    os.replace(tmp, path)
+
+
+def _json_default(obj: object) -> object:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj)}")
