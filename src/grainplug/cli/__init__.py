@@ -31,7 +31,8 @@ def main(argv: list[str] | None = None) -> int:
     except click.UsageError as exc:
         if debug:
             raise
-        hint = f" (see 'grainplug {exc.ctx.info_name} --help')" if exc.ctx and exc.ctx.parent else " (see 'grainplug --help')"
+        where = f"grainplug {exc.ctx.info_name}" if exc.ctx and exc.ctx.parent else "grainplug"
+        hint = f" (see '{where} --help')"
         click.echo(f"error: {exc.format_message()}{hint}", err=True)
         return 2
     except GrainplugError as exc:

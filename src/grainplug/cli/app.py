@@ -68,7 +68,7 @@ def info(movie: Path, glob_: str | None, fps: float | None, as_json: bool) -> No
 
 
 # ---------------------------------------------------------------------------
-def _synth_options(f):  # noqa: ANN001, ANN202 - decorator
+def _synth_options(f):
     from ..synthetic import FLOW_DIRECTIONS, FORMATS, REGIMES
 
     opts = [
@@ -133,3 +133,64 @@ def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwar
         _echo_json(result.truth)
     else:
         click.echo(f"wrote {result.movie} and {result.truth_json.name}")
+
+
+# ---------------------------------------------------------------------------
+@cli.command()
+@click.argument("movie", type=click.Path(path_type=Path))
+@click.option("--out", "out", type=click.Path(path_type=Path), required=True,
+              help="Folder for summary.json, CSV tables, diagram, figures and report.")
+@click.option("--fps", type=float, default=None, help="Frame rate (overrides the file; needed for image folders).")
+@click.option("--mm-per-px", type=float, default=None, help="Scale; by default measured from the tube's inner width.")
+@click.option("--tube-diameter-mm", type=float, default=3.0, show_default=True,
+              help="Inner diameter of the tube, for the scale.")
+@click.option("--flow-direction", type=click.Choice(["down", "up", "left", "right"]), default=None,
+              help="Direction of the grain flow in the image [default: down for a vertical tube].")
+@click.option("--min-plug-mm", type=float, default=3.0, show_default=True,
+              help="Shortest grain region counted as a plug.")
+@click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
+@click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
+def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
+            tube_diameter_mm: float, flow_direction: str | None, min_plug_mm: float,
+            glob_: str | None, no_figures: bool, as_json: bool) -> None:
+    """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from ..analysis import AnalysisParams
+    from ..analysis import analyze as run_analysis
+    from ..outputs import write_outputs
+
+    params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=tube_diameter_mm,
+                            flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_)
+    with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
+                  TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
+                  console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
+        task = bar.add_task(f"analysing {movie.name}", total=None)
+
+        def progress(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        result = run_analysis(movie, params, progress=progress)
+    write_outputs(result, out, figures=not no_figures, report=not no_figures)
+    s = result.summary
+    if as_json:
+        _echo_json(s)
+        return
+    if not result.has_plugs:
+        err_console.print(result.statement)
+    else:
+        def fmt(v: object, unit: str = "", nd: int = 4) -> str:
+            return "—" if v is None else f"{v:.{nd}f}{unit}" if isinstance(v, float) else f"{v}{unit}"
+
+        ci = s["celerity_ci95_m_s"]
+        click.echo(f"regime          {s['regime']}")
+        click.echo(f"celerity        {fmt(s['celerity_m_s'], ' m/s')}  (95% CI {fmt(ci[0])} to {fmt(ci[1])})")
+        click.echo(f"plug length     {fmt(s['plug_length_mm'], ' mm', 2)}  "
+                   f"({fmt(s['plug_length_over_diameter'], ' D', 2)}, {s['n_plugs']} plugs)")
+        click.echo(f"bubble length   {fmt(s['bubble_length_mm'], ' mm', 2)}")
+        if s["oscillation_frequency_hz"]:
+            click.echo(f"oscillation     {fmt(s['oscillation_frequency_hz'], ' Hz', 3)}, "
+                       f"amplitude {fmt(s['oscillation_amplitude_mm'], ' mm', 2)}")
+        click.echo(f"scale           {fmt(s['mm_per_px'], ' mm/px', 5)} from {s['scale_source']}")
+    click.echo(f"outputs in      {out}")

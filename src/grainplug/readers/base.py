@@ -129,6 +129,20 @@ class Movie(abc.ABC):
             raise IndexError(f"frame {index} out of range 0..{self.info.n_frames - 1}")
         return next(iter(self.frames(index, index + 1)))
 
+    def sample(self, n: int) -> tuple[np.ndarray, list[np.ndarray]]:
+        """About ``n`` frames spread over the movie, read the cheapest way.
+
+        Returns
+        -------
+        indices : ndarray
+            Frame indices of the sample.
+        frames : list of ndarray
+            The frames.
+        """
+        total = self.info.n_frames
+        idx = np.unique(np.linspace(0, total - 1, min(n, total)).round().astype(int))
+        return idx, [self.read(int(i)) for i in idx]
+
     def timestamps_s(self) -> np.ndarray:
         """Per-frame time stamps in seconds from the first frame.
 

@@ -24,7 +24,7 @@ _RGB16 = {"rgb48le", "rgb48be", "bgr48le", "bgr48be", "rgba64le", "rgba64be", "g
 def _output_format(pix_fmt: str | None) -> tuple[str, int, int]:
     """Map a stream pixel format to (ffmpeg target format, channels, bit depth)."""
     name = (pix_fmt or "").lower()
-    if name in _GRAY8 or name.startswith("gray") and "16" not in name and "1" not in name[4:]:
+    if name in _GRAY8 or (name.startswith("gray") and "16" not in name and "1" not in name[4:]):
         return "gray", 1, 8
     if name in _GRAY16 or name.startswith(("gray1", "gray9")):
         return "gray16le", 1, 16
@@ -119,6 +119,47 @@ class VideoMovie(Movie):
         if self._pts is None or len(self._pts) != self.info.n_frames:
             return super().timestamps_s()
         return (self._pts - self._pts[0]) * float(self._time_base)
+
+    def sample(self, n: int) -> tuple[np.ndarray, list[np.ndarray]]:
+        """About ``n`` frames spread over the movie, decoding only key frames.
+
+        Intra-only codecs (raw, FFV1, MJPEG) have every frame a key frame, so the
+        sample spans the whole movie; inter-coded video (H.264) with too few key
+        frames falls back to every k-th frame of a prefix.
+        """
+        total = self.info.n_frames
+        if total <= n:
+            return np.arange(total), list(self.frames())
+        try:
+            with av.open(str(self.path)) as container:
+                keys = [k for k, pkt in enumerate(p for p in container.demux(video=0) if p.size)
+                        if pkt.is_keyframe]
+            if len(keys) >= min(n, 24):
+                pick = sorted({keys[k] for k in np.linspace(0, len(keys) - 1, n).round().astype(int)})
+                frames: list[np.ndarray] = []
+                with av.open(str(self.path)) as container:
+                    stream = container.streams.video[0]
+                    ctx = stream.codec_context
+                    wanted = set(pick)
+                    k = 0
+                    for pkt in container.demux(stream):
+                        if not pkt.size:
+                            continue
+                        if k in wanted:
+                            for frame in ctx.decode(pkt):
+                                frames.append(frame.to_ndarray(format=self._target))
+                        k += 1
+                    for frame in ctx.decode(None):
+                        frames.append(frame.to_ndarray(format=self._target))
+                if len(frames) == len(pick):
+                    return np.asarray(pick), frames
+        except av.error.FFmpegError:
+            pass
+        # inter-coded video with few key frames: decode a prefix and keep every k-th frame
+        prefix = min(total, max(4 * n, 240))
+        step = max(1, prefix // n)
+        idx = np.arange(0, prefix, step)
+        return idx, list(self.frames(0, prefix, step))
 
     def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
         try:

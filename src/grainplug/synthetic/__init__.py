@@ -20,7 +20,8 @@ from .kinematics import REGIMES, displacement_mm
 from .render import FLOW_DIRECTIONS, Renderer, SynthConfig
 from .writers import FORMATS, MovieWriter, movie_path, write_json
 
-#: frames a plug must be wholly in view to count in the truth's mean length
+#: frames a plug must be wholly in view, apart from its neighbours, to count in the
+#: truth's mean length
 MIN_FULL_FRAMES = 5
 
 
@@ -54,20 +55,29 @@ def compute_truth(renderer: Renderer) -> tuple[dict, list[tuple]]:
     view = cfg.view_length_mm
     rows: list[tuple] = []
     full_count = np.zeros(len(renderer.train), dtype=int)
-    bubble_full = np.zeros(max(len(renderer.train) - 1, 0), dtype=int)
+    n_gap = max(len(renderer.train) - 1, 0)
+    gap_samples: list[list[float]] = [[] for _ in range(n_gap)]
     if cfg.regime != "none":
         for k in range(cfg.n_frames):
             tops, bots = renderer.plug_edges_mm(k)
             vis = np.nonzero((bots > 0) & (tops < view))[0]
             for i in vis:
                 rows.append((k, k / cfg.fps, int(i), float(tops[i]), float(bots[i])))
-            full_count += (tops >= 0) & (bots <= view)
-            if len(bubble_full):
-                bubble_full += (bots[:-1] >= 0) & (tops[1:] <= view)
+            # whole in view and apart from its neighbours (a plug merged with another is
+            # not seen as itself)
+            apart = np.ones(len(tops), bool)
+            apart[1:] &= tops[1:] > bots[:-1]
+            apart[:-1] &= bots[:-1] < tops[1:]
+            full_count += (tops >= 0) & (bots <= view) & apart
+            if n_gap:
+                whole = (bots[:-1] >= 0) & (tops[1:] <= view) & (tops[1:] > bots[:-1])
+                for g in np.nonzero(whole)[0]:
+                    gap_samples[g].append(float(tops[g + 1] - bots[g]))
     lengths = renderer.train.length_mm
     full = full_count >= MIN_FULL_FRAMES
-    gaps = renderer.train.top0_mm[1:] - renderer.train.bottom0_mm[:-1]
-    gfull = bubble_full >= MIN_FULL_FRAMES
+    # a bubble's length is the median of its actual length over the frames it is wholly in
+    # view (merging plugs change it); plugs keep their length
+    gaps = np.asarray([np.median(g) for g in gap_samples if len(g) >= MIN_FULL_FRAMES])
     has_plugs = cfg.regime != "none"
     oscillating = cfg.regime in ("oscillating", "stick-slip")
     times = np.arange(cfg.n_frames) / cfg.fps
@@ -82,7 +92,7 @@ def compute_truth(renderer: Renderer) -> tuple[dict, list[tuple]]:
         "celerity_m_s": cfg.celerity_m_s if has_plugs else None,
         "plug_length_mm": float(np.mean(lengths[full])) if has_plugs and full.any() else None,
         "plug_lengths_mm": [float(x) for x in lengths[full]] if has_plugs else [],
-        "bubble_length_mm": float(np.mean(gaps[gfull])) if has_plugs and gfull.any() else None,
+        "bubble_length_mm": float(np.mean(gaps)) if has_plugs and gaps.size else None,
         "oscillation_frequency_hz": cfg.frequency_hz if has_plugs and oscillating else None,
         "oscillation_amplitude_mm": float(np.ptp(detrended) / 2) if has_plugs and oscillating else 0.0,
         "n_plugs_seen": int(np.count_nonzero(full_count > 0)) if has_plugs else 0,

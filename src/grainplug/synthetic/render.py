@@ -177,13 +177,13 @@ class Renderer:
         h, w = cfg.height_px, cfg.width_px
         alpha = np.radians(cfg.tilt_deg)
         self._alpha = alpha
-        self.x_axis_top_px = (w - 1) / 2 + cfg.tube_offset_px + 0.5 * h * np.tan(alpha)
+        self.x_axis_top_px = (w - 1) / 2 + cfg.tube_offset_px - 0.5 * h * np.tan(alpha)
         self.R_in = cfg.tube_diameter_mm / 2
         self.R_out = self.R_in + cfg.wall_mm
         px = cfg.mm_per_px
         # band of columns holding the tube
         reach = (self.R_out + 3 * px) / np.cos(alpha) / px
-        xs_axis = self.x_axis_top_px - (np.arange(h) + 0.5) * np.tan(alpha)
+        xs_axis = self.x_axis_top_px + (np.arange(h) + 0.5) * np.tan(alpha)
         x0 = int(max(0, np.floor(xs_axis.min() - reach)))
         x1 = int(min(w, np.ceil(xs_axis.max() + reach) + 1))
         self._cols = slice(x0, x1)
@@ -206,6 +206,7 @@ class Renderer:
         # interface roughness: a smooth random profile across the tube, per plug and edge
         r_grid = np.linspace(-self.R_in, self.R_in, 33)
         rough = ndimage.gaussian_filter1d(self.rng.normal(size=(n, 2, 33)), 4, axis=-1)
+        rough -= rough.mean(axis=-1, keepdims=True)  # the mean interface is the nominal edge
         rough /= np.maximum(rough.std(axis=-1, keepdims=True), 1e-9)
         self._rough = rough * cfg.edge_roughness_mm
         self._rough_r = r_grid

@@ -122,12 +122,12 @@ class MovieWriter:
         elif fmt == "mraw":
             if frame.ndim != 2:
                 raise ParameterError("the .mraw writer takes grey frames — render with rgb=False")
-            self._impl = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+            self._impl = open(self.path, "wb")
         elif fmt == "cine":
             if frame.ndim != 2:
                 raise ParameterError("the .cine writer takes grey frames — render with rgb=False")
             self._cine_frames: list[int] = []
-            self._impl = open(self.path.with_suffix(".cine.part"), "wb")  # noqa: SIM115
+            self._impl = open(self.path.with_suffix(".cine.part"), "wb")
         else:
             self._open_av(frame)
 

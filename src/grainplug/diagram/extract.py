@@ -1,0 +1,134 @@
+"""Stream a movie into its spatiotemporal diagram.
+
+Each frame is reduced to one profile along the tube axis: the mean grey level
+over the core of the bore (the central 70% of the inner diameter, away from the
+walls), sampled at every pixel row along the axis. Only the few pixels of that
+band are gathered from each frame, so memory does not depend on the movie's
+length and the per-frame work is small.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..calibration.tube import TubeGeometry
+
+log = logging.getLogger(__name__)
+
+CORE_FRACTION = 0.7
+
+
+@dataclass(frozen=True)
+class Diagram:
+    """Spatiotemporal diagram: grey level along the tube (columns) against time (rows).
+
+    Attributes
+    ----------
+    values : ndarray, shape (n_frames, n_positions)
+        Mean grey level of the bore's core, float32.
+    time_s : ndarray, shape (n_frames,)
+        Time of each frame from the first one.
+    position_mm : ndarray, shape (n_positions,)
+        Position along the tube from the upstream end of the view, increasing with the flow.
+    mm_per_px : float
+        Scale used to turn axis samples into mm.
+    """
+
+    values: np.ndarray
+    time_s: np.ndarray
+    position_mm: np.ndarray
+    mm_per_px: float
+
+    @property
+    def n_frames(self) -> int:
+        return self.values.shape[0]
+
+
+class BandSampler:
+    """Gathers the core band of the bore along the axis from a frame.
+
+    Parameters
+    ----------
+    tube : TubeGeometry
+        The tube found by :func:`grainplug.calibration.find_tube`.
+    reverse : bool
+        The flow runs towards decreasing canonical rows (upwards, or leftwards).
+    core_fraction : float
+        Part of the inner diameter that is averaged across the tube.
+    """
+
+    def __init__(self, tube: TubeGeometry, *, reverse: bool = False,
+                 core_fraction: float = CORE_FRACTION) -> None:
+        self.tube = tube
+        h, w = tube.canonical_shape
+        half = max(1.0, 0.5 * core_fraction * tube.inner_diameter_px)
+        offsets = np.arange(-np.floor(half), np.floor(half) + 1)
+        rows = np.arange(h)
+        centre = tube.axis_x(rows)
+        cols = np.rint(centre[:, None] + offsets[None, :]).astype(np.int64)
+        valid = (cols >= 0) & (cols < w)
+        keep = valid.mean(axis=1) >= 0.5  # rows where the band is mostly in the frame
+        self.rows = rows[keep]
+        cols = np.clip(cols[keep], 0, w - 1)
+        self.weights = valid[keep].astype(np.float32)
+        self.weights /= self.weights.sum(axis=1, keepdims=True)
+        if tube.orientation == "horizontal":
+            self._r, self._c = cols, np.repeat(self.rows[:, None], cols.shape[1], axis=1)
+        else:
+            self._r, self._c = np.repeat(self.rows[:, None], cols.shape[1], axis=1), cols
+        self.reverse = reverse
+        if reverse:
+            self._r, self._c, self.weights = self._r[::-1], self._c[::-1], self.weights[::-1]
+            self.rows = self.rows[::-1]
+        # distance along the axis from the upstream edge of the view, in px
+        cos_t = np.cos(np.radians(tube.tilt_deg))
+        edge = (h - 1 - self.rows) if reverse else self.rows
+        self.axis_px = (edge + 0.5) / cos_t
+        self.bbox = (int(self._r.min()), int(self._r.max()) + 1, int(self._c.min()), int(self._c.max()) + 1)
+
+    def __call__(self, frame: np.ndarray) -> np.ndarray:
+        """Core profile along the axis of one frame (float32)."""
+        band = frame[self._r, self._c]
+        if band.ndim == 3:
+            band = band.mean(axis=2, dtype=np.float32)
+        return np.einsum("ij,ij->i", band.astype(np.float32, copy=False), self.weights)
+
+
+def build_diagram(frames: Iterable[np.ndarray], sampler: BandSampler, *, n_frames: int,
+                  time_s: np.ndarray, mm_per_px: float,
+                  progress: Callable[[int], None] | None = None) -> Diagram:
+    """Reduce every frame to its axial profile and stack them.
+
+    Parameters
+    ----------
+    frames : iterable of ndarray
+        The movie's frames, in order (streamed).
+    sampler : BandSampler
+        Where to read each frame.
+    n_frames : int
+        Number of frames expected (sizes the output).
+    time_s : ndarray
+        Time of each frame.
+    mm_per_px : float
+        Scale.
+    progress : callable, optional
+        Called with the number of frames done, now and then.
+    """
+    out = np.empty((n_frames, len(sampler.axis_px)), np.float32)
+    k = 0
+    for k, frame in enumerate(frames):
+        if k >= n_frames:
+            break
+        out[k] = sampler(frame)
+        if progress is not None and (k & 15) == 15:
+            progress(k + 1)
+    done = k + 1 if n_frames else 0
+    if progress is not None:
+        progress(done)
+    if done < n_frames:
+        out = out[:done]
+    return Diagram(out, np.asarray(time_s[:done], float), sampler.axis_px * mm_per_px, mm_per_px)

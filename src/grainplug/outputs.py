@@ -1,0 +1,120 @@
+"""Write an analysis to disk: summary, edges, tracks, diagram, figures, report.
+
+Everything is written into a temporary folder inside the destination and moved
+into place at the end, so an interrupted run never leaves half-written files.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .analysis import AnalysisResult
+from .synthetic.writers import _json_default
+
+FILES = {
+    "summary": "summary.json",
+    "edges": "plug_edges.csv",
+    "tracks": "tracks.csv",
+    "diagram": "diagram.npz",
+    "fig_diagram": "diagram.png",
+    "fig_spectrum": "spectrum.png",
+    "fig_frame": "frame.png",
+}
+
+
+def edges_table(res: AnalysisResult) -> str:
+    """CSV of the plug edges per frame: frame, time_s, plug_id, top_mm, bottom_mm."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["frame", "time_s", "plug_id", "top_mm", "bottom_mm"])
+    r = res.runs
+    t = res.diagram.time_s
+    for i in range(len(r)):
+        top = "" if not np.isfinite(r.top_mm[i]) else f"{r.top_mm[i]:.4f}"
+        bot = "" if not np.isfinite(r.bottom_mm[i]) else f"{r.bottom_mm[i]:.4f}"
+        w.writerow([int(r.frame[i]), f"{t[r.frame[i]]:.6f}", int(res.tracks.run_track[i]), top, bot])
+    return buf.getvalue()
+
+
+def tracks_table(res: AnalysisResult) -> str:
+    """CSV with one row per plug track."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["plug_id", "first_frame", "last_frame", "first_time_s", "last_time_s", "n_frames",
+                "n_frames_whole", "celerity_m_s", "mean_length_mm", "median_length_mm",
+                "started_by", "ended_by", "composite"])
+    r, tr = res.runs, res.tracks
+    t = res.diagram.time_s
+    for tid in range(len(tr)):
+        sel = tr.run_track == tid
+        frames = r.frame[sel]
+        top, bot = r.top_mm[sel], r.bottom_mm[sel]
+        whole = np.isfinite(top) & np.isfinite(bot)
+        edge = top if np.isfinite(top).sum() >= 2 else bot
+        ok = np.isfinite(edge)
+        cel = ""
+        if ok.sum() >= 2 and np.ptp(t[frames[ok]]) > 0:
+            cel = f"{np.polyfit(t[frames[ok]], edge[ok], 1)[0] / 1000:.6f}"
+        lengths = (bot - top)[whole]
+        w.writerow([
+            tid, int(tr.first_frame[tid]), int(tr.last_frame[tid]), f"{t[tr.first_frame[tid]]:.6f}",
+            f"{t[tr.last_frame[tid]]:.6f}", int(sel.sum()), int(whole.sum()), cel,
+            f"{lengths.mean():.4f}" if lengths.size else "",
+            f"{np.median(lengths):.4f}" if lengths.size else "",
+            tr.started_by[tid], tr.ended_by[tid], int(tr.composite(tid)),
+        ])
+    return buf.getvalue()
+
+
+def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = True,
+                  report: bool = True) -> dict[str, Path]:
+    """Write every output of ``res`` into ``out_dir``; returns the paths written."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=".grainplug-", dir=out))
+    written: dict[str, Path] = {}
+    try:
+        summary = res.summary
+        summary["outputs"] = {k: v for k, v in FILES.items()
+                              if k != "fig_spectrum" or (res.motion and res.motion.oscillation_frequency_hz)}
+        (tmp / FILES["summary"]).write_text(json.dumps(summary, indent=2, default=_json_default) + "\n")
+        (tmp / FILES["edges"]).write_text(edges_table(res))
+        (tmp / FILES["tracks"]).write_text(tracks_table(res))
+        with open(tmp / FILES["diagram"], "wb") as fh:
+            np.savez_compressed(
+                fh, values=res.diagram.values, contrast=res.normalized.z, time_s=res.diagram.time_s,
+                position_mm=res.diagram.position_mm, mm_per_px=res.mm_per_px,
+                provenance=json.dumps({"grainplug_version": summary["grainplug_version"],
+                                       "input": summary["input"], "parameters": summary["parameters"]},
+                                      default=_json_default),
+            )
+        if figures:
+            import matplotlib.pyplot as plt
+
+            from .plotting import plot_annotated_frame, plot_diagram, plot_spectrum
+
+            figs = {"fig_diagram": plot_diagram(res), "fig_frame": plot_annotated_frame(res)}
+            if res.motion is not None and res.motion.oscillation_frequency_hz:
+                figs["fig_spectrum"] = plot_spectrum(res)
+            for key, fig in figs.items():
+                fig.savefig(tmp / FILES[key], dpi=110)
+                plt.close(fig)
+        if report:
+            from .reports import run_report
+
+            (tmp / "report.html").write_text(run_report(res, tmp))
+        for f in sorted(tmp.iterdir()):
+            dest = out / f.name
+            os.replace(f, dest)
+            written[f.stem if f.suffix != ".png" else "fig_" + f.stem] = dest
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return written

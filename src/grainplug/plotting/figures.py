@@ -1,0 +1,128 @@
+"""Figures of one analysis: the spatiotemporal diagram (the paper's Figs 5-8), the
+oscillation spectrum, and an annotated frame (the paper's Fig 4)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import matplotlib
+
+matplotlib.use("Agg", force=False)
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
+
+if TYPE_CHECKING:
+    from ..analysis import AnalysisResult
+
+
+def plot_diagram(res: AnalysisResult, *, max_markers: int = 4000) -> Figure:
+    """Spatiotemporal diagram with the detected upper (orange squares) and lower (blue
+    circles) plug edges and the mean-celerity line (dashed), as in the paper's Figs 5-8
+    (which draw the upper edges black, invisible here over dark plugs)."""
+    d = res.diagram
+    fig, ax = plt.subplots(figsize=(9, 5.5), constrained_layout=True)
+    t, s = d.time_s, d.position_mm
+    ax.imshow(d.values.T, aspect="auto", cmap="gray", origin="upper", interpolation="nearest",
+              extent=(t[0], t[-1], s[-1], s[0]))
+    runs = res.runs
+    if len(runs):
+        step = max(1, len(runs) // max_markers)
+        tt = t[runs.frame[::step]]
+        ax.plot(tt, runs.top_mm[::step], "s", ms=2.2, mfc="none", mec="orange", mew=0.6,
+                label="upper edge")
+        ax.plot(tt, runs.bottom_mm[::step], "o", ms=2.2, mfc="none", mec="tab:blue", mew=0.6,
+                label="lower edge")
+    m = res.motion
+    title = "no plugs" if not res.has_plugs else ""
+    if m is not None:
+        c_mm_s = m.celerity_m_s * 1000
+        # one dashed line per track start, like the paper's mean-celerity line
+        ok = np.isfinite(runs.top_mm)
+        if ok.any():
+            t0 = t[runs.frame[ok]]
+            y0 = runs.top_mm[ok]
+            k = int(np.argmin(np.abs(t0 - t0.mean())))
+            ax.plot(t, y0[k] + c_mm_s * (t - t0[k]), "--", color="tab:red", lw=1.2,
+                    label=f"mean celerity {m.celerity_m_s:+.4f} m/s")
+        L = res.lengths.plug_length_mm if res.lengths else None
+        title = f"{m.regime}: v_p = {m.celerity_m_s:+.4f} m/s"
+        if L:
+            title += f", λ = {L:.2f} mm ({L / res.params.tube_diameter_mm:.1f} D)"
+        if m.oscillation_frequency_hz:
+            title += f", f = {m.oscillation_frequency_hz:.2f} Hz"
+    ax.set_ylim(s[-1], s[0])
+    ax.set_xlim(t[0], t[-1])
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("position along the tube (mm, flow downward)")
+    ax.set_title(title, fontsize=10)
+    if len(runs):
+        ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
+    return fig
+
+
+def plot_spectrum(res: AnalysisResult) -> Figure:
+    """Displacement of the plug train about its drift, and its amplitude spectrum."""
+    m = res.motion
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5.5), constrained_layout=True)
+    x = m.displacement_mm - m.celerity_m_s * 1000 * m.time_s
+    a1.plot(m.time_s, x - np.nanmean(x), "k-", lw=0.8)
+    a1.set_xlabel("time (s)")
+    a1.set_ylabel("displacement about drift (mm)")
+    sel = m.spectrum_hz <= min(60.0, m.spectrum_hz[-1])
+    a2.plot(m.spectrum_hz[sel], m.spectrum_mm[sel], "k-", lw=0.8)
+    if m.oscillation_frequency_hz:
+        a2.axvline(m.oscillation_frequency_hz, color="tab:red", ls="--", lw=1,
+                   label=f"f = {m.oscillation_frequency_hz:.3f} Hz, A = {m.oscillation_amplitude_mm:.2f} mm")
+        a2.legend(fontsize=8)
+    a2.set_xlabel("frequency (Hz)")
+    a2.set_ylabel("amplitude (mm)")
+    a1.set_title(f"oscillation of the plugs ({m.regime})", fontsize=10)
+    return fig
+
+
+def plot_annotated_frame(res: AnalysisResult) -> Figure:
+    """One frame with the detected tube (inner walls, axis) and plugs (edges), the paper's Fig 4."""
+    frame = res.sample_frame
+    img = frame.astype(float)
+    if img.ndim == 3:
+        img = img / max(img.max(), 1)
+    tube = res.tube
+    h = tube.canonical_shape[0]
+    vertical = tube.orientation == "vertical"
+    tall = vertical
+    fig, ax = plt.subplots(figsize=(4.5, 8) if tall else (9, 4.5), constrained_layout=True)
+    ax.imshow(img, cmap="gray", interpolation="nearest")
+    rows = np.arange(h, dtype=float)
+    axis = tube.axis_x(rows)
+    half = 0.5 * tube.inner_diameter_px / np.cos(np.radians(tube.tilt_deg))
+
+    def draw(xc, yc, *args, **kw):
+        if vertical:
+            ax.plot(xc, yc, *args, **kw)
+        else:
+            ax.plot(yc, xc, *args, **kw)
+
+    draw(axis - half, rows, "-", color="tab:orange", lw=0.8, label="inner walls")
+    draw(axis + half, rows, "-", color="tab:orange", lw=0.8)
+    draw(axis, rows, ":", color="tab:orange", lw=0.6)
+    runs = res.runs
+    sel = runs.frame == res.sample_frame_index
+    cos_t = np.cos(np.radians(tube.tilt_deg))
+    reverse = res.flow_direction in ("up", "left")
+    for top, bot in zip(runs.top_mm[sel], runs.bottom_mm[sel], strict=True):
+        for pos, color in ((top, "red"), (bot, "deepskyblue")):
+            if not np.isfinite(pos):
+                continue
+            row = pos / res.mm_per_px * cos_t - 0.5
+            if reverse:
+                row = h - 1 - row
+            xc = tube.axis_x(row)
+            draw([xc - half, xc + half], [row, row], "-", color=color, lw=1.6)
+            draw([xc], [row], "*", color=color, ms=7)
+    ax.set_title(f"frame {res.sample_frame_index}: tube {tube.inner_diameter_px:.2f} px, "
+                 f"tilt {tube.tilt_deg:+.2f}°\nred: upper edges, blue: lower edges", fontsize=8)
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.legend(loc="lower right", fontsize=7)
+    return fig

@@ -1,0 +1,97 @@
+"""`grainplug analyze`: outputs, JSON, provenance, bad input."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+from test_cli_basics import assert_one_line_error, run
+
+from grainplug.synthetic import SynthConfig, synthesize
+
+
+@pytest.fixture(scope="module")
+def movie(tmp_path_factory):
+    d = tmp_path_factory.mktemp("m")
+    return synthesize(SynthConfig(n_frames=200, seed=4, regime="oscillating", celerity_m_s=0.03,
+                                  frequency_hz=8.0), d, fmt="avi")
+
+
+def test_outputs(tmp_path, capsys, movie):
+    out = tmp_path / "out"
+    code, stdout, err = run(capsys, "analyze", movie.movie, "--out", out, "--json")
+    assert code == 0, err
+    s = json.loads(stdout)
+    for key in ("celerity_m_s", "celerity_ci95_m_s", "plug_length_mm", "plug_length_ci95_mm",
+                "plug_length_over_diameter", "bubble_length_mm", "oscillation_frequency_hz",
+                "oscillation_amplitude_mm", "regime", "n_plugs", "n_frames", "fps", "mm_per_px",
+                "tube_axis_angle_deg", "tube_diameter_px", "grainplug_version", "parameters", "input"):
+        assert key in s, key
+    assert s["regime"] == "oscillating"
+    assert s["input"]["bytes"] == movie.movie.stat().st_size
+    assert s["parameters"]["tube_diameter_mm"] == 3.0
+    on_disk = json.loads((out / "summary.json").read_text())
+    assert on_disk["celerity_m_s"] == s["celerity_m_s"]
+    for name in ("plug_edges.csv", "tracks.csv", "diagram.npz", "diagram.png", "spectrum.png",
+                 "frame.png", "report.html"):
+        assert (out / name).stat().st_size > 0, name
+    assert not [p for p in out.iterdir() if p.name.startswith(".grainplug-")]
+    with open(out / "plug_edges.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == ["frame", "time_s", "plug_id", "top_mm", "bottom_mm"]
+    with open(out / "tracks.csv") as fh:
+        tracks = list(csv.DictReader(fh))
+    assert {"plug_id", "first_frame", "last_frame", "celerity_m_s", "mean_length_mm"} <= set(tracks[0])
+    z = np.load(out / "diagram.npz")
+    assert z["values"].shape == (200, len(z["position_mm"]))
+    assert len(z["time_s"]) == 200
+    assert "grainplug_version" in json.loads(str(z["provenance"]))
+
+
+def test_human_output_and_propagative_has_no_spectrum(tmp_path, capsys):
+    res = synthesize(SynthConfig(n_frames=120, seed=5), tmp_path / "m", fmt="tiff")
+    code, stdout, err = run(capsys, "analyze", res.movie, "--out", tmp_path / "o")
+    assert code == 0, err
+    assert "celerity" in stdout and "m/s" in stdout and "propagative" in stdout
+    assert not (tmp_path / "o" / "spectrum.png").exists()
+
+
+def test_no_plugs_statement(tmp_path, capsys):
+    res = synthesize(SynthConfig(n_frames=60, regime="none", no_plug_fill="compact"), tmp_path / "m")
+    code, stdout, err = run(capsys, "analyze", res.movie, "--out", tmp_path / "o", "--json")
+    assert code == 0, err
+    s = json.loads(stdout)
+    assert s["has_plugs"] is False and s["regime"] == "none"
+    assert s["celerity_m_s"] is None and s["oscillation_frequency_hz"] is None
+    assert "no plugs" in s["statement"]
+
+
+def test_folder_needs_fps(tmp_path, capsys):
+    res = synthesize(SynthConfig(n_frames=30, seed=2, rgb=False), tmp_path / "m", fmt="png")
+    code, _, err = run(capsys, "analyze", res.movie, "--out", tmp_path / "o")
+    assert_one_line_error(code, err, "--fps")
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+    code, stdout, err = run(capsys, "analyze", res.movie, "--out", tmp_path / "o", "--fps", 250, "--json")
+    assert code == 0, err
+    assert json.loads(stdout)["celerity_m_s"] == pytest.approx(-0.05, rel=0.04)
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--mm-per-px", "-1"], ["mm-per-px"]),
+    (["--tube-diameter-mm", "0"], ["tube-diameter"]),
+    (["--fps", "0"], ["fps"]),
+])
+def test_bad_parameters(tmp_path, capsys, movie, args, words):
+    code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "o", *args)
+    assert_one_line_error(code, err, *words)
+
+
+def test_missing_and_corrupt(tmp_path, capsys):
+    code, _, err = run(capsys, "analyze", tmp_path / "none.avi", "--out", tmp_path / "o")
+    assert_one_line_error(code, err, "no such file")
+    bad = tmp_path / "bad.mp4"
+    bad.write_bytes(b"\x00" * 5000)
+    code, _, err = run(capsys, "analyze", bad, "--out", tmp_path / "o")
+    assert_one_line_error(code, err, "bad.mp4")
