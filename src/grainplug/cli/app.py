@@ -194,3 +194,110 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
                        f"amplitude {fmt(s['oscillation_amplitude_mm'], ' mm', 2)}")
         click.echo(f"scale           {fmt(s['mm_per_px'], ' mm/px', 5)} from {s['scale_source']}")
     click.echo(f"outputs in      {out}")
+
+
+# ---------------------------------------------------------------------------
+@cli.command()
+@click.option("--diameter-mm", type=float, default=3.0, show_default=True, help="Pipe inner diameter D.")
+@click.option("--grain-diameter-um", type=float, default=225.0, show_default=True, help="Grain diameter d.")
+@click.option("--c0", type=float, default=0.55, show_default=True, help="Base-state compactness.")
+@click.option("--kappa", type=float, default=0.5, show_default=True, help="Janssen coefficient.")
+@click.option("--mu-s", type=float, default=0.6249, show_default=True, help="Friction coefficient (tan 32°).")
+@click.option("--theta-deg", type=float, default=0.0, show_default=True, help="Pipe inclination from vertical.")
+@click.option("--gamma", type=float, default=1.4, show_default=True, help="Ratio of specific heats of air.")
+@click.option("--air-viscosity-pa-s", type=float, default=1.8e-5, show_default=True)
+@click.option("--grain-density-kg-m3", type=float, default=2500.0, show_default=True)
+@click.option("--b", "b", type=float, default=1.0, show_default=True, help="Capillary factor on friction.")
+@click.option("--B1-star", "b1_star", type=float, default=None,
+              help="Use this B1* instead of computing it from D, d, c0, gamma, mu_a, rho_s.")
+@click.option("--variant", type=click.Choice(["printed", "frozen-friction"]), default="printed", show_default=True,
+              help="printed: the paper's equations as printed; frozen-friction: wall friction not perturbed.")
+@click.option("--k-min", type=float, default=0.001, show_default=True)
+@click.option("--k-max", type=float, default=3.0, show_default=True)
+@click.option("--n-k", type=int, default=1000, show_default=True)
+@click.option("--json", "as_json", is_flag=True, help="Print roots, most unstable mode, cut-offs and inputs as JSON.")
+@click.option("--plot", "plot", type=click.Path(path_type=Path), default=None,
+              help="Write the paper's Fig. 9 (growth rates against k*) to this PNG.")
+def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: float, mu_s: float,
+              theta_deg: float, gamma: float, air_viscosity_pa_s: float, grain_density_kg_m3: float,
+              b: float, b1_star: float | None, variant: str, k_min: float, k_max: float, n_k: int,
+              as_json: bool, plot: Path | None) -> None:
+    """Linear stability of the paper's 1D model: the three roots omega*(k*)."""
+    from ..stability import ModelParams, analyze_stability
+
+    if not (0 < k_min < k_max) or n_k < 10:
+        raise ParameterError("need 0 < --k-min < --k-max and --n-k >= 10")
+    p = ModelParams(diameter_mm=diameter_mm, grain_diameter_um=grain_diameter_um, c0=c0, kappa=kappa,
+                    mu_s=mu_s, theta_deg=theta_deg, gamma=gamma, air_viscosity_pa_s=air_viscosity_pa_s,
+                    grain_density_kg_m3=grain_density_kg_m3, b=b, B1_star_override=b1_star, variant=variant)
+    res = analyze_stability(p, k_min=k_min, k_max=k_max, n_k=n_k)
+    if plot is not None:
+        import matplotlib.pyplot as plt
+
+        from ..plotting.stability import plot_growth_rates
+
+        fig = plot_growth_rates(res)
+        _save_figure(fig, plot)
+        plt.close(fig)
+    if as_json:
+        _echo_json({"grainplug_version": __version__, **res.as_dict()})
+        return
+    m = res.most_unstable
+    click.echo(f"variant            {variant}")
+    click.echo(f"B1*                {p.B1_star:.6g}   (P_c = {p.P_c_pa:.4g} Pa, t_c = {p.t_c_s:.4g} s, "
+               f"v_c = {p.v_c_m_s:.4g} m/s)")
+    click.echo(f"base-state balance -c0 cos(theta) + 2 b mu_s = {p.base_state_residual:+.4f} "
+               "(0 if the base state were steady)")
+    if m is None:
+        click.echo(f"most unstable      none: every k* in [{k_min:g}, {k_max:g}] is stable")
+        if variant == "printed":
+            click.echo("note               the printed model does not give the paper's long-wave instability "
+                       "(k* ~ 0.2, cut-off ~ 0.6); --variant frozen-friction does — see docs/stability.md")
+    else:
+        click.echo(f"most unstable      k* = {m.k:.5f}  growth rate {m.growth_rate:.5f}  phase speed "
+                   f"{m.phase_speed:+.4f} v_c  lambda/D = {m.wavelength_over_diameter:.3f}")
+    for kc in res.cutoff_k:
+        click.echo(f"cut-off            k* = {kc:.5f}  lambda/D = {2 * 3.141592653589793 / kc:.3f}")
+    if plot is not None:
+        click.echo(f"figure             {plot}")
+
+
+def _save_figure(fig, path: Path) -> None:
+    """Save a figure atomically (temporary name, then rename)."""
+    import os
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".part")
+    fig.savefig(tmp, dpi=120, format=path.suffix.lstrip(".") or "png")
+    os.replace(tmp, path)
+
+
+@cli.command()
+@click.option("--compactness", type=float, default=0.55, show_default=True, help="Grain volume fraction c.")
+@click.option("--grain-density-kg-m3", type=float, default=2500.0, show_default=True)
+@click.option("--grain-sound-speed-m-s", type=float, default=5000.0, show_default=True)
+@click.option("--pressure-pa", type=float, default=101325.0, show_default=True)
+@click.option("--temperature-k", type=float, default=293.15, show_default=True)
+@click.option("--gamma", type=float, default=1.4, show_default=True)
+@click.option("--isothermal", is_flag=True, help="Isothermal air (default: adiabatic).")
+@click.option("--column-length-m", type=float, default=1.0, show_default=True, help="Length of the grain-air column.")
+@click.option("--plug-length-m", type=float, default=0.03, show_default=True)
+@click.option("--air-column-m", type=float, default=1.0, show_default=True,
+              help="Length of the air column under the plug (the spring).")
+@click.option("--json", "as_json", is_flag=True)
+def resonance(as_json: bool, **kwargs: object) -> None:
+    """Acoustic resonance of the grain-air column (Wood's sound speed, pipe modes, plug on air spring)."""
+    from ..stability.resonance import ResonanceInputs
+    from ..stability.resonance import resonance as compute
+
+    r = compute(ResonanceInputs(**kwargs))
+    if as_json:
+        _echo_json({"grainplug_version": __version__, **r})
+        return
+    click.echo(f"air             {r['process']}, sound speed {r['air_sound_speed_m_s']:.1f} m/s, "
+               f"density {r['air_density_kg_m3']:.3f} kg/m3")
+    click.echo(f"mixture (Wood)  sound speed {r['mixture_sound_speed_m_s']:.2f} m/s, "
+               f"density {r['mixture_density_kg_m3']:.1f} kg/m3")
+    click.echo("half-wave       " + ", ".join(f"{f:.2f}" for f in r["half_wave_hz"]) + " Hz")
+    click.echo("quarter-wave    " + ", ".join(f"{f:.2f}" for f in r["quarter_wave_hz"]) + " Hz")
+    click.echo(f"plug on spring  {r['plug_on_air_spring_hz']:.2f} Hz")

@@ -1,0 +1,13 @@
+"""The paper's one-dimensional model and its linear stability analysis.
+
+See docs/stability.md for the equations, what the printed model gives with the
+paper's parameters, and the ``frozen-friction`` variant.
+"""
+
+from .analysis import Mode, StabilityResult, analyze_stability, max_growth, sweep
+from .model import dispersion_coefficients, normal_mode_matrix, roots, system_matrices
+from .params import VARIANTS, ModelParams
+
+__all__ = ["VARIANTS", "Mode", "ModelParams", "StabilityResult", "analyze_stability",
+           "dispersion_coefficients", "max_growth", "normal_mode_matrix", "roots", "sweep",
+           "system_matrices"]

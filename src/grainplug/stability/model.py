@@ -1,0 +1,136 @@
+"""Linear stability of the compact base state: normal-mode matrix, cubic, roots.
+
+Notes
+-----
+Perturbations ``(c~, v~, P~) exp(i (k* z* - omega* t*))`` of the base state
+``c = c0, v* = 1, P* = 1`` satisfy ``M(k*, omega*) (c^, v^, P^) = 0`` with the
+matrix printed in the paper (eq. "eigenvalue"),
+
+.. math::
+
+    M = \\begin{pmatrix}
+        i k - i\\omega & i k c_0 & 0 \\\\
+        -\\cos\\theta & -i\\omega c_0 + i k c_0 + i k/\\kappa + 4 b \\mu_s & i k \\\\
+        0 & \\frac{\\gamma}{1 - c_0} i k & -i\\omega + i k + B_1^* k^2
+    \\end{pmatrix}
+
+(stars dropped). ``M = A(k) - i omega E`` with ``E = diag(1, c0, 1)``, so the
+three roots of ``det M = 0`` (the cubic of eq. "det") are
+``omega = -i lambda`` for the eigenvalues ``lambda`` of ``E^-1 A(k)``: this is how
+they are computed, for all wavenumbers at once. ``omega = omega_r + i omega_i``;
+``omega_i`` (in units of ``1/t_c``) is the growth rate and ``omega_r / k`` the
+phase speed (in units of ``v_c``). The paper writes ``omega_r* = omega_r/(k v_c)``,
+which is this phase speed; here ``omega*`` is ``omega t_c`` throughout.
+
+Each root is followed continuously along ``k*``: consecutive roots are matched
+by the permutation that moves them least. Roots are numbered by decreasing
+growth rate at the smallest ``k*``.
+
+References
+----------
+C. A. Alvarez, E. M. Franklin, Intermittent gravity-driven flow of grains
+through narrow pipes, Physica A 465 (2017) 725-741, eqs. (11)-(15).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from .params import ModelParams
+
+_PERMS = np.array(list(itertools.permutations(range(3))))
+
+
+def _theta(p: ModelParams) -> float:
+    return math.radians(p.theta_deg)
+
+
+def system_matrices(p: ModelParams, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``A(k)`` (shape ``(n, 3, 3)``) and ``E`` with ``M(k, omega) = A(k) - i omega E``."""
+    k = np.atleast_1d(np.asarray(k, dtype=float))
+    n = k.size
+    A = np.zeros((n, 3, 3), complex)
+    ik = 1j * k
+    A[:, 0, 0] = ik
+    A[:, 0, 1] = ik * p.c0
+    A[:, 1, 0] = -math.cos(_theta(p))
+    A[:, 1, 1] = ik * p.c0 + ik / p.kappa + p.friction
+    A[:, 1, 2] = ik
+    A[:, 2, 1] = p.gamma / (1 - p.c0) * ik
+    A[:, 2, 2] = ik + p.B1_star * k**2
+    E = np.diag([1.0, p.c0, 1.0]).astype(complex)
+    return A, E
+
+
+def normal_mode_matrix(p: ModelParams, k: float | np.ndarray, omega: complex | np.ndarray) -> np.ndarray:
+    """The 3x3 normal-mode matrix ``M(k*, omega*)`` of eq. "eigenvalue" (broadcast over inputs)."""
+    k_arr, w_arr = np.broadcast_arrays(np.asarray(k, float), np.asarray(omega, complex))
+    A, E = system_matrices(p, k_arr.ravel())
+    M = A - 1j * w_arr.ravel()[:, None, None] * E
+    return M.reshape(*k_arr.shape, 3, 3)
+
+
+def dispersion_coefficients(p: ModelParams, k: float | np.ndarray) -> np.ndarray:
+    """Coefficients ``(a3, a2, a1, a0)`` of the cubic ``a3 w^3 + a2 w^2 + a1 w + a0 = 0``, eq. "det".
+
+    Transcribed from the printed equation (with ``4 mu_s`` read as the friction
+    coefficient of the variant, ``4 b mu_s`` or 0).
+    """
+    k = np.asarray(k, dtype=float)
+    c0, kinv, B, g = p.c0, 1.0 / p.kappa, p.B1_star, p.gamma
+    cos = math.cos(_theta(p))
+    f = p.friction  # 4 mu_s in the printed equation
+    a3 = np.full(k.shape, 1j * c0)
+    a2 = k * (-3j * c0 - 1j * kinv) - k**2 * c0 * B - f
+    a1 = (k**3 * (2 * c0 * B + kinv * B) + 1j * k**2 * (2 * kinv - g / (1 - c0) + 3 * c0 - f * B)
+          + k * (c0 * cos + 2 * f))
+    a0 = (1j * k**3 * (-c0 - kinv + f * B + c0 * cos * B + g / (1 - c0))
+          + k**2 * (-f - c0 * cos) + B * k**4 * (-kinv - c0))
+    return np.stack(np.broadcast_arrays(a3, a2, a1, a0), axis=-1)
+
+
+def _composition_table() -> np.ndarray:
+    """``T[a, b]`` = index of the permutation ``PERMS[a][PERMS[b]]``."""
+    index = {tuple(q): i for i, q in enumerate(_PERMS.tolist())}
+    return np.array([[index[tuple(_PERMS[a][_PERMS[b]])] for b in range(6)] for a in range(6)])
+
+
+_COMPOSE = _composition_table()
+
+
+def roots(p: ModelParams, k: np.ndarray, *, track: bool = True) -> np.ndarray:
+    """The three roots ``omega*(k*)``, shape ``(n_k, 3)``.
+
+    Parameters
+    ----------
+    p : ModelParams
+    k : array_like
+        Dimensionless wavenumbers ``k* = k D`` (sorted, when ``track``).
+    track : bool
+        Follow each root continuously along ``k``; the columns are numbered by
+        decreasing growth rate at the first ``k``.
+    """
+    k = np.atleast_1d(np.asarray(k, dtype=float))
+    A, E = system_matrices(p, k)
+    raw = -1j * np.linalg.eigvals(A / np.diag(E)[None, :, None])  # omega = -i eig(E^-1 A)
+    first = np.argsort(-raw[0].imag, kind="stable")
+    if not track or len(k) < 2:
+        out = raw.copy()
+        out[0] = raw[0][first]
+        return out
+    # pi_j: the permutation with raw[j+1][pi_j] closest to raw[j]
+    cand = raw[1:][:, _PERMS]  # (n-1, 6, 3)
+    best = np.argmin(np.abs(cand - raw[:-1][:, None, :]).sum(axis=2), axis=1)
+    # sigma_{j+1} = pi_j[sigma_j]: the tracked order of each step
+    index = {tuple(q): i for i, q in enumerate(_PERMS.tolist())}
+    sigma = np.empty(len(k), int)
+    acc = index[tuple(first.tolist())]
+    sigma[0] = acc
+    table = _COMPOSE
+    for j, b in enumerate(best.tolist()):
+        acc = int(table[b, acc])
+        sigma[j + 1] = acc
+    return np.take_along_axis(raw, _PERMS[sigma], axis=1)

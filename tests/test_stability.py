@@ -1,0 +1,227 @@
+"""The 1D model's stability analysis, checked against independent computations."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from grainplug.errors import ParameterError
+from grainplug.stability import (
+    ModelParams,
+    analyze_stability,
+    dispersion_coefficients,
+    max_growth,
+    normal_mode_matrix,
+    roots,
+    sweep,
+)
+
+PAPER = ModelParams()
+
+
+# -- symbolic ---------------------------------------------------------------
+def _printed_symbols():
+    w, k, c0, kap, mu, B, g, th = sp.symbols("omega k c0 kappa mu_s B1 gamma theta")
+    return w, k, c0, kap, mu, B, g, th
+
+
+def test_det_of_printed_matrix_is_printed_cubic():
+    """sympy: det(eq. 'eigenvalue') == eq. 'det', term by term."""
+    w, k, c0, kap, mu, B, g, th = _printed_symbols()
+    j = sp.I
+    M = sp.Matrix([[j * k - j * w, j * k * c0, 0],
+                   [-sp.cos(th), -j * w * c0 + j * k * c0 + j * k / kap + 4 * mu, j * k],
+                   [0, g / (1 - c0) * j * k, -j * w + j * k + B * k**2]])
+    printed = (j * c0 * w**3 + w**2 * (k * (-3 * j * c0 - j / kap) - k**2 * c0 * B - 4 * mu)
+               + w * (k**3 * (2 * c0 * B + B / kap) + j * k**2 * (2 / kap - g / (1 - c0) + 3 * c0 - 4 * mu * B)
+                      + k * (c0 * sp.cos(th) + 8 * mu))
+               + j * k**3 * (-c0 - 1 / kap + 4 * mu * B + c0 * sp.cos(th) * B + g / (1 - c0))
+               + k**2 * (-4 * mu - c0 * sp.cos(th)) + B * k**4 * (-1 / kap - c0))
+    assert sp.simplify(sp.expand(M.det() - printed)) == 0
+
+
+def test_linearisation_gives_printed_matrix():
+    """sympy: linearising the dimensionless eqs (mass2, motion3, pressure3) about
+    c0, v*=1, P*=1 with normal modes gives the printed matrix."""
+    z, t, eps = sp.symbols("z t epsilon")
+    w, k, c0, kap, mu, B, g, th = _printed_symbols()
+    ch, vh, ph = sp.symbols("chat vhat phat")
+    e = sp.exp(sp.I * (k * z - w * t))
+    c = c0 + eps * ch * e
+    v = 1 + eps * vh * e
+    P = 1 + eps * ph * e
+    mass = sp.diff(c, t) + c * sp.diff(v, z) + v * sp.diff(c, z)
+    motion = (c * sp.diff(v, t) + c * v * sp.diff(v, z) - c * sp.cos(th) + sp.diff(P, z)
+              + v / kap * sp.diff(v, z) + 2 * mu * v**2)
+    pressure = sp.diff(P, t) + v * sp.diff(P, z) + g * P / (1 - c) * sp.diff(v, z) - B * sp.diff(P, z, 2)
+    rows = []
+    for eq in (mass, motion, pressure):
+        lin = sp.simplify(sp.diff(eq, eps).subs(eps, 0) / e)
+        rows.append([sp.expand(lin).coeff(x) for x in (ch, vh, ph)])
+    M = sp.Matrix(rows)
+    printed = sp.Matrix([[sp.I * k - sp.I * w, sp.I * k * c0, 0],
+                         [-sp.cos(th), -sp.I * w * c0 + sp.I * k * c0 + sp.I * k / kap + 4 * mu, sp.I * k],
+                         [0, g / (1 - c0) * sp.I * k, -sp.I * w + sp.I * k + B * k**2]])
+    assert sp.simplify(M - printed) == sp.zeros(3, 3)
+    # and the O(1) part of the momentum equation does not vanish: the base state is not steady
+    base = sp.simplify(motion.subs(eps, 0))
+    assert sp.simplify(base - (-c0 * sp.cos(th) + 2 * mu)) == 0
+
+
+# -- numerics against a second method ------------------------------------------
+@pytest.mark.parametrize("variant", ["printed", "frozen-friction"])
+@pytest.mark.parametrize("theta", [0.0, 5.0])
+def test_eigen_roots_match_numpy_roots_of_cubic(variant, theta):
+    p = ModelParams(variant=variant, theta_deg=theta)
+    k = np.linspace(1e-3, 3, 400)
+    w = roots(p, k)
+    coef = dispersion_coefficients(p, k)
+    for i in range(len(k)):
+        ref = np.roots(coef[i])
+        got = w[i]
+        # same multiset of roots
+        for r in ref:
+            assert np.min(np.abs(got - r)) < 1e-9 * max(1, abs(r))
+        # each root annuls the determinant of the matrix
+        dets = np.linalg.det(normal_mode_matrix(p, k[i], got))
+        assert np.all(np.abs(dets) < 1e-9 * (1 + np.abs(got) ** 3))
+
+
+def test_roots_are_continuous_along_k():
+    k = np.linspace(1e-3, 3, 20000)
+    w = roots(ModelParams(variant="frozen-friction"), k)
+    jumps = np.abs(np.diff(w, axis=0)).max(axis=0)
+    assert np.all(jumps < 0.01)
+
+
+def test_vectorised_many_wavenumbers():
+    k = np.linspace(1e-3, 3, 100_000)
+    w = roots(PAPER, k)
+    assert w.shape == (100_000, 3)
+    assert np.all(np.isfinite(w))
+
+
+# -- analytic limits -------------------------------------------------------------
+def test_long_wave_limit():
+    """k* -> 0: two neutral roots and the friction-damped one, omega = -4 i b mu_s / c0."""
+    p = PAPER
+    w = roots(p, np.array([1e-7]))[0]
+    damped = w[np.argmin(w.imag)]
+    assert damped == pytest.approx(-4j * p.b * p.mu_s / p.c0, abs=1e-5)
+    neutral = np.sort(np.abs(w))[:2]
+    assert np.all(neutral < 1e-5)
+
+
+def test_no_diffusion_characteristic_speeds():
+    """B1* = 0, mu_s = 0: at large k* the phase speeds tend to the characteristics of
+    the hyperbolic system, 1 and 1 - x with c0 x^2 + x/kappa - gamma/(1 - c0) = 0."""
+    p = ModelParams(B1_star_override=0.0, mu_s=0.0)
+    kbig = 1e5
+    w = roots(p, np.array([kbig]), track=False)[0]
+    speeds = np.sort(w.real / kbig)
+    x = np.roots([p.c0, 1 / p.kappa, -p.gamma / (1 - p.c0)])
+    expected = np.sort(np.concatenate([[1.0], 1 - x]))
+    np.testing.assert_allclose(speeds, expected, rtol=1e-4)
+    # and the growth rates stay bounded (no k-dependence at leading order)
+    assert np.all(np.abs(w.imag) < 10)
+
+
+def test_diffusion_dominated_short_waves():
+    """Large k*: the pressure root decays as -B1* k*^2."""
+    p = PAPER
+    k = 300.0
+    w = roots(p, np.array([k]), track=False)[0]
+    assert w.imag.min() == pytest.approx(-p.B1_star * k**2, rel=1e-2)
+
+
+def test_no_friction_is_the_frozen_variant():
+    k = np.linspace(1e-3, 2, 50)
+    a = roots(ModelParams(mu_s=0.0), k)
+    b = roots(ModelParams(variant="frozen-friction"), k)
+    np.testing.assert_allclose(a, b)
+
+
+def test_B1_star_formula():
+    """B1* = gamma rho_s g^1/2 d^2 (1-c0)^2 / (180 mu_a c0^2 D^1/2), computed by hand."""
+    p = PAPER
+    hand = 1.4 * 2500 * math.sqrt(9.81) * (225e-6) ** 2 * 0.45**2 / (180 * 1.8e-5 * 0.55**2 * math.sqrt(3e-3))
+    assert p.B1_star == pytest.approx(hand, rel=1e-12)
+    assert p.B1_star == pytest.approx(2.0934, abs=1e-3)
+    assert p.P_c_pa == pytest.approx(2500 * 9.81 * 3e-3)
+    assert p.t_c_s == pytest.approx(math.sqrt(3e-3 / 9.81))
+    assert p.v_c_m_s == pytest.approx(math.sqrt(9.81 * 3e-3))
+
+
+# -- what the model says -----------------------------------------------------------------
+def test_printed_model_is_stable_with_paper_parameters():
+    """The honest reproduction: with the printed equations and the paper's inputs no k*
+    in (0, 3] grows (the paper claims a long-wave instability)."""
+    res = analyze_stability(PAPER, k_min=1e-3, k_max=3.0, n_k=3000)
+    assert res.most_unstable is None
+    assert res.cutoff_k == []
+    assert res.omega.imag.max() <= 1e-12
+
+
+def test_frozen_friction_reproduces_the_claim():
+    res = analyze_stability(ModelParams(variant="frozen-friction"), k_min=1e-3, k_max=3.0, n_k=3000)
+    m = res.most_unstable
+    assert m is not None
+    assert 0.1 < m.k < 0.25  # the paper: k* ~ 0.2
+    assert len(res.cutoff_k) == 1 and 0.5 < res.cutoff_k[0] < 0.75  # the paper: ~ 0.6
+    assert max_growth(res.params, res.cutoff_k[0]) == pytest.approx(0.0, abs=1e-9)
+    assert m.wavelength_over_diameter == pytest.approx(2 * math.pi / m.k)
+    assert res.cutoff_wavelength_over_diameter[0] == pytest.approx(2 * math.pi / res.cutoff_k[0])
+    # the refined maximum beats the grid
+    assert m.growth_rate >= res.omega.imag.max() - 1e-12
+
+
+def test_sweep_over_grain_diameter():
+    rows = sweep(ModelParams(variant="frozen-friction"), "grain_diameter_um", [110, 225, 300],
+                 n_k=800)
+    ks = [r["most_unstable_k"] for r in rows]
+    assert ks[0] > ks[1] > ks[2]  # bigger grains, more permeable: longer waves
+    assert rows[1]["B1_star"] == pytest.approx(PAPER.B1_star)
+
+
+def test_bad_inputs():
+    for bad in (dict(c0=1.2), dict(kappa=0), dict(variant="magic"), dict(diameter_mm=-1)):
+        with pytest.raises(ParameterError):
+            ModelParams(**bad)
+
+
+# -- CLI -------------------------------------------------------------------------------------
+def test_cli_json_and_plot(tmp_path, capsys):
+    from grainplug.cli import main
+
+    fig = tmp_path / "fig9.png"
+    code = main(["stability", "--json", "--n-k", "200", "--plot", str(fig)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    d = json.loads(out)
+    for key in ("B1_star", "k", "omega_real", "omega_imag", "most_unstable", "cutoff_k", "inputs"):
+        assert key in d
+    assert len(d["omega_real"]) == 3 and len(d["omega_imag"][0]) == 200 == len(d["k"])
+    assert d["most_unstable"] is None and d["inputs"]["c0"] == 0.55
+    assert fig.stat().st_size > 10_000
+    code = main(["stability", "--variant", "frozen-friction", "--json", "--n-k", "300"])
+    d = json.loads(capsys.readouterr()[0])
+    assert set(d["most_unstable"]) >= {"k", "growth_rate", "phase_speed", "wavelength_over_diameter"}
+    code = main(["stability"])
+    out = capsys.readouterr()[0]
+    assert "does not give the paper's long-wave instability" in out
+    code = main(["stability", "--B1-star", "0.5", "--variant", "frozen-friction", "--json", "--n-k", "100"])
+    assert json.loads(capsys.readouterr()[0])["B1_star"] == 0.5
+
+
+def test_cli_bad_input(capsys):
+    from grainplug.cli import main
+
+    code = main(["stability", "--c0", "1.5"])
+    err = capsys.readouterr()[1]
+    assert code == 2 and err.startswith("error: ") and "c0" in err
+    code = main(["stability", "--k-min", "2", "--k-max", "1"])
+    assert code == 2
