@@ -18,6 +18,7 @@ demo: $(STAMP)
 	$(PY) -m grainplug.demo out/demo
 
 test: $(STAMP)
+	bash scripts/ensure_chromium.sh
 	MPLBACKEND=Agg $(PY) -m pytest -q
 
 lint: $(STAMP)

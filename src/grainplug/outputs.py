@@ -75,14 +75,18 @@ def tracks_table(res: AnalysisResult) -> str:
 
 
 def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = True,
-                  report: bool = True) -> dict[str, Path]:
-    """Write every output of ``res`` into ``out_dir``; returns the paths written."""
+                  report: bool = True, extra: dict | None = None) -> dict[str, Path]:
+    """Write every output of ``res`` into ``out_dir``; returns the paths written.
+
+    ``extra`` is merged into ``summary.json`` (e.g. the campaign's run key).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".grainplug-", dir=out))
     written: dict[str, Path] = {}
     try:
         summary = res.summary
+        summary.update(extra or {})
         summary["outputs"] = {k: v for k, v in FILES.items()
                               if k != "fig_spectrum" or (res.motion and res.motion.oscillation_frequency_hz)}
         (tmp / FILES["summary"]).write_text(json.dumps(summary, indent=2, default=_json_default) + "\n")

@@ -10,7 +10,7 @@ import click
 from rich.console import Console
 
 from .._version import __version__
-from ..errors import ParameterError
+from ..errors import GrainplugError, ParameterError
 
 err_console = Console(stderr=True)
 
@@ -301,3 +301,80 @@ def resonance(as_json: bool, **kwargs: object) -> None:
     click.echo("half-wave       " + ", ".join(f"{f:.2f}" for f in r["half_wave_hz"]) + " Hz")
     click.echo("quarter-wave    " + ", ".join(f"{f:.2f}" for f in r["quarter_wave_hz"]) + " Hz")
     click.echo(f"plug on spring  {r['plug_on_air_spring_hz']:.2f} Hz")
+
+
+# ---------------------------------------------------------------------------
+@cli.command()
+@click.option("--out", "out", type=click.Path(path_type=Path), required=True,
+              help="Folder for paper.json, reproduction.md, figures and report.html.")
+@click.option("--no-figures", is_flag=True, help="Skip figures and report.")
+@click.option("--json", "as_json", is_flag=True, help="Print fits, lengths, stability and checks as JSON.")
+def paper(out: Path, no_figures: bool, as_json: bool) -> None:
+    """Reproduce the paper's numbers and figures from its own Tables 1 and 2."""
+    from ..campaigns.paper import reproduce
+    from ..campaigns.paper_outputs import write_paper
+
+    rep = reproduce()
+    write_paper(rep, out, figures=not no_figures)
+    if as_json:
+        _echo_json({"grainplug_version": __version__, **rep.as_dict()})
+        return
+    for g, f in rep.fits.items():
+        click.echo(f"{g:20s} v_p = {f.intercept:+.4f} {f.slope:+.4f} * m_dot   (R² {f.r2:.3f}, n {f.n})")
+    n_ok = sum(c.agrees for c in rep.checks)
+    click.echo(f"checks: {n_ok} of {len(rep.checks)} statements agree with the tables and models; "
+               f"see {out / 'reproduction.md'}")
+    for c in rep.checks:
+        if not c.agrees:
+            click.echo(f"  disagrees: {c.claim} — {c.note}")
+
+
+# ---------------------------------------------------------------------------
+@cli.command()
+@click.argument("manifest", type=click.Path(path_type=Path))
+@click.option("--out", "out", type=click.Path(path_type=Path), required=True,
+              help="Folder for campaign.csv/.parquet, fits.json, figures, report.html and runs/.")
+@click.option("--workers", type=int, default=1, show_default=True, help="Runs analysed in parallel on this machine.")
+@click.option("--scheduler", default=None, help="Address of a Dask distributed scheduler (tcp://host:8786).")
+@click.option("--no-figures", is_flag=True, help="Skip figures and HTML reports.")
+@click.option("--json", "as_json", is_flag=True, help="Print the fits as JSON.")
+def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_figures: bool, as_json: bool) -> None:
+    """Analyse every run of MANIFEST (CSV or TOML), then tabulate, fit and report.
+
+    One row per run: movie (relative to the manifest), fps, mm_per_px or tube_diameter_mm,
+    flow_direction, mass_flow_rate_g_s, humidity_pct, surface, group, and any metadata.
+    Runs already analysed with the same movie and parameters are skipped.
+    """
+    from rich.progress import BarColumn, Progress, TextColumn
+
+    from ..campaigns import run_campaign
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} runs"),
+                  console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
+        task = bar.add_task("campaign", total=None)
+
+        def progress(done: int, total: int, run: str) -> None:
+            bar.update(task, completed=done, total=total, description=f"run {run}")
+
+        camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,
+                            progress=progress)
+    t = camp.table
+    if as_json:
+        _echo_json({"grainplug_version": __version__, "fits": camp.fits,
+                    "runs": t[["run", "status"]].to_dict(orient="records")})
+    else:
+        counts = t.status.value_counts().to_dict()
+        click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+        for g, f in camp.fits.items():
+            c = f.get("celerity")
+            if c:
+                click.echo(f"{g:24s} v_p = {c['intercept_m_s']:+.4f} {c['slope_m_s_per_g_s']:+.4f} * m_dot "
+                           f"(R² {c['r2']:.3f}, n {c['n']})")
+        click.echo(f"outputs in {out}")
+    if camp.n_failed:
+        failed = t[t.status == "failed"]
+        first = failed.iloc[0]
+        raise GrainplugError(
+            f"{camp.n_failed} of {len(t)} runs failed (the others were analysed; see {out / 'campaign.csv'}); "
+            f"first: run {first.run}: {first.error}"
+        )

@@ -1,5 +1,5 @@
 """Self-contained HTML reports (figures embedded)."""
 
-from .html import run_report
+from .html import images, page, provenance, run_report, table
 
-__all__ = ["run_report"]
+__all__ = ["images", "page", "provenance", "run_report", "table"]

@@ -30,6 +30,35 @@ def _table(rows: list[tuple[str, object]]) -> str:
     return f"<table>{body}</table>"
 
 
+def page(title: str, body: str) -> str:
+    """A complete, self-contained HTML page."""
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>
+<style>{_CSS}</style></head><body>
+<h1>{html.escape(title)}</h1>
+{body}
+</body></html>
+"""
+
+
+def images(folder: Path, names: list[str]) -> str:
+    """Embedded PNGs of ``folder`` (those that exist)."""
+    return "".join(_img(folder / n) for n in names if (folder / n).exists())
+
+
+def table(header: list[str], rows: list[list[object]]) -> str:
+    """An HTML table with a header row."""
+    head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape('' if v is None else str(v))}</td>" for v in r) + "</tr>"
+                   for r in rows)
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def provenance(data: dict) -> str:
+    data = {**data, "generated": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
+    return f"<h2>Provenance</h2><pre>{html.escape(json.dumps(data, indent=2, default=str))}</pre>"
+
+
 def run_report(res: AnalysisResult, folder: Path) -> str:
     """HTML text of the report of one analysis (figures read from ``folder``)."""
     s = res.summary

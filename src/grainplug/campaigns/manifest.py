@@ -1,0 +1,115 @@
+"""Campaign manifests: one row per run (CSV, or TOML for those who prefer it).
+
+Columns (CSV header, or keys of each ``[[run]]`` table in TOML; a TOML
+``[defaults]`` table fills keys a run does not give):
+
+============================  =========================================================
+``run``                        identifier (default: the row number)
+``movie``                      path of the movie, relative to the manifest's folder
+``fps``                        frame rate, when the file holds none or it is wrong
+``mm_per_px``                  scale, or
+``tube_diameter_mm``           inner diameter of the tube (scale from the tube; 3 mm)
+``flow_direction``             down, up, left or right
+``glob``                       for image folders
+``mass_flow_rate_g_s``         mass flow rate
+``humidity_pct``               relative humidity
+``surface``                    grain surface state (e.g. rough, smooth)
+``group``                      grouping for the fits (default: regime/surface)
+anything else                  kept as metadata in the campaign table
+============================  =========================================================
+"""
+
+from __future__ import annotations
+
+import csv
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..analysis import AnalysisParams
+from ..errors import ParameterError
+
+ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "flow_direction": str,
+                 "glob": str, "min_plug_mm": float}
+KNOWN_META = {"mass_flow_rate_g_s": float, "humidity_pct": float, "surface": str, "group": str}
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a campaign."""
+
+    run: str
+    movie: Path
+    params: AnalysisParams
+    meta: dict[str, object] = field(default_factory=dict)
+
+
+def _convert(key: str, value: object, kinds: dict[str, type], where: str) -> object:
+    if value is None or (isinstance(value, str) and value.strip() == ""):
+        return None
+    kind = kinds[key]
+    try:
+        return kind(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{where}: {key} = {value!r} is not a {kind.__name__}") from None
+
+
+def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec:
+    if not row.get("movie"):
+        raise ParameterError(f"{where}: no movie given — every run needs a 'movie' path")
+    run = str(row.get("run") or index)
+    movie = Path(str(row["movie"])).expanduser()
+    if not movie.is_absolute():
+        movie = base / movie
+    kw = {k: _convert(k, row.get(k), ANALYSIS_KEYS, where) for k in ANALYSIS_KEYS if k in row}
+    kw = {k: v for k, v in kw.items() if v is not None}
+    try:
+        params = AnalysisParams(**kw)
+    except ParameterError as exc:
+        raise ParameterError(f"{where}: {exc}") from None
+    meta: dict[str, object] = {}
+    for k, v in row.items():
+        if k in ANALYSIS_KEYS or k in ("run", "movie"):
+            continue
+        meta[k] = _convert(k, v, KNOWN_META, where) if k in KNOWN_META else v
+    return RunSpec(run, movie, params, meta)
+
+
+def read_manifest(path: str | Path) -> list[RunSpec]:
+    """Read a CSV or TOML manifest.
+
+    Raises
+    ------
+    ParameterError
+        With a one-line message naming the file, the row and the problem.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise ParameterError(f"no such manifest: {p} — check the path")
+    base = p.parent
+    specs: list[RunSpec] = []
+    if p.suffix.lower() == ".toml":
+        try:
+            data = tomllib.loads(p.read_text())
+        except tomllib.TOMLDecodeError as exc:
+            raise ParameterError(f"{p} is not valid TOML ({exc})") from None
+        defaults = data.get("defaults", {})
+        rows = data.get("run", [])
+        if not isinstance(rows, list):
+            raise ParameterError(f"{p}: runs must be given as [[run]] tables")
+        for i, row in enumerate(rows, 1):
+            specs.append(_spec({**defaults, **row}, i, base, f"{p.name}, run {i}"))
+    else:
+        with open(p, newline="") as fh:
+            reader = csv.DictReader(fh)
+            if not reader.fieldnames or "movie" not in reader.fieldnames:
+                raise ParameterError(f"{p}: the header has no 'movie' column — see `grainplug batch --help`")
+            for i, row in enumerate(reader, 1):
+                specs.append(_spec(dict(row), i, base, f"{p.name}, row {i}"))
+    if not specs:
+        raise ParameterError(f"{p} lists no runs")
+    names = [s.run for s in specs]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise ParameterError(f"{p}: run names repeat ({', '.join(sorted(dup))}) — give each run its own name")
+    return specs

@@ -1,0 +1,95 @@
+"""Files of ``grainplug paper``: JSON, the reproduction text, figures and a report."""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from .. import datasets
+from .._version import __version__
+from ..synthetic.writers import _json_default
+from .paper import D_MM, PaperReproduction, reproduction_text
+
+
+def paper_figures(rep: PaperReproduction, folder: Path) -> list[str]:
+    """Celerity and length against mass flow rate (both regimes) and the growth-rate figures."""
+    import matplotlib.pyplot as plt
+
+    from ..plotting.campaign import plot_vs_mass_flow
+    from ..plotting.stability import plot_growth_rates
+    from ..stability import ModelParams, analyze_stability
+
+    runs = datasets.paper_runs()
+    names = []
+    sets = {
+        "propagative": ["propagative/rough", "propagative/smooth"],
+        "oscillating": ["oscillating"],
+    }
+    for regime, groups in sets.items():
+        data = {g: (runs[runs.group == g].mass_flow_rate_g_s.to_numpy(),
+                    runs[runs.group == g].celerity_m_s.to_numpy()) for g in groups}
+        fig = plot_vs_mass_flow(data, {g: rep.fits[g] for g in groups},
+                                ylabel="|v_p| (m/s)" if regime == "propagative" else "v_p (m/s)",
+                                title=f"celerity of plugs, {regime} regime (paper's tables)",
+                                absolute=regime == "propagative")
+        name = f"celerity_{regime}.png"
+        fig.savefig(folder / name, dpi=110)
+        plt.close(fig)
+        names.append(name)
+        from .fits import fit_line
+
+        ldata = {g: (runs[runs.group == g].mass_flow_rate_g_s.to_numpy(),
+                     runs[runs.group == g].plug_length_mm.to_numpy()) for g in groups}
+        lfits = {g: fit_line(*ldata[g]) for g in groups}
+        fig = plot_vs_mass_flow(ldata, lfits, ylabel="λ (mm)", title=f"plug length, {regime} regime",
+                                hline=10 * D_MM, hline_label="10 D")
+        name = f"length_{regime}.png"
+        fig.savefig(folder / name, dpi=110)
+        plt.close(fig)
+        names.append(name)
+    for variant in ("printed", "frozen-friction"):
+        fig = plot_growth_rates(analyze_stability(ModelParams(variant=variant), k_min=1e-3, k_max=3.0, n_k=1500))
+        name = f"growth_rates_{variant.replace('-', '_')}.png"
+        fig.savefig(folder / name, dpi=110)
+        plt.close(fig)
+        names.append(name)
+    return names
+
+
+def write_paper(rep: PaperReproduction, out_dir: str | Path, *, figures: bool = True) -> dict[str, Path]:
+    """Write ``paper.json``, ``reproduction.md``, the figures and ``report.html`` into ``out_dir``."""
+    from ..reports import images, page, provenance, table
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=".grainplug-", dir=out))
+    try:
+        data = {"grainplug_version": __version__, **rep.as_dict()}
+        (tmp / "paper.json").write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
+        text = reproduction_text(rep)
+        (tmp / "reproduction.md").write_text(text)
+        names = paper_figures(rep, tmp) if figures else []
+        rows = [[c.claim, c.where, json.dumps(c.paper, default=str), json.dumps(c.reproduced, default=str),
+                 "yes" if c.agrees else "NO", c.note] for c in rep.checks]
+        fit_rows = [[g, f"{f.slope:+.4f} ± {f.slope_stderr:.4f}", f"{f.intercept:+.4f} ± {f.intercept_stderr:.4f}",
+                     f"{f.r2:.3f}", f.n] for g, f in rep.fits.items()]
+        body = (f"<p>{html.escape(rep.source.get('citation', ''))}, doi:{html.escape(rep.source.get('doi', ''))}</p>"
+                "<h2>Fits of celerity against mass flow rate</h2>"
+                + table(["group", "slope (m/s per g/s)", "intercept (m/s)", "R²", "n"], fit_rows)
+                + "<h2>Checks against the text</h2>"
+                + table(["claim", "where", "paper", "reproduced", "agrees", "note"], rows)
+                + "<h2>Figures</h2>" + images(tmp, names)
+                + provenance({"grainplug_version": __version__, "source": rep.source}))
+        if figures:
+            (tmp / "report.html").write_text(page("grainplug: reproduction of the paper", body))
+        written = {}
+        for f in sorted(tmp.iterdir()):
+            os.replace(f, out / f.name)
+            written[f.name] = out / f.name
+        return written
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)

@@ -1,0 +1,188 @@
+"""Paper data, fits, the paper's reproduction, manifests and batch runs."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_cli_basics import assert_one_line_error, run
+
+from grainplug import datasets
+from grainplug.campaigns import fit_line, read_manifest, run_campaign
+from grainplug.campaigns.paper import reproduce
+from grainplug.errors import ParameterError
+from grainplug.synthetic import SynthConfig, synthesize
+
+
+def test_paper_tables():
+    t1, t2 = datasets.table1(), datasets.table2()
+    assert len(t1) == 17 and len(t2) == 15
+    assert set(t1.surface) == {"rough", "smooth"}
+    assert (t1.celerity_m_s < 0).all() and (t2.celerity_m_s > 0).all()
+    assert t1.loc[t1.run == 12, "mass_flow_rate_g_s"].item() == 1.05
+    assert t2.loc[t2.run == 3, "celerity_m_s"].item() == 0.0652
+    np.testing.assert_allclose(t1.plug_length_mm, t1.plug_length_cm * 10)
+    assert "10.1016/j.physa.2016.08.071" == datasets.source()["doi"]
+    assert len(datasets.paper_runs()) == 32
+
+
+def test_fit_line_against_scipy(rng):
+    from scipy import stats
+
+    x = rng.uniform(0, 1, 20)
+    y = 0.3 - 0.1 * x + rng.normal(0, 0.01, 20)
+    f = fit_line(x, y)
+    ref = stats.linregress(x, y)
+    assert f.slope == pytest.approx(ref.slope)
+    assert f.intercept == pytest.approx(ref.intercept)
+    assert f.slope_stderr == pytest.approx(ref.stderr)
+    assert f.intercept_stderr == pytest.approx(ref.intercept_stderr)
+    assert f.r2 == pytest.approx(ref.rvalue**2)
+    lo, hi = f.band(np.array([f.x_mean, 0.0, 1.0]))
+    assert np.all(hi > lo)
+    assert (hi - lo)[0] < (hi - lo)[1]  # the band is narrowest at the mean
+    assert fit_line([1.0], [2.0]) is None
+
+
+def test_fit_coverage(rng):
+    """The 95% interval of the slope covers the true slope about 95% of the time."""
+    from scipy import stats
+
+    hits = 0
+    trials = 400
+    for _ in range(trials):
+        x = rng.uniform(0.2, 1.0, 12)
+        y = -0.05 + 0.09 * x + rng.normal(0, 0.003, 12)
+        f = fit_line(x, y)
+        half = stats.t.ppf(0.975, f.n - 2) * f.slope_stderr
+        hits += abs(f.slope - 0.09) <= half
+    assert 0.92 <= hits / trials <= 0.98
+
+
+def test_paper_reproduction():
+    rep = reproduce()
+    d = rep.as_dict()
+    for key in ("propagative/rough", "propagative/smooth", "oscillating"):
+        f = d["fits"][key]
+        assert {"slope_m_s_per_g_s", "intercept_m_s", "slope_stderr", "intercept_stderr", "r2", "n"} <= set(f)
+    t1 = datasets.table1()
+    rough = t1[t1.surface == "rough"]
+    ref = np.polyfit(rough.mass_flow_rate_g_s, rough.celerity_m_s, 1)
+    assert d["fits"]["propagative/rough"]["slope_m_s_per_g_s"] == pytest.approx(ref[0])
+    assert d["fits"]["propagative/rough"]["n"] == 7
+    assert d["fits"]["oscillating"]["n"] == 15
+    assert d["lengths"]["propagative"]["mean_over_diameter"] == pytest.approx(t1.plug_length_mm.mean() / 3)
+    checks = {c["claim"]: c for c in d["checks"]}
+    assert checks["oscillating v_p 'within 0.2 - 0.65 m/s'"]["agrees"] is False  # the factor-10 misprint
+    assert checks["propagative celerity ranges between -0.0366 and -0.0963 m/s"]["agrees"] is True
+    assert d["stability"]["printed"]["most_unstable"] is None
+    assert d["stability"]["frozen-friction"]["most_unstable"]["k"] == pytest.approx(0.1476, abs=2e-3)
+
+
+def test_paper_cli(tmp_path, capsys):
+    code, out, err = run(capsys, "paper", "--out", tmp_path / "p", "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert set(d["fits"]) == {"propagative/rough", "propagative/smooth", "oscillating"}
+    for name in ("paper.json", "reproduction.md", "report.html", "celerity_propagative.png",
+                 "length_oscillating.png", "growth_rates_printed.png", "growth_rates_frozen_friction.png"):
+        assert (tmp_path / "p" / name).stat().st_size > 0, name
+    text = (tmp_path / "p" / "reproduction.md").read_text()
+    assert "Where it does not" in text and "misprint" in text
+
+
+@pytest.fixture(scope="module")
+def campaign_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("camp")
+    runs = [("a", 0.40, -0.040, "rough"), ("b", 0.55, -0.054, "rough"), ("c", 0.67, -0.063, "rough"),
+            ("d", 0.50, -0.052, "smooth"), ("e", 0.84, -0.083, "smooth")]
+    rows = []
+    for i, (name, m, c, surf) in enumerate(runs):
+        synthesize(SynthConfig(n_frames=120, celerity_m_s=c, seed=i, noise_sigma=2), d / name, fmt="avi")
+        rows.append({"run": name, "movie": f"{name}/movie.avi", "mass_flow_rate_g_s": m, "humidity_pct": 44,
+                     "surface": surf, "mm_per_px": 0.185, "operator": "lab-3"})
+    with open(d / "manifest.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    toml = ["[defaults]", "mm_per_px = 0.185", "humidity_pct = 44", ""]
+    for r in rows:
+        toml += ["[[run]]", f'run = "{r["run"]}"', f'movie = "{r["movie"]}"',
+                 f"mass_flow_rate_g_s = {r['mass_flow_rate_g_s']}", f'surface = "{r["surface"]}"', ""]
+    (d / "manifest.toml").write_text("\n".join(toml))
+    return d
+
+
+def test_manifest_formats_agree(campaign_dir):
+    a = read_manifest(campaign_dir / "manifest.csv")
+    b = read_manifest(campaign_dir / "manifest.toml")
+    assert [s.run for s in a] == [s.run for s in b]
+    assert [s.movie for s in a] == [s.movie for s in b]
+    assert a[0].params.mm_per_px == b[0].params.mm_per_px == 0.185
+    assert a[0].meta["operator"] == "lab-3"
+    assert a[1].meta["mass_flow_rate_g_s"] == 0.55
+
+
+@pytest.mark.parametrize("content,word", [("movie,fps\n,250\n", "movie"), ("a,b\n1,2\n", "movie"),
+                                          ("movie,fps\nx.avi,fast\n", "fps"), ("movie\n", "no runs"),
+                                          ("run,movie\nx,a.avi\nx,b.avi\n", "repeat")])
+def test_bad_manifests(tmp_path, content, word):
+    p = tmp_path / "m.csv"
+    p.write_text(content)
+    with pytest.raises(ParameterError, match=word):
+        read_manifest(p)
+
+
+def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
+    out = tmp_path / "out"
+    camp = run_campaign(campaign_dir / "manifest.csv", out)
+    t = camp.table
+    assert list(t.status) == ["ok"] * 5
+    assert t.celerity_m_s.to_numpy() == pytest.approx([-0.040, -0.054, -0.063, -0.052, -0.083], rel=0.02)
+    assert set(camp.fits) == {"propagative/rough", "propagative/smooth", "all"}
+    assert camp.fits["propagative/rough"]["celerity"]["n"] == 3
+    assert pd.read_parquet(out / "campaign.parquet").shape[0] == 5
+    for name in ("campaign.csv", "fits.json", "report.html", "celerity_vs_mass_flow.png",
+                 "length_vs_mass_flow.png", "runs/a/summary.json", "runs/a/report.html"):
+        assert (out / name).exists(), name
+    # rerun: nothing changed, nothing analysed again
+    again = run_campaign(campaign_dir / "manifest.csv", out)
+    assert list(again.table.status) == ["cached"] * 5
+    assert again.table.celerity_m_s.tolist() == t.celerity_m_s.tolist()
+    # a changed parameter re-runs that run only; a missing movie fails alone
+    m = (campaign_dir / "manifest.csv").read_text().splitlines()
+    m[1] = m[1].replace("0.185", "0.19")
+    m.append("z,missing.avi,0.3,40,rough,0.185,lab-3")
+    (campaign_dir / "manifest2.csv").write_text("\n".join(m) + "\n")
+    code, _, err = run(capsys, "batch", campaign_dir / "manifest2.csv", "--out", out)
+    assert_one_line_error(code, err, "1 of 6 runs failed", "missing.avi")
+    t3 = pd.read_csv(out / "campaign.csv")
+    assert list(t3.status) == ["ok", "cached", "cached", "cached", "cached", "failed"]
+
+
+def test_batch_workers_match_serial(campaign_dir, tmp_path):
+    a = run_campaign(campaign_dir / "manifest.toml", tmp_path / "s", figures=False).table
+    b = run_campaign(campaign_dir / "manifest.toml", tmp_path / "p", workers=2, figures=False).table
+    cols = ["run", "celerity_m_s", "plug_length_mm", "regime", "bubble_length_mm"]
+    pd.testing.assert_frame_equal(a[cols], b[cols])
+
+
+@pytest.mark.slow
+def test_batch_on_dask_local_cluster(campaign_dir, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    serial = run_campaign(campaign_dir / "manifest.csv", tmp_path / "s", figures=False).table
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        dist = run_campaign(campaign_dir / "manifest.csv", tmp_path / "d", scheduler=cluster.scheduler_address,
+                            figures=False).table
+    cols = ["run", "status", "celerity_m_s", "plug_length_mm", "regime", "oscillation_frequency_hz"]
+    pd.testing.assert_frame_equal(serial[cols], dist[cols])
+
+
+def test_scheduler_unreachable(campaign_dir, tmp_path, capsys):
+    code, _, err = run(capsys, "batch", campaign_dir / "manifest.csv", "--out", tmp_path / "o",
+                       "--scheduler", "tcp://127.0.0.1:9")
+    assert_one_line_error(code, err, "scheduler")
