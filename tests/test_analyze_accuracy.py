@@ -81,15 +81,19 @@ def test_bubble_length_clean_case(rendered):
     assert s["plug_length_over_diameter"] == pytest.approx(s["plug_length_mm"] / 3.0, abs=1e-3)
 
 
-def test_edges_follow_truth(rendered):
-    """Per-frame edges of the whole record match the truth's edges within 0.3 mm."""
+def test_edges_follow_truth(tmp_path):
+    """Per-frame upper edges match the truth: median error under 0.1 mm (0.5 px), 99% under 0.3 mm,
+    with sensor noise sigma = 15."""
     import csv
 
     import numpy as np
 
-    from grainplug.synthetic.cases import case
+    # smooth interfaces: a rough one differs over the bore's core from its full-diameter mean
+    # (the truth) by up to ~0.2 mm per plug, which is not what this test is about
+    from grainplug.synthetic import SynthConfig
 
-    cfg, res = rendered(case("noise_sigma_15"))
+    cfg = SynthConfig(noise_sigma=15.0, edge_roughness_mm=0.0, seed=1)
+    res = synthesize(cfg, tmp_path, fmt="tiff")
     out = analyze(res.movie, AnalysisParams(mm_per_px=cfg.mm_per_px))
     truth: dict[int, list[float]] = {}
     with open(res.truth_edges_csv) as fh:
@@ -103,5 +107,5 @@ def test_edges_follow_truth(rendered):
             errs.append(np.min(np.abs(cand - top)))
     errs = np.asarray(errs)
     assert len(errs) > 300
-    assert np.median(errs) < 0.15
-    assert np.percentile(errs, 99) < 0.5
+    assert np.median(errs) < 0.1
+    assert np.percentile(errs, 99) < 0.3

@@ -8,9 +8,11 @@ returns an :class:`AnalysisResult`. Nothing here draws or prints; see
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import logging
 import os
+import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -18,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ._version import __version__
-from .calibration import TubeGeometry, find_tube, to_grey
+from .calibration import TubeGeometry, find_tube
 from .diagram import BandSampler, Diagram, Normalized, build_diagram, normalize
 from .errors import ParameterError
 from .measures import Lengths, Motion, measure_lengths, measure_motion
@@ -63,7 +65,7 @@ class AnalysisParams:
     flow_direction: str | None = None
     min_plug_mm: float = 3.0
     min_gap_mm: float = 0.6
-    sample_frames: int = 48
+    sample_frames: int = 32
     glob: str | None = None
 
     def __post_init__(self) -> None:
@@ -103,6 +105,7 @@ class AnalysisResult:
     statement: str
     sample_frame: np.ndarray = field(repr=False)
     sample_frame_index: int = 0
+    timings: dict[str, float] = field(default_factory=dict)
 
     @property
     def summary(self) -> dict[str, object]:
@@ -164,6 +167,14 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
     AnalysisResult
     """
     params = params or AnalysisParams()
+    clock = [time.perf_counter()]
+    timings: dict[str, float] = {}
+
+    def lap(name: str) -> None:
+        now = time.perf_counter()
+        timings[name] = round(now - clock[0], 4)
+        clock[0] = now
+
     with open_movie(path, glob=params.glob, fps=params.fps) as movie:
         info = movie.info
         if not info.fps:
@@ -176,8 +187,15 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         orientation = None
         if direction:
             orientation = "vertical" if direction in ("down", "up") else "horizontal"
+        movie.prefetch()
+        lap("open_s")
         sample_idx, sample = movie.sample(params.sample_frames)
+        lap("sample_s")
         tube = find_tube(sample, orientation=orientation)
+        lap("tube_s")
+        # keep a few of the sampled frames for the annotated figure, not all of them
+        keep = np.unique(np.linspace(0, len(sample) - 1, min(len(sample), 6)).round().astype(int))
+        sample_idx, sample = np.asarray(sample_idx)[keep], [sample[i] for i in keep]
         if direction:
             dir_source = "user"
         else:
@@ -194,23 +212,29 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
             scale_source = f"tube inner width ({params.tube_diameter_mm:g} mm = {tube.inner_diameter_px:.3f} px)"
             scale_rel_sd = TUBE_WIDTH_SD_PX / tube.inner_diameter_px
         sampler = BandSampler(tube, reverse=reverse)
-        if movie.has_file_timestamps and info.fps_source == "file":
-            times = movie.timestamps_s()
-        else:
-            times = np.arange(info.n_frames) / info.fps
+        times = np.arange(info.n_frames) / info.fps
         cb = (lambda k: progress(k, info.n_frames)) if progress else None
-        diagram = build_diagram(movie.frames(), sampler, n_frames=info.n_frames, time_s=times,
+        lap("setup_s")
+        diagram = build_diagram(movie.analysis_frames(), sampler, n_frames=info.n_frames, time_s=times,
                                 mm_per_px=mm_per_px, progress=cb)
-        grey_sample = [to_grey(f) for f in sample[: min(len(sample), 8)]]
-        background = float(np.median(np.mean(grey_sample, axis=0)))
+        lap("stream_s")
+        if movie.has_file_timestamps and info.fps_source == "file":
+            # presentation times from the file (recorded while streaming, for video)
+            stamps = movie.timestamps_s()
+            if len(stamps) == diagram.n_frames:
+                diagram = dataclasses.replace(diagram, time_s=np.asarray(stamps, float))
+        background = tube.background_level
         result_input = fingerprint(path)
+        lap("fingerprint_s")
     norm = normalize(diagram.values, background_level=background)
+    lap("normalize_s")
     ds = float(diagram.position_mm[1] - diagram.position_mm[0])
     mask = plug_mask(norm.z, mm_per_sample=ds, min_plug_mm=params.min_plug_mm,
                      min_gap_mm=params.min_gap_mm)
     runs = find_runs(norm.z, mask, diagram.position_mm) if norm.two_phase else find_runs(
         norm.z, np.zeros_like(mask), diagram.position_mm)
     tracks = link(runs, diagram.n_frames)
+    lap("plugs_s")
     motion = lengths = None
     has_plugs = norm.two_phase and len(runs) > 0
     statement = ""
@@ -226,6 +250,8 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
             f"no plugs: the tube holds a single phase over the whole record ({state}); "
             "no celerity, length or frequency is measured"
         )
+    lap("measures_s")
+    timings["stream_fps"] = round(diagram.n_frames / max(timings["stream_s"], 1e-9), 1)
     # the annotated frame: the sampled frame showing the most plug edges
     best = 0
     if len(runs):
@@ -236,7 +262,7 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         scale_source=scale_source, flow_direction=direction, flow_direction_source=dir_source,
         diagram=diagram, normalized=norm, runs=runs, tracks=tracks, motion=motion,
         lengths=lengths, has_plugs=bool(has_plugs), statement=statement,
-        sample_frame=sample[best], sample_frame_index=int(sample_idx[best]),
+        sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
     )
 
 
@@ -304,6 +330,7 @@ def build_summary(res: AnalysisResult) -> dict[str, object]:
             "flicker_sd": _r(float(np.std(res.normalized.frame_gain)), 5),
             "gradient_along_view": _r(float(res.normalized.position_gain[-1] / res.normalized.position_gain[0] - 1), 4),
         },
+        "timings_s": dict(res.timings),
         "conventions": "positions in mm along the tube from the upstream end of the view, increasing "
                        "with the flow; celerity in m/s, positive downstream (negative: plugs climb)",
     }

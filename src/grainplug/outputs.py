@@ -12,6 +12,7 @@ import json
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -80,6 +81,7 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
 
     ``extra`` is merged into ``summary.json`` (e.g. the campaign's run key).
     """
+    t_write = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".grainplug-", dir=out))
@@ -89,7 +91,6 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
         summary.update(extra or {})
         summary["outputs"] = {k: v for k, v in FILES.items()
                               if k != "fig_spectrum" or (res.motion and res.motion.oscillation_frequency_hz)}
-        (tmp / FILES["summary"]).write_text(json.dumps(summary, indent=2, default=_json_default) + "\n")
         (tmp / FILES["edges"]).write_text(edges_table(res))
         (tmp / FILES["tracks"]).write_text(tracks_table(res))
         with open(tmp / FILES["diagram"], "wb") as fh:
@@ -115,6 +116,8 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
             from .reports import run_report
 
             (tmp / "report.html").write_text(run_report(res, tmp))
+        summary["timings_s"]["write_s"] = round(time.perf_counter() - t_write, 4)
+        (tmp / FILES["summary"]).write_text(json.dumps(summary, indent=2, default=_json_default) + "\n")
         for f in sorted(tmp.iterdir()):
             dest = out / f.name
             os.replace(f, dest)

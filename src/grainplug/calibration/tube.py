@@ -41,6 +41,7 @@ matters, give the scale from a calibration image (``--mm-per-px``).
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import logging
 from dataclasses import dataclass
@@ -91,6 +92,7 @@ class TubeGeometry:
     contrast: float
     method: str
     canonical_shape: tuple[int, int]
+    background_level: float = float("nan")
 
     def axis_x(self, y: np.ndarray | float) -> np.ndarray:
         """Axis position (canonical x) at canonical row ``y``."""
@@ -101,25 +103,65 @@ class TubeGeometry:
             "orientation": self.orientation, "tilt_deg": self.tilt_deg,
             "axis_x0_px": self.axis_x0_px, "inner_diameter_px": self.inner_diameter_px,
             "contrast": self.contrast, "method": self.method,
-            "canonical_shape": list(self.canonical_shape),
+            "canonical_shape": list(self.canonical_shape), "background_level": self.background_level,
         }
 
 
 def to_grey(frame: np.ndarray) -> np.ndarray:
     """Float32 grey image: the mean of the colour channels."""
     if frame.ndim == 3:
-        return frame.mean(axis=2, dtype=np.float32)
+        g = frame[..., 0].astype(np.float32)
+        for c in range(1, frame.shape[2]):
+            g += frame[..., c]
+        g *= np.float32(1.0 / frame.shape[2])
+        return g
     return frame.astype(np.float32)
 
 
-def mean_and_variation(frames: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Temporal mean and standard deviation of gain-normalised grey frames."""
-    acc = None
-    acc2 = None
+def _bin(img: np.ndarray, b: int) -> np.ndarray:
+    if b == 1:
+        return img
+    h, w = img.shape[0] // b * b, img.shape[1] // b * b
+    out = np.zeros((h // b, w // b), np.float32)
+    for i in range(b):
+        for j in range(b):
+            out += img[i:h:b, j:w:b]
+    out *= np.float32(1.0 / (b * b))
+    return out
+
+
+def mean_and_variation(frames: list[np.ndarray], *, binning: int = 1, transpose: bool = False,
+                       cols: slice | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """Temporal mean and standard deviation of gain-normalised grey frames.
+
+    Parameters
+    ----------
+    frames : list of ndarray
+        Grey or colour frames.
+    binning : int
+        Average ``binning x binning`` blocks first (a coarse look at large frames).
+    transpose : bool
+        Work in the transposed frame (canonical view of a horizontal tube).
+    cols : slice, optional
+        Only these columns (of the possibly transposed frame).
+
+    Returns
+    -------
+    mean, std : ndarray
+        Images of the frames divided by their median (flicker removed).
+    level : float
+        Median grey level of the frames (the background's light).
+    """
+    acc = acc2 = None
+    levels = []
     for f in frames:
-        g = to_grey(f)
-        level = float(np.median(g))
-        g = g / max(level, 1e-6)
+        view = np.swapaxes(f, 0, 1) if transpose else f
+        if cols is not None:
+            view = view[:, cols]
+        g = _bin(to_grey(view), binning)
+        level = float(np.median(g[::4, ::4]))
+        levels.append(level)
+        g = g * np.float32(1.0 / max(level, 1e-6))
         if acc is None:
             acc = np.zeros(g.shape, np.float64)
             acc2 = np.zeros(g.shape, np.float64)
@@ -128,7 +170,7 @@ def mean_and_variation(frames: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray
     n = len(frames)
     mean = acc / n
     var = np.maximum(acc2 / n - mean * mean, 0.0)
-    return mean.astype(np.float32), np.sqrt(var).astype(np.float32)
+    return mean.astype(np.float32), np.sqrt(var).astype(np.float32), float(np.median(levels))
 
 
 def sheared_profile(img: np.ndarray, tan_b: float, x_grid: np.ndarray,
@@ -162,9 +204,12 @@ def _downsample(img: np.ndarray, limit: int = 120_000) -> tuple[np.ndarray, int]
     return img, factor
 
 
-def _coarse_tilt(feature: np.ndarray) -> tuple[float, float]:
-    """Tilt (deg) whose projection of ``feature`` has the most energy, and that energy."""
-    small, _ = _downsample(feature)
+def _coarse_tilt(feature: np.ndarray, *, centre: float = 0.0, span: float = MAX_TILT_DEG) -> tuple[float, float]:
+    """Tilt (deg) whose projection of ``feature`` has the most energy, and that energy.
+
+    Searched in ``centre +- span`` on successively finer grids.
+    """
+    small, _ = _downsample(feature, 80_000)
     h, w = small.shape
     pad = h * np.tan(np.radians(MAX_TILT_DEG + 1))
     grid = np.arange(-pad, w + pad, 1.0)
@@ -175,10 +220,12 @@ def _coarse_tilt(feature: np.ndarray) -> tuple[float, float]:
         prof = prof - np.median(prof)
         return float(np.mean(prof * prof))
 
-    best, e_best = 0.0, -1.0
-    for step, span in ((0.5, MAX_TILT_DEG), (0.1, 0.5), (0.025, 0.1)):
+    best, e_best = centre, -1.0
+    grids = ((1.0, span), (0.25, 1.0), (0.05, 0.25), (0.0125, 0.05)) if span > 1 else (
+        (0.05, span), (0.0125, 0.05))
+    for step, reach in grids:
         centre = best
-        for d in np.arange(centre - span, centre + span + 1e-9, step):
+        for d in np.arange(centre - reach, centre + reach + 1e-9, step):
             if abs(d) > MAX_TILT_DEG + 1e-9:
                 continue
             e = energy(float(d))
@@ -271,28 +318,13 @@ def _bore_in_profile(grid: np.ndarray, prof: np.ndarray) -> _Bore | None:
     return _Bore(float(left), float(right), top - base, noise)
 
 
-def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> TubeGeometry:
-    """Locate the tube from a sample of frames.
+def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coarse: bool = False,
+            tilt_hint: float | None = None) -> TubeGeometry:
+    """The tube in temporal mean and standard-deviation images (one resolution).
 
-    Parameters
-    ----------
-    frames : list of ndarray
-        Frames spread over the movie (grey or RGB).
-    orientation : {"vertical", "horizontal"}, optional
-        Restrict the search (known from the flow direction).
-
-    Returns
-    -------
-    TubeGeometry
-
-    Raises
-    ------
-    MovieError
-        When no tube-like structure is found.
+    ``coarse``: orientation, tilt, axis and an approximate width only (no block
+    refinement, a 0.25 px profile grid), for the first look at a binned frame.
     """
-    if not frames:
-        raise MovieError("no frames to find the tube in")
-    mean, std = mean_and_variation(frames)
     # relative variation of the contents: sensor noise removed (the background's
     # variance), divided by the local mean so that any local loss of light (the
     # dark bands of refraction at the walls, vignetting) cancels out
@@ -312,7 +344,10 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
         vz = np.clip(v - np.median(v), 0, None)
         gz = np.clip(g - np.median(g), 0, None)
         feat = vz / (np.percentile(vz, 99.9) + 1e-12) + 0.25 * gz / (np.percentile(gz, 99.9) + 1e-12)
-        tilt, energy = _coarse_tilt(feat)
+        if tilt_hint is None:
+            tilt, energy = _coarse_tilt(feat)
+        else:
+            tilt, energy = _coarse_tilt(feat, centre=tilt_hint, span=0.3)
         candidates.append((energy, orient, tilt, m, v, feat))
     _, orient, tilt, m, v, feat = max(candidates, key=lambda c: c[0])
     h, w = m.shape
@@ -329,14 +364,14 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
     n_blocks = int(np.clip(h // 40, 4, 32))
     edges = np.linspace(0, h, n_blocks + 1).astype(int)
     ys, cs, ws = [], [], []
-    for a, b in itertools.pairwise(edges):
+    for a, b in itertools.pairwise(edges if not coarse else []):
         bore = _bore_in_profile(fine, sheared_profile(v, tan_b, fine, slice(a, b)))
         if bore is not None and bore.contrast > 6 * bore.noise:
             ys.append(0.5 * (a + b) - 0.5)
             cs.append(0.5 * (bore.left + bore.right) + (0.5 * (a + b)) * tan_b)
             ws.append(bore.contrast)
     method = "variation"
-    if len(ys) >= 3:  # weighted straight-line fit of the block centres, outliers dropped
+    if len(ys) >= 3 and not coarse:  # weighted straight-line fit of the block centres, outliers dropped
         ys_a, cs_a, w_a = np.asarray(ys), np.asarray(cs), np.asarray(ws)
         keep = np.ones(len(ys_a), bool)
         for _ in range(3):
@@ -351,7 +386,7 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
         tan_b = float(coef[0])
         x0 = float(coef[1])
         tilt = float(np.degrees(np.arctan(tan_b)))
-    fine = np.arange(x0 - half, x0 + half, 0.05)
+    fine = np.arange(x0 - half, x0 + half, 0.25 if coarse else 0.05)
     prof_v = sheared_profile(v, tan_b, fine)
     prof_m = sheared_profile(m, tan_b, fine)
     bore = _bore_in_profile(fine, prof_v)
@@ -386,3 +421,54 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
              orient, tilt, axis_x0, width_px, method)
     return TubeGeometry(orient, float(tilt), float(axis_x0), float(width_px), float(contrast),
                         method, (h, w))
+
+
+def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> TubeGeometry:
+    """Locate the tube from a sample of frames.
+
+    Large frames are searched in two stages: the whole frame binned 2x2 (or
+    more) gives the orientation, the tilt and the axis; the bore is then
+    measured at full resolution in a band of columns around that axis only.
+
+    Parameters
+    ----------
+    frames : list of ndarray
+        Frames spread over the movie (grey or RGB).
+    orientation : {"vertical", "horizontal"}, optional
+        Restrict the search (known from the flow direction).
+
+    Returns
+    -------
+    TubeGeometry
+
+    Raises
+    ------
+    MovieError
+        When no tube-like structure is found.
+    """
+    if not frames:
+        raise MovieError("no frames to find the tube in")
+    h, w = frames[0].shape[:2]
+    b = 1
+    while max(h, w) // b > 700:
+        b *= 2
+    if b > 1:
+        b *= 2  # the first look only needs the direction and position: coarser still
+    if b == 1:
+        mean, std, level = mean_and_variation(frames)
+        return dataclasses.replace(_locate(mean, std, orientation), background_level=level)
+    mean, std, level = mean_and_variation(frames, binning=b)
+    coarse = _locate(mean, std, orientation, coarse=True)
+    transpose = coarse.orientation == "horizontal"
+    ch, cw = (w, h) if transpose else (h, w)
+    tan_b = np.tan(np.radians(coarse.tilt_deg))
+    x0 = b * coarse.axis_x0_px + (b - 1) / 2  # binned pixel centre -> full-resolution pixel
+    reach = 2.0 * b * coarse.inner_diameter_px + 8 * b
+    xs = x0 + (np.array([0.0, ch]) + 0.5) * tan_b
+    lo = int(max(0, np.floor(xs.min() - reach)))
+    hi = int(min(cw, np.ceil(xs.max() + reach) + 1))
+    cm, cs, _ = mean_and_variation(frames, transpose=transpose, cols=slice(lo, hi))
+    fine = _locate(cm, cs, "vertical", tilt_hint=coarse.tilt_deg)
+    log.debug("coarse tube at binning %d: %s", b, coarse)
+    return TubeGeometry(coarse.orientation, fine.tilt_deg, fine.axis_x0_px + lo, fine.inner_diameter_px,
+                        fine.contrast, fine.method, (ch, cw), level)

@@ -89,13 +89,39 @@ class BandSampler:
         edge = (h - 1 - self.rows) if reverse else self.rows
         self.axis_px = (edge + 0.5) / cos_t
         self.bbox = (int(self._r.min()), int(self._r.max()) + 1, int(self._c.min()), int(self._c.max()) + 1)
+        self._key: tuple | None = None
+
+    def _prepare(self, frame: np.ndarray) -> None:
+        """Flat element offsets of the band in an array laid out like ``frame``."""
+        item = frame.itemsize
+        st = [s // item for s in frame.strides]
+        n_ch = frame.shape[2] if frame.ndim == 3 else 1
+        off = self._r * st[0] + self._c * st[1]
+        if n_ch > 1:
+            off = off[:, :, None] + np.arange(n_ch) * st[2]
+        self._idx = np.ascontiguousarray(off.reshape(len(self.rows), -1), dtype=np.intp)
+        self._span = int(self._idx.max()) + 1
+        w = self.weights if n_ch == 1 else np.repeat(self.weights, n_ch, axis=1) / n_ch
+        self._w = np.ascontiguousarray(w, dtype=np.float32)
+        self._key = (frame.shape, frame.strides, frame.dtype.str)
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
-        """Core profile along the axis of one frame (float32)."""
-        band = frame[self._r, self._c]
-        if band.ndim == 3:
-            band = band.mean(axis=2, dtype=np.float32)
-        return np.einsum("ij,ij->i", band.astype(np.float32, copy=False), self.weights)
+        """Core profile along the axis of one frame (float32).
+
+        Only the band's samples are read: their offsets are computed once from the
+        frame's layout (strides), so a view into a memory-mapped file or a padded
+        video plane is sampled without copying the frame. Channels are averaged
+        with equal weights, so their order does not matter.
+        """
+        if frame.ndim == 3 and frame.shape[2] == 4:
+            frame = frame[..., :3]
+        if self._key != (frame.shape, frame.strides, frame.dtype.str):
+            if any(s <= 0 for s in frame.strides):
+                frame = np.ascontiguousarray(frame)
+            self._prepare(frame)
+        flat = np.lib.stride_tricks.as_strided(frame, shape=(self._span,), strides=(frame.itemsize,))
+        vals = np.take(flat, self._idx)
+        return np.einsum("ij,ij->i", vals.astype(np.float32), self._w)
 
 
 def build_diagram(frames: Iterable[np.ndarray], sampler: BandSampler, *, n_frames: int,

@@ -40,7 +40,7 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy.special import stdtrit
 
 log = logging.getLogger(__name__)
 
@@ -247,13 +247,17 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     drift_series = seg + coef[0] * tt
     if regime == "oscillating":
         drift_series = drift_series - _periodic_part(coef, n_tr, f_osc, _harmonics_for(f_osc, fps), tt)
-    slope, intercept, _, _, se = stats.linregress(tt, drift_series)
+    xm = float(tt.mean())
+    sxx = float(((tt - xm) ** 2).sum())
+    slope = float(((tt - xm) * (drift_series - drift_series.mean())).sum() / sxx)
+    intercept = float(drift_series.mean() - slope * xm)
     r = drift_series - (slope * tt + intercept)
+    se = float(np.sqrt((r @ r) / max(len(tt) - 2, 1) / sxx))
     rho = float(np.corrcoef(r[:-1], r[1:])[0, 1]) if len(r) > 3 and np.std(r) > 0 else 0.0
     rho = float(np.clip(np.nan_to_num(rho), 0.0, 0.98))
     se_c = se * np.sqrt((1 + rho) / (1 - rho)) / 1000.0
     se_c = float(np.hypot(se_c, abs(celerity) * scale_rel_sd))
-    tq = float(stats.t.ppf(0.975, max(len(tt) - 2, 1)))
+    tq = float(stdtrit(max(len(tt) - 2, 1), 0.975))
     ci = (celerity - tq * se_c, celerity + tq * se_c)
     return Motion(
         celerity_m_s=celerity, celerity_ci95_m_s=ci, regime=regime,

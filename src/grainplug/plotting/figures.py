@@ -23,8 +23,10 @@ def plot_diagram(res: AnalysisResult, *, max_markers: int = 4000) -> Figure:
     d = res.diagram
     fig, ax = plt.subplots(figsize=(9, 5.5), constrained_layout=True)
     t, s = d.time_s, d.position_mm
-    ax.imshow(d.values.T, aspect="auto", cmap="gray", origin="upper", interpolation="nearest",
-              extent=(t[0], t[-1], s[-1], s[0]))
+    step_t = max(1, d.values.shape[0] // 2000)  # the figure is ~1000 px wide: no need for more
+    step_s = max(1, d.values.shape[1] // 1500)
+    ax.imshow(d.values[::step_t, ::step_s].T, aspect="auto", cmap="gray", origin="upper",
+              interpolation="nearest", extent=(t[0], t[-1], s[-1], s[0]))
     runs = res.runs
     if len(runs):
         step = max(1, len(runs) // max_markers)
@@ -84,15 +86,22 @@ def plot_spectrum(res: AnalysisResult) -> Figure:
 def plot_annotated_frame(res: AnalysisResult) -> Figure:
     """One frame with the detected tube (inner walls, axis) and plugs (edges), the paper's Fig 4."""
     frame = res.sample_frame
-    img = frame.astype(float)
-    if img.ndim == 3:
-        img = img / max(img.max(), 1)
     tube = res.tube
     h = tube.canonical_shape[0]
     vertical = tube.orientation == "vertical"
-    tall = vertical
-    fig, ax = plt.subplots(figsize=(4.5, 8) if tall else (9, 4.5), constrained_layout=True)
-    ax.imshow(img, cmap="gray", interpolation="nearest")
+    # show the tube and its surroundings (six diameters either side), not the whole sensor
+    axis_ends = tube.axis_x(np.array([0.0, h - 1.0]))
+    margin = 6 * tube.inner_diameter_px + 10
+    lo = int(max(0, np.floor(axis_ends.min() - margin)))
+    hi = int(np.ceil(axis_ends.max() + margin)) + 1
+    crop = frame[:, lo:hi] if vertical else frame[lo:hi]
+    img = crop.astype(np.float32)
+    if img.ndim == 3:
+        img = img / max(float(img.max()), 1.0)
+    extent = (lo - 0.5, lo + crop.shape[1] - 0.5, crop.shape[0] - 0.5, -0.5) if vertical else (
+        -0.5, crop.shape[1] - 0.5, lo + crop.shape[0] - 0.5, lo - 0.5)
+    fig, ax = plt.subplots(figsize=(4.5, 8) if vertical else (9, 4.5), constrained_layout=True)
+    ax.imshow(img, cmap="gray", interpolation="nearest", extent=extent)
     rows = np.arange(h, dtype=float)
     axis = tube.axis_x(rows)
     half = 0.5 * tube.inner_diameter_px / np.cos(np.radians(tube.tilt_deg))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import abc
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -116,6 +117,35 @@ class Movie(abc.ABC):
         if start >= stop:
             return iter(())
         return self._iter(start, stop, step)
+
+    def prefetch(self) -> None:
+        """Ask the operating system to start reading the whole movie into its cache.
+
+        Returns at once; the reads overlap whatever the caller does next (finding
+        the tube), so the streaming pass finds the data in memory. A no-op where
+        the platform or the format does not allow it.
+        """
+        if not hasattr(os, "posix_fadvise"):
+            return
+        files = [self.path] if self.path.is_file() else []
+        for f in files:
+            try:
+                fd = os.open(f, os.O_RDONLY)
+                try:
+                    os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_WILLNEED)
+                finally:
+                    os.close(fd)
+            except OSError:
+                pass
+
+    def analysis_frames(self) -> Iterator[np.ndarray]:
+        """All frames, in order, in whatever layout is cheapest to read.
+
+        For grey-level analysis only: colour channels may come in any order (or
+        as luma alone, for YUV video), and an array may be a view that is only
+        valid until the next one is produced.
+        """
+        return self.frames()
 
     def __iter__(self) -> Iterator[np.ndarray]:
         return self.frames()

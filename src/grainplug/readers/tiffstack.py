@@ -65,16 +65,16 @@ class TiffStackMovie(Movie):
             self._tif.close()
             raise MovieError(f"{path}: pages of shape {shape} are not frames — export H x W or H x W x 3")
         self._page_shape = shape
-        self._memmap: np.ndarray | None = None
+        self._contiguous: tuple[int, np.dtype] | None = None
         n_frames = int(np.prod(series.shape[: series.ndim - len(shape)])) if series.ndim > len(shape) else 1
         if series.dataoffset is not None and not page0.is_tiled and page0.compression == 1:
-            try:
-                mm = np.memmap(str(path), dtype=series.dtype.newbyteorder(self._tif.byteorder),
-                               mode="r", offset=series.dataoffset, shape=(n_frames, *shape))
-                self._memmap = mm
-            except (ValueError, OSError) as exc:  # truncated file: fewer bytes than announced
+            dt = series.dtype.newbyteorder(self._tif.byteorder)
+            need = series.dataoffset + n_frames * int(np.prod(shape)) * dt.itemsize
+            if path.stat().st_size < need:
                 self._tif.close()
-                raise MovieError(f"{path} is truncated ({exc}) — copy the file again") from None
+                raise MovieError(f"{path} is truncated: it holds {path.stat().st_size} of {need} bytes "
+                                 "— copy the file again")
+            self._contiguous = (int(series.dataoffset), dt)
         else:
             n_frames = len(self._tif.pages)
         file_fps = _fps_from_metadata(self._tif)
@@ -86,9 +86,34 @@ class TiffStackMovie(Movie):
         )
         super().__init__(path, info)
 
+    #: frames mapped at once while streaming (the map is released after each chunk)
+    CHUNK_FRAMES = 16
+
+    def _map(self, start: int, count: int) -> np.ndarray:
+        offset, dt = self._contiguous
+        frame_bytes = int(np.prod(self._page_shape)) * dt.itemsize
+        return np.memmap(str(self.path), dtype=dt, mode="r", offset=offset + start * frame_bytes,
+                         shape=(count, *self._page_shape))
+
+    def analysis_frames(self) -> Iterator[np.ndarray]:
+        """Frames as views into memory maps of a few frames at a time (uncompressed stacks):
+        only the bytes the caller touches are read, and each map is released after use."""
+        if self._contiguous is None:
+            yield from self.frames()
+            return
+        n = self.info.n_frames
+        for start in range(0, n, self.CHUNK_FRAMES):
+            count = min(self.CHUNK_FRAMES, n - start)
+            mm = self._map(start, count)
+            for k in range(count):
+                yield mm[k][..., :3] if mm.ndim == 4 and mm.shape[-1] == 4 else mm[k]
+            del mm  # unmapped as soon as the caller drops its last view
+
     def _page(self, index: int) -> np.ndarray:
-        if self._memmap is not None:
-            arr = np.asarray(self._memmap[index])
+        if self._contiguous is not None:
+            mm = self._map(index, 1)
+            arr = np.array(mm[0])
+            del mm
         else:
             try:
                 arr = self._tif.pages[index].asarray()
@@ -109,10 +134,12 @@ class TiffStackMovie(Movie):
 
     def region(self, index: int, rows: slice, cols: slice) -> np.ndarray:
         """Read only a rectangle of one frame (fast on memory-mapped stacks)."""
-        if self._memmap is not None:
-            return np.asarray(self._memmap[index, rows, cols])
+        if self._contiguous is not None:
+            mm = self._map(index, 1)
+            out = np.array(mm[0][rows, cols])
+            del mm
+            return out
         return self._page(index)[rows, cols]
 
     def close(self) -> None:
-        self._memmap = None
         self._tif.close()

@@ -17,6 +17,11 @@ log = logging.getLogger(__name__)
 
 _GRAY8 = {"gray", "gray8", "pal8"}
 _GRAY16 = {"gray16le", "gray16be", "gray10le", "gray12le", "gray10be", "gray12be", "y16"}
+#: codecs whose every frame is a key frame: a frame can be sought and decoded alone
+#: (not FFV1, whose frames between key frames carry the coder state)
+INTRA_ONLY = {"rawvideo", "mjpeg", "png", "tiff", "bmp", "prores", "dnxhd", "huffyuv", "ffvhuff",
+              "utvideo", "v210", "r210", "qtrle", "jpeg2000", "cfhd"}
+
 _RGB16 = {"rgb48le", "rgb48be", "bgr48le", "bgr48be", "rgba64le", "rgba64be", "gbrp16le",
           "gbrp12le", "gbrp10le", "yuv444p16le", "yuv420p16le"}
 
@@ -79,6 +84,7 @@ class VideoMovie(Movie):
             if n_frames <= 0:
                 raise MovieError(f"{path} holds no video frames — pass a movie with frames")
             codec = ctx.name
+            self._codec = codec
             fmt_name = container.format.name.split(",")[0]
         finally:
             container.close()
@@ -130,6 +136,10 @@ class VideoMovie(Movie):
         total = self.info.n_frames
         if total <= n:
             return np.arange(total), list(self.frames())
+        if self._codec in INTRA_ONLY:
+            got = self._seek_sample(np.unique(np.linspace(0, total - 1, n).round().astype(int)))
+            if got is not None:
+                return got
         try:
             with av.open(str(self.path)) as container:
                 keys = [k for k, pkt in enumerate(p for p in container.demux(video=0) if p.size)
@@ -161,12 +171,100 @@ class VideoMovie(Movie):
         idx = np.arange(0, prefix, step)
         return idx, list(self.frames(0, prefix, step))
 
-    def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
+    def _seek_sample(self, wanted: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]] | None:
+        """Decode only the wanted frames of an intra-only video.
+
+        Each frame is reached by seeking, then skipping packets without decoding
+        them; where seeking lands too far back (no index), one pass over the
+        packets decodes only the wanted ones. Returns None if that fails too.
+        """
+        frames: list[np.ndarray] = []
+        try:
+            with av.open(str(self.path)) as container:
+                stream = container.streams.video[0]
+                stream.thread_type = "SLICE"  # frame threads would delay each frame's output
+                ctx = stream.codec_context
+                tb = float(stream.time_base)
+                start = stream.start_time or 0
+                rate = float(stream.average_rate or self.info.fps or 1.0)
+                targets = [start + int(round(i / rate / tb)) for i in wanted.tolist()]
+                seek_ok = True
+                for pts in targets:
+                    got = None
+                    if seek_ok:
+                        container.seek(pts, stream=stream, backward=True, any_frame=False)
+                        skipped = 0
+                        for pkt in container.demux(stream):
+                            if pkt.pts is None or not pkt.size:
+                                continue
+                            if pkt.pts < pts:
+                                skipped += 1
+                                if skipped > 64:  # the container does not seek precisely
+                                    seek_ok = False
+                                    break
+                                continue
+                            if pkt.pts == pts:
+                                decoded = ctx.decode(pkt)
+                                got = decoded[0].to_ndarray(format=self._target) if decoded else None
+                            break
+                    if got is None and not seek_ok:
+                        return self._one_pass_sample(wanted, targets)
+                    if got is None:
+                        return None
+                    frames.append(got)
+        except av.error.FFmpegError:
+            return None
+        return wanted, frames
+
+    def _one_pass_sample(self, wanted: np.ndarray, targets: list[int]) -> tuple[np.ndarray, list[np.ndarray]] | None:
+        """One pass over the packets, decoding only the wanted (intra-coded) ones."""
+        want = {p: k for k, p in enumerate(targets)}
+        out: list[np.ndarray | None] = [None] * len(targets)
+        with av.open(str(self.path)) as container:
+            stream = container.streams.video[0]
+            stream.thread_type = "SLICE"
+            ctx = stream.codec_context
+            for pkt in container.demux(stream):
+                if pkt.pts in want and pkt.size:
+                    decoded = ctx.decode(pkt)
+                    if decoded:
+                        out[want[pkt.pts]] = decoded[0].to_ndarray(format=self._target)
+        if any(f is None for f in out):
+            return None
+        return wanted, out  # type: ignore[return-value]
+
+    def analysis_frames(self) -> Iterator[np.ndarray]:
+        """Decoded frames in their native layout: packed RGB/BGR as they are, luma only for
+        YUV and the first plane for planar RGB, 16-bit through a conversion. No colour
+        conversion is done, so analysis runs at the speed of decoding."""
+        return self._iter(0, self.info.n_frames, 1, native=True)
+
+    @staticmethod
+    def _native(frame: av.VideoFrame, fallback: str) -> np.ndarray:
+        name = frame.format.name
+        w, h = frame.width, frame.height
+        if name in ("gray", "rgb24", "bgr24"):
+            plane = frame.planes[0]
+            ch = 1 if name == "gray" else 3
+            arr = np.frombuffer(plane, np.uint8).reshape(h, plane.line_size)[:, : w * ch]
+            return arr if ch == 1 else arr.reshape(h, w, 3)
+        if name in ("bgr0", "rgb0", "bgra", "rgba", "0rgb", "0bgr", "argb", "abgr"):
+            plane = frame.planes[0]
+            arr = np.frombuffer(plane, np.uint8).reshape(h, plane.line_size)[:, : w * 4].reshape(h, w, 4)
+            return arr[..., 1:] if name[0] in "0a" else arr[..., :3]
+        if name.startswith(("yuv", "yuvj", "nv12", "nv21", "gbrp")) and not any(
+                d in name for d in ("9", "10", "12", "14", "16")):
+            plane = frame.planes[0]
+            return np.frombuffer(plane, np.uint8).reshape(h, plane.line_size)[:, :w]
+        return frame.to_ndarray(format=fallback)
+
+    def _iter(self, start: int, stop: int, step: int, native: bool = False) -> Iterator[np.ndarray]:
         try:
             container = av.open(str(self.path))
         except av.error.FFmpegError as exc:
             raise MovieError(f"cannot reopen {self.path}: {exc}") from None
         index = 0
+        seen: list[int] = []
         try:
             stream = container.streams.video[0]
             stream.thread_type = "AUTO"
@@ -175,9 +273,10 @@ class VideoMovie(Movie):
             for frame in container.decode(stream):
                 if index >= stop:
                     break
+                if native:
+                    seen.append(-1 if frame.pts is None else int(frame.pts))
                 if index >= start and (index - start) % step == 0:
-                    arr = frame.to_ndarray(format=self._target)
-                    yield arr
+                    yield self._native(frame, self._target) if native else frame.to_ndarray(format=self._target)
                 index += 1
         except av.error.FFmpegError as exc:
             raise MovieError(
@@ -186,6 +285,8 @@ class VideoMovie(Movie):
             ) from None
         finally:
             container.close()
+        if native and len(seen) == self.info.n_frames and min(seen) >= 0:
+            self._pts = np.sort(np.asarray(seen, dtype=np.int64))  # time stamps, without another pass
         if index < stop and stop <= self.info.n_frames and index < self.info.n_frames:
             raise MovieError(
                 f"{self.path} is truncated: only {index} of {self.info.n_frames} frames decode — "

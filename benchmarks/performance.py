@@ -1,0 +1,225 @@
+"""Speed and memory of `grainplug analyze` on full-size movies, against decoding alone
+and against a straightforward per-frame port of the paper's algorithm.
+
+    .venv/bin/python benchmarks/performance.py [--frames 600] [--dir /tmp/grainplug-bench]
+        [--formats tiff,avi,ffv1,h264] [--long-frames 3000]
+
+For each format it renders (once, cached in --dir) a 1280x1024 RGB movie of plug
+flow, then measures in one run on the same file:
+
+- decode-only: every frame decoded to an array with the same library grainplug
+  uses (tifffile / PyAV), nothing else;
+- analyze: `grainplug analyze` end to end in a fresh process (tube detection,
+  diagram, plugs, measures, files, figures);
+- baseline: `baseline_paper_port` below on a subset of frames (every whole frame
+  converted to grey, binarised, labelled with scikit-image);
+- peak memory (max RSS) of `analyze`, also on a long movie (--long-frames);
+- for H.264, the CPU time / wall time of decoding (decoding on all cores).
+
+It prints the ratios. Nothing here is a test: timings depend on the machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from grainplug.readers import open_movie
+from grainplug.synthetic import SynthConfig, synthesize
+
+
+def movie_config(n_frames: int) -> SynthConfig:
+    # 1280 px along the tube (the paper's 237 mm field of view at 0.185 mm/px), 1024 across
+    return SynthConfig(width_px=1024, height_px=1280, n_frames=n_frames, fps=250.0, mm_per_px=0.185,
+                       tube_offset_px=-140.0, noise_sigma=3.0, celerity_m_s=-0.05, seed=6)
+
+
+def ensure_movie(folder: Path, fmt: str, n_frames: int) -> Path:
+    stem = f"movie_{n_frames}"
+    target = folder / fmt
+    done = target / f".{stem}.done"
+    if done.exists():
+        return Path(done.read_text())
+    t0 = time.perf_counter()
+    res = synthesize(movie_config(n_frames), target, fmt=fmt, stem=stem)
+    done.write_text(str(res.movie))
+    print(f"rendered {res.movie} ({res.movie.stat().st_size / 1e9:.2f} GB) in {time.perf_counter() - t0:.0f} s",
+          file=sys.stderr)
+    return res.movie
+
+
+def long_tiff(folder: Path, n_rendered: int, n_frames: int) -> Path:
+    """A long uncompressed TIFF stack: the rendered movie's frames written over and over
+    (for throughput and memory only: the plugs jump where the loop restarts)."""
+    import tifffile
+
+    path = folder / f"long_{n_frames}.tif"
+    if path.exists():
+        return path
+    src = ensure_movie(folder, "tiff", n_rendered)
+    tmp = path.with_suffix(".part.tif")
+    with tifffile.TiffFile(str(src)) as tif, tifffile.TiffWriter(str(tmp), bigtiff=True) as out:
+        pages = len(tif.pages)
+        for k in range(n_frames):
+            out.write(tif.pages[k % pages].asarray(), contiguous=True, photometric="rgb",
+                      metadata={"fps": 250.0} if k == 0 else None)
+    tmp.rename(path)
+    return path
+
+
+def decode_only(path: Path) -> tuple[int, float, float]:
+    """Frames, wall seconds and CPU seconds of decoding every frame to an array."""
+    c0 = time.process_time()
+    t0 = time.perf_counter()
+    n = 0
+    if path.suffix.lower() in (".tif", ".tiff"):
+        import tifffile
+
+        with tifffile.TiffFile(str(path)) as tif:
+            for page in tif.pages:
+                page.asarray()
+                n += 1
+    else:
+        import av
+
+        with av.open(str(path)) as container:
+            stream = container.streams.video[0]
+            stream.thread_type = "AUTO"
+            for frame in container.decode(stream):
+                try:
+                    frame.to_ndarray()  # the decoder's own layout where PyAV can hand it out
+                except ValueError:
+                    frame.to_ndarray(format="rgb24")  # e.g. FFV1's bgr0
+                n += 1
+    return n, time.perf_counter() - t0, time.process_time() - c0
+
+
+def baseline_paper_port(path: Path, n_frames: int, *, mm_per_px: float = 0.185) -> tuple[int, float]:
+    """The paper's algorithm, ported frame by frame with scikit-image (no cropping by hand,
+    no tuning): grey conversion, Otsu threshold of the first frame, binarisation and
+    connected-component labelling of every whole frame, plugs = dark regions taller than
+    3 mm, their upper and lower positions stored."""
+    from skimage.color import rgb2gray
+    from skimage.filters import threshold_otsu
+    from skimage.measure import label, regionprops
+
+    t0 = time.perf_counter()
+    positions = []
+    threshold = None
+    with open_movie(path) as movie:
+        for k, frame in enumerate(movie.frames(0, n_frames)):
+            grey = rgb2gray(frame) if frame.ndim == 3 else frame / frame.max()
+            if threshold is None:
+                threshold = threshold_otsu(grey)
+            binary = grey < threshold
+            for region in regionprops(label(binary)):
+                top, _, bottom, _ = region.bbox
+                if (bottom - top) * mm_per_px > 3.0:
+                    positions.append((k, top * mm_per_px, bottom * mm_per_px))
+    return n_frames, time.perf_counter() - t0
+
+
+def drop_caches() -> bool:
+    """Empty the page cache (root only), so that reads come from the disk."""
+    try:
+        os.sync()
+        Path("/proc/sys/vm/drop_caches").write_text("3\n")
+        return True
+    except OSError:
+        return False
+
+
+def run_analyze(path: Path, out: Path) -> tuple[float, int, dict]:
+    """Wall seconds and peak RSS (bytes) of `grainplug analyze` in a fresh process."""
+    code = (
+        "import resource, sys, json, time\n"
+        "from grainplug.cli import main\n"
+        "t0 = time.perf_counter()\n"
+        f"rc = main(['analyze', {str(path)!r}, '--out', {str(out)!r}, '--json'])\n"
+        "dt = time.perf_counter() - t0\n"
+        "rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024\n"
+        "print(json.dumps({'seconds': dt, 'rss': rss, 'rc': rc}), file=sys.stderr)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    info = json.loads(proc.stderr.strip().splitlines()[-1])
+    if info["rc"] != 0:
+        raise SystemExit(f"analyze failed: {proc.stderr}")
+    return info["seconds"], info["rss"], json.loads(proc.stdout)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=600)
+    ap.add_argument("--dir", type=Path, default=Path("/tmp/grainplug-bench"))
+    ap.add_argument("--formats", default="tiff,avi")
+    ap.add_argument("--baseline-frames", type=int, default=40)
+    ap.add_argument("--long-frames", type=int, default=0,
+                    help="also measure a long TIFF of this many frames (the rendered ones looped)")
+    ap.add_argument("--json", default=None, help="write the measurements to this file")
+    args = ap.parse_args()
+    args.dir.mkdir(parents=True, exist_ok=True)
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+          f"{platform.platform()}")
+    rows = []
+    can_drop = drop_caches()
+    for fmt in filter(None, args.formats.split(",")):
+        path = ensure_movie(args.dir, fmt, args.frames)
+        bn, base_s = baseline_paper_port(path, args.baseline_frames)
+        fps_base = bn / base_s
+        for cache in (("cold", "warm") if can_drop else ("warm",)):
+            if cache == "cold":
+                drop_caches()
+            else:
+                decode_only(path)  # both measures read from memory
+            n, dec_s, dec_cpu = decode_only(path)
+            if cache == "cold":
+                drop_caches()
+            an_s, rss, summary = run_analyze(path, args.dir / f"out_{fmt}")
+            tm = summary["timings_s"]
+            fps_dec, fps_an = n / dec_s, n / an_s
+            rows.append({"format": fmt, "cache": cache, "frames": n, "gb": path.stat().st_size / 1e9,
+                         "decode_fps": fps_dec, "analyze_fps": fps_an, "stream_fps": tm["stream_fps"],
+                         "baseline_fps": fps_base, "analyze_over_decode": fps_an / fps_dec,
+                         "stream_over_decode": tm["stream_fps"] / fps_dec,
+                         "analyze_over_baseline": fps_an / fps_base,
+                         "stream_over_baseline": tm["stream_fps"] / fps_base, "peak_rss_mb": rss / 1e6,
+                         "decode_cpu_over_wall": dec_cpu / dec_s, "timings_s": tm,
+                         "celerity_m_s": summary["celerity_m_s"]})
+            r = rows[-1]
+            fixed = an_s - tm["stream_s"]
+            print(f"{fmt:5s} {cache}: {n} frames, {r['gb']:.2f} GB | decode-only {fps_dec:7.1f} fps "
+                  f"(cpu/wall {r['decode_cpu_over_wall']:.2f}) | analyze end to end {fps_an:6.1f} fps = "
+                  f"{r['analyze_over_decode']:.2f} x decode, {r['analyze_over_baseline']:.1f} x baseline "
+                  f"| streaming pass {tm['stream_fps']:7.1f} fps = {r['stream_over_decode']:.2f} x decode, "
+                  f"{r['stream_over_baseline']:.0f} x baseline | fixed costs {fixed:.2f} s | baseline "
+                  f"{fps_base:.1f} fps | peak RSS {r['peak_rss_mb']:.0f} MB", flush=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1))
+    if args.long_frames:
+        path = long_tiff(args.dir, args.frames, args.long_frames)
+        for cache in (("cold", "warm") if can_drop else ("warm",)):
+            if cache == "cold":
+                drop_caches()
+            else:
+                decode_only(path)
+            n, dec_s, _ = decode_only(path)
+            if cache == "cold":
+                drop_caches()
+            an_s, rss, summary = run_analyze(path, args.dir / "out_long")
+            print(f"long  {cache}: {n} frames, {path.stat().st_size / 1e9:.2f} GB TIFF (the {args.frames} rendered "
+                  f"frames looped) | decode-only {n / dec_s:7.1f} fps | analyze end to end {n / an_s:7.1f} fps = "
+                  f"{dec_s / an_s:.2f} x decode | streaming pass {summary['timings_s']['stream_fps']:.0f} fps | "
+                  f"peak RSS {rss / 1e6:.0f} MB", flush=True)
+    _ = resource
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
