@@ -82,6 +82,7 @@ def test_folder_needs_fps(tmp_path, capsys):
     (["--mm-per-px", "-1"], ["mm-per-px"]),
     (["--tube-diameter-mm", "0"], ["tube-diameter"]),
     (["--fps", "0"], ["fps"]),
+    (["--mm-per-px", "0.2", "--tube-diameter-mm", "3"], ["either"]),
 ])
 def test_bad_parameters(tmp_path, capsys, movie, args, words):
     code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "o", *args)

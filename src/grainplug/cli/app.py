@@ -142,8 +142,8 @@ def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwar
               help="Folder for summary.json, CSV tables, diagram, figures and report.")
 @click.option("--fps", type=float, default=None, help="Frame rate (overrides the file; needed for image folders).")
 @click.option("--mm-per-px", type=float, default=None, help="Scale; by default measured from the tube's inner width.")
-@click.option("--tube-diameter-mm", type=float, default=3.0, show_default=True,
-              help="Inner diameter of the tube, for the scale.")
+@click.option("--tube-diameter-mm", type=float, default=None,
+              help="Inner diameter of the tube, for the scale measured from the tube [default: 3].")
 @click.option("--flow-direction", type=click.Choice(["down", "up", "left", "right"]), default=None,
               help="Direction of the grain flow in the image [default: down for a vertical tube].")
 @click.option("--min-plug-mm", type=float, default=3.0, show_default=True,
@@ -152,7 +152,7 @@ def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwar
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
-            tube_diameter_mm: float, flow_direction: str | None, min_plug_mm: float,
+            tube_diameter_mm: float | None, flow_direction: str | None, min_plug_mm: float,
             glob_: str | None, no_figures: bool, as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -161,7 +161,11 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
     from ..analysis import analyze as run_analysis
     from ..outputs import write_outputs
 
-    params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=tube_diameter_mm,
+    if mm_per_px is not None and tube_diameter_mm is not None:
+        raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
+                             "not both")
+    diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm
+    params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_)
     with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
                   TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),

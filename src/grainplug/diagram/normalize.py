@@ -13,7 +13,9 @@ with ``k`` the class of the pixel (plug or bubble) and ``mu_k`` the class level.
 It is fitted by alternating steps, as a bias-field correction with two classes:
 classify the corrected values by Otsu's threshold, take each class's median
 level, then update ``a(t)`` as the per-frame median and ``b(s)`` as a smooth
-per-position median of what the class levels leave. A frame's gain is bounded
+per-position median of what the class levels leave (on at most 400 frames
+spread over the record; the gains of all frames are then found in one pass,
+each frame classified with the fitted levels). A frame's gain is bounded
 to 40% of the gap between the class levels, so that a frame filled by one
 material is not read as the other under another light. The normalised contrast
 is taken in linear intensity, ``z = (e^R - e^mu_bubble) / (e^mu_plug - e^mu_bubble)``
@@ -90,8 +92,16 @@ def _otsu(values: np.ndarray) -> tuple[float, float]:
     return thr, float(between / v.var())
 
 
+def _class_levels(R: np.ndarray) -> tuple[float, float, float, np.ndarray]:
+    thr, eta = _otsu(R)
+    cls = R > thr
+    mu_hi = float(np.median(R[cls])) if cls.any() else thr
+    mu_lo = float(np.median(R[~cls])) if (~cls).any() else thr
+    return mu_hi, mu_lo, eta, cls
+
+
 def normalize(values: np.ndarray, *, background_level: float | None = None,
-              smooth_positions: float = 0.08, n_iter: int = 6) -> Normalized:
+              smooth_positions: float = 0.08, n_iter: int = 6, max_fit_frames: int = 400) -> Normalized:
     """Fit the two-class illumination model and return the plug contrast.
 
     Parameters
@@ -100,30 +110,29 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
         The raw diagram.
     background_level : float, optional
         Grey level of the background outside the tube, to tell plugs from bubbles.
-        Without it, the minority class with the more texture is taken as plugs.
+        Without it, the class with the more texture is taken as plugs.
     smooth_positions : float
         Width of the Gaussian that smooths ``b(s)``, as a share of the view.
     n_iter : int
         Alternating steps.
+    max_fit_frames : int
+        The class levels and ``b(s)`` are fitted on at most this many frames spread
+        over the record; the per-frame gains ``a(t)`` are then found for every frame.
     """
-    d = np.asarray(values, dtype=np.float64)
-    scale = max(float(np.percentile(d, 99)), 1e-9)
-    L = np.log(np.maximum(d, 1e-3 * scale))
+    d = np.asarray(values, dtype=np.float32)
+    scale = max(float(np.percentile(d[:: max(1, d.shape[0] // 200)], 99)), 1e-9)
+    L = np.log(np.maximum(d, np.float32(1e-3 * scale)))
     n_t, n_s = L.shape
-    a = np.zeros(n_t)
-    b = np.zeros(n_s)
+    rows = np.unique(np.linspace(0, n_t - 1, min(n_t, max_fit_frames)).round().astype(int))
+    Lf = L[rows]
+    a = np.zeros(len(rows), np.float32)
+    b = np.zeros(n_s, np.float32)
     sigma_s = max(2.0, smooth_positions * n_s)
-    # subsample for the class statistics of large diagrams
-    step = max(1, int(np.sqrt(L.size / 400_000)))
-    sub = (slice(None, None, step), slice(None, None, step))
+    bound = np.inf
     for _ in range(n_iter):
-        R = L - a[:, None] - b[None, :]
-        thr, eta = _otsu(R[sub])
-        cls = R > thr
-        hi_vals, lo_vals = R[cls], R[~cls]
-        mu_hi = float(np.median(hi_vals)) if hi_vals.size else thr
-        mu_lo = float(np.median(lo_vals)) if lo_vals.size else thr
-        E = L - np.where(cls, mu_hi, mu_lo)
+        R = Lf - a[:, None] - b[None, :]
+        mu_hi, mu_lo, _, cls = _class_levels(R)
+        E = Lf - np.where(cls, np.float32(mu_hi), np.float32(mu_lo))
         # medians over every 2nd position / frame: the same estimate at a quarter of the cost
         a = np.median(E[:, ::2] - b[None, ::2], axis=1)
         # a frame's light cannot explain most of the gap between the classes: this keeps a
@@ -131,33 +140,45 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
         bound = 0.4 * abs(mu_hi - mu_lo)
         a = np.clip(a, np.median(a) - bound, np.median(a) + bound)
         b_raw = np.median(E[::2] - a[::2, None], axis=0)
-        b = ndimage.gaussian_filter1d(b_raw, sigma_s, mode="nearest")
+        b = ndimage.gaussian_filter1d(b_raw, sigma_s, mode="nearest").astype(np.float32)
         b -= b.mean()
-    R = L - a[:, None] - b[None, :]
-    thr, eta = _otsu(R[sub])
-    cls = R > thr
-    frac_hi = float(cls.mean())
-    mu_hi = float(np.median(R[cls])) if cls.any() else thr
-    mu_lo = float(np.median(R[~cls])) if (~cls).any() else thr
+    # every frame's gain, with the class levels and b(s) found above
+    L -= b[None, :]
+    thr = 0.5 * (mu_hi + mu_lo)
+    a_med = float(np.median(a))
+    a_all = np.empty(n_t, np.float32)
+    for lo in range(0, n_t, 512):  # in blocks: no full-size temporaries
+        blk = L[lo: lo + 512, ::2]
+        guess = blk - a_med
+        level = np.where(guess > thr, np.float32(mu_hi), np.float32(mu_lo))
+        a_all[lo: lo + 512] = np.clip(np.median(blk - level, axis=1), a_med - bound, a_med + bound)
+    L -= a_all[:, None]
+    R = L  # corrected log values, in place
+    sub = R[:: max(1, n_t // 400), ::2]
+    mu_hi, mu_lo, eta, _ = _class_levels(sub)
+    frac_hi = float((sub > 0.5 * (mu_hi + mu_lo)).mean())
     if background_level is not None and background_level > 0:
-        bg = np.log(background_level) - float(np.median(a))
+        bg = np.log(background_level) - a_med
         plugs_high = abs(mu_hi - bg) > abs(mu_lo - bg)
     else:  # plugs carry the grain texture: the class with the larger spread
-        sd_hi = np.std(R[cls]) if cls.any() else 0.0
-        sd_lo = np.std(R[~cls]) if (~cls).any() else 0.0
-        plugs_high = sd_hi > sd_lo
+        thr = 0.5 * (mu_hi + mu_lo)
+        plugs_high = np.std(sub[sub > thr]) > np.std(sub[sub <= thr])
     mu_plug, mu_bub = (mu_hi, mu_lo) if plugs_high else (mu_lo, mu_hi)
     # contrast in linear intensity: optical blur, pixel and band averaging mix the two
     # materials linearly, so an edge lies where the light is halfway between their levels
-    lin = np.exp(R)
-    lp, lb = np.exp(mu_plug), np.exp(mu_bub)
+    lp, lb = np.float32(np.exp(mu_plug)), np.float32(np.exp(mu_bub))
     denom = lp - lb
-    z = ((lin - lb) / denom).astype(np.float32) if denom != 0 else np.zeros_like(R, np.float32)
+    z = np.exp(R, out=R)
+    if denom != 0:
+        z -= lb
+        z /= denom
+    else:
+        z[:] = 0
     plug_fraction = frac_hi if plugs_high else 1 - frac_hi
     two_phase = bool(eta >= MIN_SEPARATION_ETA and MIN_CLASS_FRACTION <= plug_fraction <= 1 - MIN_CLASS_FRACTION)
     return Normalized(
-        z=z, frame_gain=np.exp(a - np.median(a)), position_gain=np.exp(b),
-        plug_level=float(np.exp(mu_plug + np.median(a))), bubble_level=float(np.exp(mu_bub + np.median(a))),
+        z=z, frame_gain=np.exp(a_all - a_med), position_gain=np.exp(b),
+        plug_level=float(np.exp(mu_plug + a_med)), bubble_level=float(np.exp(mu_bub + a_med)),
         plugs_darker=bool(not plugs_high), separation_eta=eta, plug_fraction=plug_fraction,
         two_phase=two_phase,
     )
