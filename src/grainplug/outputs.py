@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from . import jsonio
 from .analysis import AnalysisResult
-from .synthetic.writers import _json_default
 
 FILES = {
     "summary": "summary.json",
@@ -101,7 +101,7 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
                 position_mm=res.diagram.position_mm, mm_per_px=res.mm_per_px,
                 provenance=json.dumps({"grainplug_version": summary["grainplug_version"],
                                        "input": summary["input"], "parameters": summary["parameters"]},
-                                      default=_json_default),
+                                      default=jsonio.default),
             )
         if figures:
             import matplotlib.pyplot as plt
@@ -119,7 +119,7 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
 
             (tmp / "report.html").write_text(run_report(res, tmp))
         summary["timings_s"]["write_s"] = round(time.perf_counter() - t_write, 4)
-        (tmp / FILES["summary"]).write_text(json.dumps(summary, indent=2, default=_json_default) + "\n")
+        (tmp / FILES["summary"]).write_text(jsonio.dumps(summary))
         for f in sorted(tmp.iterdir()):
             dest = out / f.name
             os.replace(f, dest)

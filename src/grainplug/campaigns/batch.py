@@ -32,7 +32,7 @@ import pandas as pd
 from .._version import __version__
 from ..analysis import analyze, fingerprint
 from ..errors import GrainplugError
-from ..synthetic.writers import _json_default
+from ..jsonio import dumps
 from .fits import fit_line, summarize_lengths
 from .manifest import RunSpec, read_manifest
 
@@ -213,7 +213,7 @@ def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Pat
         pq.to_parquet(tmp / "campaign.parquet", index=False)
         meta = {"grainplug_version": __version__, "manifest": str(manifest.resolve()),
                 "manifest_sha256": hashlib.sha256(manifest.read_bytes()).hexdigest(), "fits": fits}
-        (tmp / "fits.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n")
+        (tmp / "fits.json").write_text(dumps(meta))
         names: list[str] = []
         if figures:
             names = _campaign_figures(table, tmp)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from .. import datasets
 from .._version import __version__
-from ..synthetic.writers import _json_default
+from ..jsonio import dumps
 from .paper import D_MM, PaperReproduction, reproduction_text
 
 
@@ -69,7 +69,7 @@ def write_paper(rep: PaperReproduction, out_dir: str | Path, *, figures: bool = 
     tmp = Path(tempfile.mkdtemp(prefix=".grainplug-", dir=out))
     try:
         data = {"grainplug_version": __version__, **rep.as_dict()}
-        (tmp / "paper.json").write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
+        (tmp / "paper.json").write_text(dumps(data))
         text = reproduction_text(rep)
         (tmp / "reproduction.md").write_text(text)
         names = paper_figures(rep, tmp) if figures else []

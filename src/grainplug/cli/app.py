@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 from pathlib import Path
 
@@ -30,9 +29,9 @@ def cli(debug: bool, verbose: bool) -> None:
 
 
 def _echo_json(data: object) -> None:
-    from ..synthetic.writers import _json_default
+    from ..jsonio import dumps
 
-    click.echo(json.dumps(data, indent=2, default=_json_default))
+    click.echo(dumps(data), nl=False)
 
 
 # ---------------------------------------------------------------------------

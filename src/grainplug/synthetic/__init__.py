@@ -16,9 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
+from ..jsonio import write_json
 from .kinematics import REGIMES, displacement_mm
 from .render import FLOW_DIRECTIONS, Renderer, SynthConfig
-from .writers import FORMATS, MovieWriter, movie_path, write_json
+from .writers import FORMATS, MovieWriter, movie_path
 
 #: frames a plug must be wholly in view, apart from its neighbours, to count in the
 #: truth's mean length

@@ -6,7 +6,6 @@ constant memory. Output is deterministic: the same frames give the same bytes.
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -291,20 +290,3 @@ class MovieWriter:
                 out.write(np.asarray([8, size], dtype="<u4").tobytes())  # annotation size, image size
                 out.write(src.read(size))
         os.remove(part)
-
-
-def write_json(path: Path, data: object) -> None:
-    """Write JSON atomically (temporary name, then rename)."""
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
-    os.replace(tmp, path)
-
-
-def _json_default(obj: object) -> object:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj)}")
