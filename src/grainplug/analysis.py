@@ -231,8 +231,9 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
     ds = float(diagram.position_mm[1] - diagram.position_mm[0])
     mask = plug_mask(norm.z, mm_per_sample=ds, min_plug_mm=params.min_plug_mm,
                      min_gap_mm=params.min_gap_mm)
-    runs = find_runs(norm.z, mask, diagram.position_mm) if norm.two_phase else find_runs(
-        norm.z, np.zeros_like(mask), diagram.position_mm)
+    if not norm.two_phase:  # one material only: no plug to find
+        mask[:] = False
+    runs = find_runs(norm.z, mask, diagram.position_mm)
     tracks = link(runs, diagram.n_frames)
     lap("plugs_s")
     motion = lengths = None
