@@ -23,7 +23,11 @@ axis position and refines the tilt.
 ``sqrt(S^2 - S_bg^2) / M`` (``S_bg^2``, the background's variance, is the sensor
 noise). In transmitted light (a back-lit tube: the background is brighter than
 the bore) a local loss of light, such as the dark band that refraction draws
-along the inner wall, scales the mean and the variation alike and cancels. In
+along the inner wall, scales the mean and the variation alike and cancels;
+optical blur, however, mixes the bore's edge with the brighter surround and
+makes the relative variation read narrow, while the excess variation
+``sqrt(S^2 - S_bg^2)`` is unbiased by blur but reads narrow where the wall
+darkens the contents. Both can only err narrow, so the wider is kept. In
 scattered light (dark field: the bore is brighter than the background) glare
 from the walls adds light rather than removing it, so the excess variation
 ``sqrt(S^2 - S_bg^2)`` itself is measured. Across the tube the projected profile
@@ -399,6 +403,14 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
             lighting = "scattered"
             ex = excess if orient == "vertical" else np.ascontiguousarray(excess.T)
             bore = _bore_in_profile(fine, sheared_profile(ex, tan_b, fine))
+        else:
+            # transmitted light: each measure can only read the bore narrow — the excess
+            # variation where the wall darkens the contents, the relative variation where blur
+            # mixes the bore with the brighter surround — so the wider of the two is kept
+            ex = excess if orient == "vertical" else np.ascontiguousarray(excess.T)
+            other = _bore_in_profile(fine, sheared_profile(ex, tan_b, fine))
+            if other is not None and other.right - other.left > bore.right - bore.left:
+                bore = _Bore(other.left, other.right, bore.contrast, bore.noise)
     if bore is not None and bore.contrast > 8 * bore.noise:
         left, right, contrast = bore.left, bore.right, bore.contrast
         method = f"variation ({lighting} light)"
