@@ -96,3 +96,41 @@ def test_missing_and_corrupt(tmp_path, capsys):
     bad.write_bytes(b"\x00" * 5000)
     code, _, err = run(capsys, "analyze", bad, "--out", tmp_path / "o")
     assert_one_line_error(code, err, "bad.mp4")
+
+
+@pytest.mark.parametrize("direction,angle", [("left", 180.0), ("up", -90.0), ("right", 0.0)])
+def test_flow_direction_inferred_from_falling_grains(tmp_path, capsys, direction, angle):
+    res = synthesize(SynthConfig(n_frames=150, seed=8, flow_direction=direction, celerity_m_s=-0.04),
+                     tmp_path / "m")
+    code, out, err = run(capsys, "analyze", res.movie, "--out", tmp_path / "o", "--json", "--mm-per-px", 0.185)
+    assert code == 0, err
+    s = json.loads(out)
+    assert s["flow_direction"] == direction
+    assert s["flow_direction_source"].startswith("inferred")
+    wrapped = (s["tube_axis_angle_deg"] - angle + 180.0) % 360.0 - 180.0
+    assert abs(wrapped) < 0.2
+    assert s["celerity_m_s"] == pytest.approx(-0.04, rel=0.02)
+    assert s["falling_grain_speed_m_s"] == pytest.approx(0.8, rel=0.05)
+
+
+def test_flow_direction_assumed_without_grains(tmp_path, capsys):
+    res = synthesize(SynthConfig(n_frames=120, seed=8, flow_direction="left", falling_grains_per_mm=0.0),
+                     tmp_path / "m")
+    code, out, err = run(capsys, "analyze", res.movie, "--out", tmp_path / "o", "--json")
+    assert code == 0, err
+    s = json.loads(out)
+    assert s["flow_direction"] == "right" and s["flow_direction_source"] == "assumed"
+    assert any("assumed" in w for w in s["warnings"])
+    code, out, err = run(capsys, "analyze", res.movie, "--out", tmp_path / "o2", "--json", "--flow-direction", "left")
+    assert code == 0, err
+    s = json.loads(out)
+    assert s["flow_direction_source"] == "user" and s["celerity_m_s"] == pytest.approx(-0.05, rel=0.04)
+
+
+def test_given_direction_against_the_grains_is_flagged(tmp_path, capsys):
+    res = synthesize(SynthConfig(n_frames=120, seed=8, flow_direction="up"), tmp_path / "m")
+    code, out, err = run(capsys, "analyze", res.movie, "--out", tmp_path / "o", "--json", "--flow-direction", "down")
+    assert code == 0, err
+    s = json.loads(out)
+    assert s["flow_direction"] == "down" and s["warnings"]
+    assert "against --flow-direction" in s["warnings"][0]

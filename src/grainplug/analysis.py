@@ -24,12 +24,14 @@ from .calibration import TubeGeometry, find_tube
 from .diagram import BandSampler, Diagram, Normalized, build_diagram, normalize
 from .errors import ParameterError
 from .measures import Lengths, Motion, measure_lengths, measure_motion
+from .measures.grains import falling_grains
 from .plugs import Runs, Tracks, find_runs, link, plug_mask
 from .readers import MovieInfo, open_movie
 
 log = logging.getLogger(__name__)
 
 FLOW_DIRECTIONS = ("down", "up", "left", "right")
+_OPPOSITE = {"down": "up", "up": "down", "left": "right", "right": "left"}
 #: assumed standard uncertainty of the tube's measured inner width, in px
 TUBE_WIDTH_SD_PX = 0.25
 
@@ -47,8 +49,9 @@ class AnalysisParams:
     tube_diameter_mm : float
         Inner diameter of the tube (3 mm in the paper).
     flow_direction : {"down", "up", "left", "right"}, optional
-        Direction of the grain flow in the image; by default down for a
-        vertical tube and right for a horizontal one (stated in the summary).
+        Direction of the grain flow in the image. By default it is read from
+        the grains falling through the bubbles; when none are seen, down for a
+        vertical tube and right for a horizontal one (the summary says which).
     min_plug_mm : float
         Shortest grain region counted as a plug (the paper's 3 mm).
     min_gap_mm : float
@@ -106,6 +109,8 @@ class AnalysisResult:
     sample_frame: np.ndarray = field(repr=False)
     sample_frame_index: int = 0
     timings: dict[str, float] = field(default_factory=dict)
+    falling_grain_speed_m_s: float | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def summary(self) -> dict[str, object]:
@@ -201,8 +206,6 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         else:
             direction = "down" if tube.orientation == "vertical" else "right"
             dir_source = "assumed (gravity down)" if tube.orientation == "vertical" else "assumed"
-            if tube.orientation == "horizontal":
-                log.warning("horizontal tube: flow assumed to run to the right; pass --flow-direction")
         reverse = direction in ("up", "left")
         if params.mm_per_px:
             mm_per_px, scale_source = float(params.mm_per_px), "user"
@@ -229,6 +232,21 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
     norm = normalize(diagram.values, background_level=background)
     lap("normalize_s")
     ds = float(diagram.position_mm[1] - diagram.position_mm[0])
+    grains = falling_grains(norm.z, mm_per_sample=ds, fps=info.fps) if norm.two_phase else None
+    warnings: list[str] = []
+    if grains is not None and grains.speed_m_s is not None:
+        if params.flow_direction is None:
+            if grains.speed_m_s < 0:  # the grains fall the other way: the view is the other way round
+                direction = _OPPOSITE[direction]
+                diagram = dataclasses.replace(diagram, values=diagram.values[:, ::-1])
+                norm = dataclasses.replace(norm, z=norm.z[:, ::-1], position_gain=norm.position_gain[::-1])
+                grains = dataclasses.replace(grains, speed_m_s=-grains.speed_m_s)
+            dir_source = (f"inferred from the grains falling through the bubbles "
+                          f"({grains.speed_m_s:.2f} m/s)")
+        elif grains.speed_m_s < 0:
+            warnings.append(f"the grains falling through the bubbles move against --flow-direction "
+                            f"{direction} ({grains.speed_m_s:.2f} m/s): check the flow direction")
+            log.warning(warnings[-1])
     mask = plug_mask(norm.z, mm_per_sample=ds, min_plug_mm=params.min_plug_mm,
                      min_gap_mm=params.min_gap_mm)
     if not norm.two_phase:  # one material only: no plug to find
@@ -253,6 +271,9 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         )
     lap("measures_s")
     timings["stream_fps"] = round(diagram.n_frames / max(timings["stream_s"], 1e-9), 1)
+    if dir_source.startswith("assumed") and tube.orientation == "horizontal":
+        warnings.append(f"no grains seen falling through the bubbles: the flow is assumed to run {direction}; "
+                        "pass --flow-direction if it does not")
     # the annotated frame: the sampled frame showing the most plug edges
     best = 0
     if len(runs):
@@ -264,6 +285,7 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         diagram=diagram, normalized=norm, runs=runs, tracks=tracks, motion=motion,
         lengths=lengths, has_plugs=bool(has_plugs), statement=statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
+        falling_grain_speed_m_s=None if grains is None else grains.speed_m_s, warnings=warnings,
     )
 
 
@@ -324,6 +346,8 @@ def build_summary(res: AnalysisResult) -> dict[str, object]:
         "tube_detection": tube.method,
         "flow_direction": res.flow_direction,
         "flow_direction_source": res.flow_direction_source,
+        "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
+        "warnings": list(res.warnings),
         "view_length_mm": _r(float(res.diagram.position_mm[-1] + 0.5 * res.mm_per_px), 4),
         "illumination": {
             "plugs_darker_than_bubbles": res.normalized.plugs_darker,

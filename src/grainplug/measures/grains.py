@@ -1,0 +1,86 @@
+"""Grains falling through the bubbles: their speed, and from its sign the flow direction.
+
+Notes
+-----
+Between plugs, grains fall freely (the paper measures about 0.8 m/s against 0.9 m/s for free
+fall over a bubble). In the diagram they are small specks in the bubbles that move far between
+frames, in the direction of the flow, much faster than the plugs. Their displacement per frame is
+the peak of the cross-correlation of the bubble specks of consecutive frames, summed over the
+record (computed with FFTs). Plug edges are kept out by eroding the bubbles and by looking only at
+speeds above ``min_speed_m_s``.
+
+The peak is accepted when it stands above the correlation's spread over all shifts (robust
+z-score of at least ``min_score``) and clearly above the best peak of the opposite sign.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+
+@dataclass(frozen=True)
+class GrainMotion:
+    """Speed of the grains falling through the bubbles.
+
+    Attributes
+    ----------
+    speed_m_s : float or None
+        Signed speed along increasing positions (positive: the assumed flow direction);
+        None when no clear motion was found.
+    score : float
+        Robust z-score of the correlation peak.
+    opposite_ratio : float
+        Peak height over the best peak of the other sign.
+    """
+
+    speed_m_s: float | None
+    score: float
+    opposite_ratio: float
+
+
+def falling_grains(z: np.ndarray, *, mm_per_sample: float, fps: float, min_speed_m_s: float = 0.25,
+                   max_speed_m_s: float = 4.0, min_score: float = 8.0) -> GrainMotion:
+    """Speed of the specks moving through the bubbles of the contrast diagram ``z``."""
+    n_t, n_s = z.shape
+    if n_t < 3 or n_s < 16:
+        return GrainMotion(None, 0.0, 0.0)
+    bubble = ndimage.binary_erosion(z < 0.35, structure=np.ones((1, 7), bool))
+    if bubble.mean() < 0.05:
+        return GrainMotion(None, 0.0, 0.0)
+    x = np.where(bubble, z, 0.0).astype(np.float32)
+    # specks: what stands out of the bubble's own level along the tube
+    x -= np.where(bubble, ndimage.uniform_filter1d(x, 15, axis=1), 0.0)
+    x = np.where(bubble, x, 0.0)
+    n_fft = 1 << int(np.ceil(np.log2(2 * n_s)))
+    spec = np.fft.rfft(x, n_fft, axis=1)
+    cross = np.fft.irfft((np.conj(spec[:-1]) * spec[1:]).sum(axis=0), n_fft)
+    shifts = np.fft.fftfreq(n_fft, 1.0 / n_fft).astype(int)  # shift d: row k at s -> row k+1 at s+d
+    step_mm = 1000.0 / fps  # mm per frame at 1 m/s
+    lo = max(2, int(np.ceil(min_speed_m_s * step_mm / mm_per_sample)))
+    hi = min(n_s // 2, int(max_speed_m_s * step_mm / mm_per_sample))
+    if hi <= lo:
+        return GrainMotion(None, 0.0, 0.0)
+    sel = (np.abs(shifts) >= lo) & (np.abs(shifts) <= hi)
+    c, d = cross[sel], shifts[sel]
+    med = float(np.median(c))
+    spread = 1.4826 * float(np.median(np.abs(c - med))) + 1e-12
+    pos, neg = d > 0, d < 0
+    best_pos = float(c[pos].max()) if pos.any() else -np.inf
+    best_neg = float(c[neg].max()) if neg.any() else -np.inf
+    sign_pos = best_pos >= best_neg
+    best, other = (best_pos, best_neg) if sign_pos else (best_neg, best_pos)
+    score = (best - med) / spread
+    ratio = (best - med) / max(other - med, 1e-12)
+    if score < min_score or ratio < 1.5:
+        return GrainMotion(None, float(score), float(ratio))
+    k = int(np.argmax(np.where(pos if sign_pos else neg, c, -np.inf)))
+    # parabolic refinement of the peak
+    i = np.nonzero(shifts == d[k])[0][0]
+    a, b0, cc = cross[i - 1], cross[i], cross[(i + 1) % n_fft]
+    den = a - 2 * b0 + cc
+    off = 0.5 * (a - cc) / den if den != 0 else 0.0
+    shift = d[k] + float(np.clip(off, -0.5, 0.5))
+    return GrainMotion(float(shift * mm_per_sample * fps / 1000.0), float(score), float(ratio))
