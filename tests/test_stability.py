@@ -225,3 +225,21 @@ def test_cli_bad_input(capsys):
     assert code == 2 and err.startswith("error: ") and "c0" in err
     code = main(["stability", "--k-min", "2", "--k-max", "1"])
     assert code == 2
+
+
+def test_cli_sweep(tmp_path, capsys):
+    from grainplug.cli import main
+
+    fig = tmp_path / "sweep.png"
+    code = main(["stability", "--variant", "frozen-friction", "--sweep", "grain_diameter_um=110:300:3",
+                 "--n-k", "600", "--json", "--plot", str(fig)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    d = json.loads(out)
+    rows = d["rows"]
+    assert [r["grain_diameter_um"] for r in rows] == [110.0, 205.0, 300.0]
+    lam = [r["most_unstable_wavelength_over_diameter"] for r in rows]
+    assert lam[0] < lam[1] < lam[2]
+    assert fig.stat().st_size > 5000
+    assert main(["stability", "--sweep", "c0=0.5"]) == 2
+    assert main(["stability", "--sweep", "size=1:2:3"]) == 2

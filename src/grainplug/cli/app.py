@@ -220,11 +220,14 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
 @click.option("--n-k", type=int, default=1000, show_default=True)
 @click.option("--json", "as_json", is_flag=True, help="Print roots, most unstable mode, cut-offs and inputs as JSON.")
 @click.option("--plot", "plot", type=click.Path(path_type=Path), default=None,
-              help="Write the paper's Fig. 9 (growth rates against k*) to this PNG.")
+              help="Write the paper's Fig. 9 (growth rates against k*) to this PNG (with --sweep: lambda/D).")
+@click.option("--sweep", "sweep_spec", default=None, metavar="NAME=START:STOP:N",
+              help="Vary one input (e.g. grain_diameter_um=50:400:15 or c0=0.45:0.62:10) and report "
+                   "the most unstable and cut-off wavelengths for each value.")
 def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: float, mu_s: float,
               theta_deg: float, gamma: float, air_viscosity_pa_s: float, grain_density_kg_m3: float,
               b: float, b1_star: float | None, variant: str, k_min: float, k_max: float, n_k: int,
-              as_json: bool, plot: Path | None) -> None:
+              as_json: bool, plot: Path | None, sweep_spec: str | None) -> None:
     """Linear stability of the paper's 1D model: the three roots omega*(k*)."""
     from ..stability import ModelParams, analyze_stability
 
@@ -233,6 +236,9 @@ def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: fl
     p = ModelParams(diameter_mm=diameter_mm, grain_diameter_um=grain_diameter_um, c0=c0, kappa=kappa,
                     mu_s=mu_s, theta_deg=theta_deg, gamma=gamma, air_viscosity_pa_s=air_viscosity_pa_s,
                     grain_density_kg_m3=grain_density_kg_m3, b=b, B1_star_override=b1_star, variant=variant)
+    if sweep_spec:
+        _stability_sweep(p, sweep_spec, k_min=k_min, k_max=k_max, n_k=n_k, as_json=as_json, plot=plot)
+        return
     res = analyze_stability(p, k_min=k_min, k_max=k_max, n_k=n_k)
     if plot is not None:
         import matplotlib.pyplot as plt
@@ -263,6 +269,60 @@ def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: fl
         click.echo(f"cut-off            k* = {kc:.5f}  lambda/D = {2 * 3.141592653589793 / kc:.3f}")
     if plot is not None:
         click.echo(f"figure             {plot}")
+
+
+_SWEEP_NAMES = {"B1_star": "B1_star_override", "B1-star": "B1_star_override"}
+
+
+def _stability_sweep(p, spec: str, *, k_min: float, k_max: float, n_k: int, as_json: bool,
+                     plot: Path | None) -> None:
+    """``--sweep NAME=START:STOP:N``: lambda/D of the most unstable mode and of the cut-offs."""
+    import dataclasses
+
+    import numpy as np
+
+    from ..stability import ModelParams, sweep
+
+    try:
+        name, rng = spec.split("=", 1)
+        start, stop, n = rng.split(":")
+        values = np.linspace(float(start), float(stop), int(n))
+    except ValueError:
+        raise ParameterError(f"--sweep {spec!r}: write NAME=START:STOP:N, e.g. c0=0.45:0.62:10") from None
+    name = _SWEEP_NAMES.get(name.strip(), name.strip().replace("-", "_"))
+    fields = {f.name for f in dataclasses.fields(ModelParams)} - {"variant"}
+    if name not in fields:
+        raise ParameterError(f"--sweep: unknown input {name!r}; choose one of {', '.join(sorted(fields))}")
+    rows = sweep(p, name, values, k_min=k_min, k_max=k_max, n_k=n_k)
+    if plot is not None:
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(6.4, 4.4), constrained_layout=True)
+        x = [r[name] for r in rows]
+        ax.plot(x, [r["most_unstable_wavelength_over_diameter"] or np.nan for r in rows], "o-",
+                label="most unstable λ/D")
+        ax.plot(x, [(r["cutoff_wavelength_over_diameter"] or [np.nan])[0] for r in rows], "s--",
+                label="cut-off λ/D")
+        ax.set_xlabel(name)
+        ax.set_ylabel("λ/D")
+        ax.set_title(f"variant '{p.variant}'", fontsize=9)
+        ax.legend(fontsize=8)
+        _save_figure(fig, plot)
+        plt.close(fig)
+    if as_json:
+        _echo_json({"grainplug_version": __version__, "variant": p.variant, "input": name, "rows": rows,
+                    "inputs": p.as_dict()})
+        return
+    click.echo(f"{name:>18s} {'B1*':>8s} {'k* max':>8s} {'λ/D max':>8s} {'cut-off k*':>10s} {'λ/D cut':>8s}")
+    for r in rows:
+        km, lm = r["most_unstable_k"], r["most_unstable_wavelength_over_diameter"]
+        kc = r["cutoff_k"][0] if r["cutoff_k"] else None
+        lc = r["cutoff_wavelength_over_diameter"][0] if r["cutoff_k"] else None
+
+        def f(v, nd=4):
+            return f"{v:.{nd}f}" if v is not None else "stable"
+
+        click.echo(f"{r[name]:18.5g} {r['B1_star']:8.4f} {f(km):>8s} {f(lm, 2):>8s} {f(kc):>10s} {f(lc, 2):>8s}")
 
 
 def _save_figure(fig, path: Path) -> None:
