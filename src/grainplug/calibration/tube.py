@@ -199,13 +199,11 @@ def sheared_profile(img: np.ndarray, tan_b: float, x_grid: np.ndarray,
     return out
 
 
-def _downsample(img: np.ndarray, limit: int = 120_000) -> tuple[np.ndarray, int]:
-    factor = 1
+def _downsample(img: np.ndarray, limit: int = 120_000) -> np.ndarray:
+    """Halve the image (2x2 means) until it holds at most ``limit`` pixels."""
     while img.shape[0] * img.shape[1] > limit and min(img.shape) >= 64:
-        img = img[: img.shape[0] // 2 * 2, : img.shape[1] // 2 * 2]
-        img = img.reshape(img.shape[0] // 2, 2, img.shape[1] // 2, 2).mean(axis=(1, 3))
-        factor *= 2
-    return img, factor
+        img = _bin(img, 2)
+    return img
 
 
 def _coarse_tilt(feature: np.ndarray, *, centre: float = 0.0, span: float = MAX_TILT_DEG) -> tuple[float, float]:
@@ -213,7 +211,7 @@ def _coarse_tilt(feature: np.ndarray, *, centre: float = 0.0, span: float = MAX_
 
     Searched in ``centre +- span`` on successively finer grids.
     """
-    small, _ = _downsample(feature, 80_000)
+    small = _downsample(feature, 80_000)
     h, w = small.shape
     pad = h * np.tan(np.radians(MAX_TILT_DEG + 1))
     grid = np.arange(-pad, w + pad, 1.0)

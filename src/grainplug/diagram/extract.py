@@ -88,7 +88,6 @@ class BandSampler:
         cos_t = np.cos(np.radians(tube.tilt_deg))
         edge = (h - 1 - self.rows) if reverse else self.rows
         self.axis_px = (edge + 0.5) / cos_t
-        self.bbox = (int(self._r.min()), int(self._r.max()) + 1, int(self._c.min()), int(self._c.max()) + 1)
         self._key: tuple | None = None
 
     def _prepare(self, frame: np.ndarray) -> None:

@@ -101,17 +101,24 @@ def _design(t: np.ndarray, track_idx: np.ndarray, n_tracks: int, f: float | None
     return np.hstack(cols)
 
 
-def _fit(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
-         n_harm: int, weights: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+def _fit_res(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
+             n_harm: int, weights: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+    """(Weighted) least squares: coefficients, residual sum of squares, residuals."""
     A = _design(t, tix, n_tracks, f, n_harm)
     if weights is None:
         coef, *_ = np.linalg.lstsq(A, y, rcond=None)
         res = y - A @ coef
-        return coef, float(res @ res)
+        return coef, float(res @ res), res
     sw = np.sqrt(weights)
     coef, *_ = np.linalg.lstsq(A * sw[:, None], y * sw, rcond=None)
     res = y - A @ coef
-    return coef, float(weights @ (res * res))
+    return coef, float(weights @ (res * res)), res
+
+
+def _fit(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
+         n_harm: int, weights: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    coef, rss, _ = _fit_res(t, y, tix, n_tracks, f, n_harm, weights)
+    return coef, rss
 
 
 def _robust_weights(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int,
@@ -120,8 +127,7 @@ def _robust_weights(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int
     (a plug sliding alone, a misdetection) lose their weight."""
     w = np.ones_like(y)
     for _ in range(n_iter):
-        coef, _ = _fit(t, y, tix, n_tracks, None, 0, w)
-        res = y - _design(t, tix, n_tracks, None, 0) @ coef
+        _, _, res = _fit_res(t, y, tix, n_tracks, None, 0, w)
         scale = 1.4826 * np.median(np.abs(res - np.median(res))) + 1e-9
         u = res / (6.0 * max(scale, 0.05))  # never tighter than 0.3 mm: oscillations stay in
         w = np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)

@@ -92,10 +92,12 @@ def dispersion_coefficients(p: ModelParams, k: float | np.ndarray) -> np.ndarray
     return np.stack(np.broadcast_arrays(a3, a2, a1, a0), axis=-1)
 
 
+_PERM_INDEX = {tuple(q): i for i, q in enumerate(_PERMS.tolist())}
+
+
 def _composition_table() -> np.ndarray:
     """``T[a, b]`` = index of the permutation ``PERMS[a][PERMS[b]]``."""
-    index = {tuple(q): i for i, q in enumerate(_PERMS.tolist())}
-    return np.array([[index[tuple(_PERMS[a][_PERMS[b]])] for b in range(6)] for a in range(6)])
+    return np.array([[_PERM_INDEX[tuple(_PERMS[a][_PERMS[b]])] for b in range(6)] for a in range(6)])
 
 
 _COMPOSE = _composition_table()
@@ -125,9 +127,8 @@ def roots(p: ModelParams, k: np.ndarray, *, track: bool = True) -> np.ndarray:
     cand = raw[1:][:, _PERMS]  # (n-1, 6, 3)
     best = np.argmin(np.abs(cand - raw[:-1][:, None, :]).sum(axis=2), axis=1)
     # sigma_{j+1} = pi_j[sigma_j]: the tracked order of each step
-    index = {tuple(q): i for i, q in enumerate(_PERMS.tolist())}
     sigma = np.empty(len(k), int)
-    acc = index[tuple(first.tolist())]
+    acc = _PERM_INDEX[tuple(first.tolist())]
     sigma[0] = acc
     table = _COMPOSE
     for j, b in enumerate(best.tolist()):

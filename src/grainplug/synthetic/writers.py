@@ -173,12 +173,9 @@ class MovieWriter:
     def _write_png(self, frame: np.ndarray) -> None:
         from PIL import Image
 
-        if frame.dtype == np.uint16:
-            if frame.ndim == 3:
-                raise ParameterError("16-bit RGB PNG is not supported — use tiff or ffv1")
-            Image.fromarray(frame).save(self._frame_name(".png"), compress_level=1)
-        else:
-            Image.fromarray(frame).save(self._frame_name(".png"), compress_level=1)
+        if frame.dtype == np.uint16 and frame.ndim == 3:
+            raise ParameterError("16-bit RGB PNG is not supported — use tiff or ffv1")
+        Image.fromarray(frame).save(self._frame_name(".png"), compress_level=1)
 
     def _write_bmp(self, frame: np.ndarray) -> None:
         from PIL import Image
