@@ -103,16 +103,40 @@ def _design(t: np.ndarray, track_idx: np.ndarray, n_tracks: int, f: float | None
 
 def _fit_res(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
              n_harm: int, weights: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
-    """(Weighted) least squares: coefficients, residual sum of squares, residuals."""
-    A = _design(t, tix, n_tracks, f, n_harm)
-    if weights is None:
-        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-        res = y - A @ coef
-        return coef, float(res @ res), res
-    sw = np.sqrt(weights)
-    coef, *_ = np.linalg.lstsq(A * sw[:, None], y * sw, rcond=None)
-    res = y - A @ coef
-    return coef, float(weights @ (res * res)), res
+    """(Weighted) least squares of ``_design``: coefficients, residual sum of squares, residuals.
+
+    Solved without forming the one-hot block: the track offsets are projected out
+    by weighted within-track centring (Frisch-Waugh-Lovell), which leaves a small
+    least-squares problem in the drift and the harmonics; the offsets follow as the
+    weighted track means of what the rest leaves. Same solution as the full
+    design, at a cost linear in the number of edges (a track whose weights are all
+    zero gets offset 0, as the minimum-norm solution of the full design would).
+    """
+    w = np.ones_like(y) if weights is None else weights
+    cols = [t]
+    if f:
+        for h in range(1, n_harm + 1):
+            ph = 2 * np.pi * h * f * t
+            cols.append(np.cos(ph))
+            cols.append(np.sin(ph))
+    B = np.stack(cols, axis=1)
+    wsum = np.bincount(tix, weights=w, minlength=n_tracks)
+    inv = np.divide(1.0, wsum, out=np.zeros(n_tracks), where=wsum > 0)
+
+    def centred(x: np.ndarray) -> np.ndarray:
+        if x.ndim == 1:
+            return x - (np.bincount(tix, weights=w * x, minlength=n_tracks) * inv)[tix]
+        means = np.stack([np.bincount(tix, weights=w * x[:, j], minlength=n_tracks) for j in range(x.shape[1])],
+                         axis=1) * inv[:, None]
+        return x - means[tix]
+
+    sw = np.sqrt(w)
+    beta, *_ = np.linalg.lstsq(centred(B) * sw[:, None], centred(y) * sw, rcond=None)
+    rest = y - B @ beta
+    offsets = np.bincount(tix, weights=w * rest, minlength=n_tracks) * inv
+    res = rest - offsets[tix]
+    coef = np.concatenate(([beta[0]], offsets, beta[1:]))
+    return coef, float(w @ (res * res)), res
 
 
 def _fit(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,

@@ -51,10 +51,15 @@ class Runs:
         return np.arange(lo, hi)
 
 
-def _runs_1d(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    padded = np.concatenate(([False], mask, [False]))
-    d = np.diff(padded.astype(np.int8))
-    return np.nonzero(d == 1)[0], np.nonzero(d == -1)[0]
+def _runs_2d(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every run of True along the rows of ``mask``: row, start, stop (``[start, stop)``)."""
+    n, m = mask.shape
+    padded = np.zeros((n, m + 2), np.int8)
+    padded[:, 1:-1] = mask
+    d = np.diff(padded, axis=1)
+    rows, starts = np.nonzero(d == 1)  # row-major order: the k-th start pairs with the k-th stop
+    _, stops = np.nonzero(d == -1)
+    return rows, starts, stops
 
 
 def plug_mask(z: np.ndarray, *, mm_per_sample: float, min_plug_mm: float = 3.0,
@@ -65,21 +70,22 @@ def plug_mask(z: np.ndarray, *, mm_per_sample: float, min_plug_mm: float = 3.0,
     gap = max(1, int(round(min_gap_mm / mm_per_sample)))
     mask = ndimage.binary_closing(mask, structure=np.ones((1, gap + 1), bool), border_value=0) | mask
     min_len = max(1, int(round(min_plug_mm / mm_per_sample)))
-    out = np.zeros_like(mask)
-    for k in range(mask.shape[0]):
-        starts, stops = _runs_1d(mask[k])
-        for a, b in zip(starts, stops, strict=True):
-            if b - a >= min_len:
-                out[k, a:b] = True
-    return out
+    rows, starts, stops = _runs_2d(mask)
+    short = stops - starts < min_len
+    # clear the short runs: +1 at their start, -1 at their stop, cumulated along each row
+    step = np.zeros((mask.shape[0], mask.shape[1] + 1), np.int32)
+    np.add.at(step, (rows[short], starts[short]), 1)
+    np.add.at(step, (rows[short], stops[short]), -1)
+    return mask & (np.cumsum(step[:, :-1], axis=1) == 0)
 
 
-def _crossing(profile: np.ndarray, i_out: int, i_in: int) -> float:
-    """Sub-sample position of the 0.5 crossing between samples ``i_out`` and ``i_in``."""
-    a, b = float(profile[i_out]), float(profile[i_in])
-    if a == b:
-        return 0.5 * (i_out + i_in)
-    f = np.clip((0.5 - a) / (b - a), 0.0, 1.0)
+def _crossings(zs: np.ndarray, rows: np.ndarray, i_out: np.ndarray, i_in: np.ndarray) -> np.ndarray:
+    """Sub-sample positions of the 0.5 crossings of ``zs[rows]`` between samples ``i_out`` and ``i_in``."""
+    a = zs[rows, i_out].astype(np.float64)
+    b = zs[rows, i_in].astype(np.float64)
+    d = b - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = np.where(d == 0, 0.5, np.clip((0.5 - a) / np.where(d == 0, 1.0, d), 0.0, 1.0))
     return i_out + f * (i_in - i_out)
 
 
@@ -89,17 +95,11 @@ def find_runs(z: np.ndarray, mask: np.ndarray, position_mm: np.ndarray) -> Runs:
     n_s = z.shape[1]
     ds = float(position_mm[1] - position_mm[0]) if n_s > 1 else 1.0
     s0 = float(position_mm[0])
-    frames, starts, stops, tops, bots = [], [], [], [], []
-    for k in range(z.shape[0]):
-        st, sp = _runs_1d(mask[k])
-        prof = zs[k]
-        for a, b in zip(st, sp, strict=True):
-            top = np.nan if a == 0 else s0 + ds * _crossing(prof, a - 1, a)
-            bot = np.nan if b == n_s else s0 + ds * _crossing(prof, b, b - 1)
-            frames.append(k)
-            starts.append(a)
-            stops.append(b)
-            tops.append(top)
-            bots.append(bot)
-    return Runs(np.asarray(frames, int), np.asarray(starts, int), np.asarray(stops, int),
-                np.asarray(tops, float), np.asarray(bots, float))
+    rows, starts, stops = _runs_2d(mask)
+    tops = np.full(len(rows), np.nan)
+    bots = np.full(len(rows), np.nan)
+    inner = starts > 0
+    tops[inner] = s0 + ds * _crossings(zs, rows[inner], starts[inner] - 1, starts[inner])
+    inner = stops < n_s
+    bots[inner] = s0 + ds * _crossings(zs, rows[inner], stops[inner], stops[inner] - 1)
+    return Runs(rows.astype(int), starts.astype(int), stops.astype(int), tops, bots)
