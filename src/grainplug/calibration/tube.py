@@ -248,7 +248,7 @@ def sheared_profile(img: np.ndarray, tan_b: float, x_grid: np.ndarray,
 
 def _sheared_profile_gather(img: np.ndarray, tan_b: float, x_grid: np.ndarray, ys: np.ndarray) -> np.ndarray:
     """``sheared_profile`` on any grid: every (row, grid point) interpolated."""
-    h, w = img.shape
+    w = img.shape[1]
     xx = x_grid[None, :] + (ys[:, None] + 0.5) * tan_b
     inside = (xx >= 0) & (xx <= w - 1)
     x0 = np.clip(np.floor(xx), 0, max(w - 2, 0)).astype(np.intp)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from pathlib import Path
 
@@ -158,7 +159,7 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
 
     from ..analysis import AnalysisParams
     from ..analysis import analyze as run_analysis
-    from ..outputs import write_outputs
+    from ..outputs import FigureWorker, write_outputs
 
     if mm_per_px is not None and tube_diameter_mm is not None:
         raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
@@ -166,16 +167,18 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
     diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_)
-    with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
-                  TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
-                  console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
-        task = bar.add_task(f"analysing {movie.name}", total=None)
+    # the figures' helper process starts now: it imports matplotlib while the frames stream
+    with FigureWorker() if not no_figures else contextlib.nullcontext() as figure_worker:
+        with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
+                      TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
+                      console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
+            task = bar.add_task(f"analysing {movie.name}", total=None)
 
-        def progress(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
+            def progress(done: int, total: int) -> None:
+                bar.update(task, completed=done, total=total)
 
-        result = run_analysis(movie, params, progress=progress)
-    write_outputs(result, out, figures=not no_figures, report=not no_figures)
+            result = run_analysis(movie, params, progress=progress)
+        write_outputs(result, out, figures=not no_figures, report=not no_figures, figure_worker=figure_worker)
     s = result.summary
     if as_json:
         _echo_json(s)

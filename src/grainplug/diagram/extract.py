@@ -48,6 +48,15 @@ class Diagram:
         return self.values.shape[0]
 
 
+def display_stride(shape: tuple[int, int], max_side: int = 1200) -> tuple[int, int]:
+    """Strides (time, position) that bring a diagram to at most ``max_side`` samples a side.
+
+    A figure ~1000 px wide shows no more; matplotlib resamples the image to RGBA
+    floats, which for a long record would cost more memory than the analysis.
+    """
+    return -(-shape[0] // max_side), -(-shape[1] // max_side)
+
+
 class BandSampler:
     """Gathers the core band of the bore along the axis from a frame.
 

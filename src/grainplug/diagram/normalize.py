@@ -101,7 +101,8 @@ def _class_levels(R: np.ndarray) -> tuple[float, float, float, np.ndarray]:
 
 
 def normalize(values: np.ndarray, *, background_level: float | None = None,
-              smooth_positions: float = 0.08, n_iter: int = 6, max_fit_frames: int = 400) -> Normalized:
+              smooth_positions: float = 0.08, n_iter: int = 6, max_fit_frames: int = 400,
+              tol: float = 1e-4) -> Normalized:
     """Fit the two-class illumination model and return the plug contrast.
 
     Parameters
@@ -114,7 +115,9 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
     smooth_positions : float
         Width of the Gaussian that smooths ``b(s)``, as a share of the view.
     n_iter : int
-        Alternating steps.
+        Alternating steps, at most.
+    tol : float
+        Stop when no log-gain (``a`` about its median, ``b``) moves by more than this.
     max_fit_frames : int
         The class levels and ``b(s)`` are fitted on at most this many frames spread
         over the record; the per-frame gains ``a(t)`` are then found for every frame.
@@ -130,6 +133,7 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
     sigma_s = max(2.0, smooth_positions * n_s)
     bound = np.inf
     for _ in range(n_iter):
+        a_prev, b_prev = a - np.median(a), b
         R = Lf - a[:, None] - b[None, :]
         mu_hi, mu_lo, _, cls = _class_levels(R)
         E = Lf - np.where(cls, np.float32(mu_hi), np.float32(mu_lo))
@@ -142,6 +146,8 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
         b_raw = np.median(E[::2] - a[::2, None], axis=0)
         b = ndimage.gaussian_filter1d(b_raw, sigma_s, mode="nearest").astype(np.float32)
         b -= b.mean()
+        if max(float(np.max(np.abs(a - np.median(a) - a_prev))), float(np.max(np.abs(b - b_prev)))) < tol:
+            break  # converged: gains steady to 0.01%
     # every frame's gain, with the class levels and b(s) found above
     L -= b[None, :]
     thr = 0.5 * (mu_hi + mu_lo)

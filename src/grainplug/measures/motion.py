@@ -252,10 +252,15 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
                 continue
             nh = max(m, _harmonics_for(f0, fps))
             cand = None
-            for f in np.linspace(f0 - 1.5 * step / m, f0 + 1.5 * step / m, 61):
-                c_f, rss = _fit(t, y, tix, n_tr, float(f), nh, weights)
-                if cand is None or rss < cand[2]:
-                    cand = (float(f), c_f, rss, m, nh)
+            # a grid of 13 over +-1.5 bins, then 11 around the best: the resolution of 61 in one grid
+            width = 1.5 * step / m
+            for grid in (np.linspace(f0 - width, f0 + width, 13), None):
+                if grid is None:
+                    grid = np.linspace(cand[0] - width / 6, cand[0] + width / 6, 11)
+                for f in grid:
+                    c_f, rss = _fit(t, y, tix, n_tr, float(f), nh, weights)
+                    if cand is None or rss < cand[2]:
+                        cand = (float(f), c_f, rss, m, nh)
             if best is None or cand[2] < 0.8 * best[2]:
                 best = cand
         if best is not None:

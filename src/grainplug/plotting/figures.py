@@ -12,6 +12,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..diagram.extract import display_stride
+
 if TYPE_CHECKING:
     from ..analysis import AnalysisResult
 
@@ -23,10 +25,8 @@ def plot_diagram(res: AnalysisResult, *, max_markers: int = 4000) -> Figure:
     d = res.diagram
     fig, ax = plt.subplots(figsize=(9, 5.5), constrained_layout=True)
     t, s = d.time_s, d.position_mm
-    # the figure is ~1000 px wide: draw at most ~1200 samples a side (matplotlib resamples the
-    # image to RGBA floats, which for a long record would cost more memory than the analysis)
-    step_t = -(-d.values.shape[0] // 1200)
-    step_s = -(-d.values.shape[1] // 1200)
+    # at most ~1200 samples a side (a no-op when the values were already thinned for display)
+    step_t, step_s = display_stride(d.values.shape)
     ax.imshow(d.values[::step_t, ::step_s].T, aspect="auto", cmap="gray", origin="upper",
               interpolation="nearest", extent=(t[0], t[-1], s[-1], s[0]))
     runs = res.runs
