@@ -118,25 +118,45 @@ class Movie(abc.ABC):
             return iter(())
         return self._iter(start, stop, step)
 
+    #: at most this share of the memory the system has free is asked for ahead of the stream
+    PREFETCH_MEMORY_SHARE = 0.5
+
     def prefetch(self) -> None:
-        """Ask the operating system to start reading the whole movie into its cache.
+        """Ask the operating system to start reading the movie into its cache.
 
         Returns at once; the reads overlap whatever the caller does next (finding
-        the tube), so the streaming pass finds the data in memory. A no-op where
-        the platform or the format does not allow it.
+        the tube), so the streaming pass finds the data in memory. At most half of
+        the free memory is asked for: a movie larger than that is read ahead in a
+        window that :meth:`_advise_ahead` moves along with the stream, so that the
+        read-ahead never evicts frames before they are used. A no-op where the
+        platform or the format does not allow it.
         """
-        if not hasattr(os, "posix_fadvise"):
+        self._ahead_to = 0
+        self._ahead_limit = _free_memory_bytes() * self.PREFETCH_MEMORY_SHARE
+        self._advise_ahead(0)
+
+    def _advise_ahead(self, position: int) -> None:
+        """Keep the read-ahead window ``[position, position + limit)`` of the file requested.
+
+        Called by readers that know the byte position of their stream; requests
+        are issued in steps of an eighth of the window (few system calls).
+        """
+        limit = getattr(self, "_ahead_limit", None)
+        if limit is None or not hasattr(os, "posix_fadvise") or not self.path.is_file():
             return
-        files = [self.path] if self.path.is_file() else []
-        for f in files:
+        size = self.path.stat().st_size
+        target = int(min(size, position + limit))
+        if target <= self._ahead_to or (target < size and target - self._ahead_to < limit / 8):
+            return
+        try:
+            fd = os.open(self.path, os.O_RDONLY)
             try:
-                fd = os.open(f, os.O_RDONLY)
-                try:
-                    os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_WILLNEED)
-                finally:
-                    os.close(fd)
-            except OSError:
-                pass
+                os.posix_fadvise(fd, self._ahead_to, target - self._ahead_to, os.POSIX_FADV_WILLNEED)
+            finally:
+                os.close(fd)
+        except OSError:
+            return
+        self._ahead_to = target
 
     def analysis_frames(self) -> Iterator[np.ndarray]:
         """All frames, in order, in whatever layout is cheapest to read.
@@ -201,3 +221,18 @@ class Movie(abc.ABC):
     def __repr__(self) -> str:
         i = self.info
         return f"<{type(self).__name__} {i.path!r} {i.width}x{i.height}x{i.channels} n={i.n_frames}>"
+
+
+def _free_memory_bytes() -> float:
+    """Memory the system can give without swapping (MemAvailable), or 1 GiB when unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return float(2**30)

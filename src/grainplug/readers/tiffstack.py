@@ -102,8 +102,11 @@ class TiffStackMovie(Movie):
             yield from self.frames()
             return
         n = self.info.n_frames
+        offset, dt = self._contiguous
+        frame_bytes = int(np.prod(self._page_shape)) * dt.itemsize
         for start in range(0, n, self.CHUNK_FRAMES):
             count = min(self.CHUNK_FRAMES, n - start)
+            self._advise_ahead(offset + start * frame_bytes)  # no-op unless prefetch() was called
             mm = self._map(start, count)
             for k in range(count):
                 yield mm[k][..., :3] if mm.ndim == 4 and mm.shape[-1] == 4 else mm[k]

@@ -1,0 +1,197 @@
+"""The fast paths of the analysis agree with slower, independent computations.
+
+Each optimisation of the performance work (issue 6) is checked here against a
+straightforward method: scipy's interpolation for the sheared profiles, the full
+least-squares design for the drift fits, per-row loops for the runs, all frame
+pairs for the falling grains, in-process drawing for the figure helper.
+"""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from grainplug.analysis import analyze
+from grainplug.calibration.tube import _bin, _grey_binned, sheared_profile, to_grey
+from grainplug.measures import motion
+from grainplug.measures.grains import falling_grains
+from grainplug.outputs import FigureWorker, draw_figures, figure_payload
+from grainplug.plugs.segment import find_runs, plug_mask
+from grainplug.synthetic import SynthConfig, synthesize
+
+
+def _profile_by_map_coordinates(img, tan_b, x_grid, rows=None):
+    """The definition: linear interpolation along every line, with scipy."""
+    h, w = img.shape
+    ys = np.arange(h, dtype=float)[rows if rows is not None else slice(None)]
+    yy = np.repeat(ys[:, None], len(x_grid), axis=1)
+    xx = x_grid[None, :] + (ys[:, None] + 0.5) * tan_b
+    vals = ndimage.map_coordinates(img.astype(float), [yy, xx], order=1, mode="constant", cval=np.nan)
+    vals[(xx < 0) | (xx > w - 1)] = np.nan
+    count = np.isfinite(vals).sum(axis=0)
+    out = np.full(len(x_grid), np.nan)
+    ok = count >= max(1, 0.3 * len(ys))
+    out[ok] = np.nansum(vals, axis=0)[ok] / count[ok]
+    return out, xx
+
+
+@pytest.mark.parametrize("step", [1.0, 0.5, 0.25, 0.1, 0.05, 0.3])
+@pytest.mark.parametrize("tan_b", [0.0, 0.037, -0.105])
+def test_sheared_profile_equals_interpolation(rng, step, tan_b):
+    img = rng.random((90, 70)).astype(np.float32)
+    grid = np.arange(-8.3, 78.0, step)
+    ref, xx = _profile_by_map_coordinates(img, tan_b, grid)
+    got = sheared_profile(img, tan_b, grid)
+    # away from the image's sides (where the splatted weights are partial by design)
+    far = (np.abs(xx) > 1.01).all(axis=0) & (np.abs(xx - 69) > 1.01).all(axis=0)
+    both = far & np.isfinite(ref)
+    assert both.sum() > 20
+    np.testing.assert_allclose(got[both], ref[both], rtol=0, atol=2e-6)
+    assert np.array_equal(np.isnan(got[far]), np.isnan(ref[far]))
+    block = slice(30, 50)
+    ref_b, _ = _profile_by_map_coordinates(img, tan_b, grid, block)
+    got_b = sheared_profile(img, tan_b, grid, block)
+    ok = far & np.isfinite(ref_b)
+    np.testing.assert_allclose(got_b[ok], ref_b[ok], rtol=0, atol=2e-6)
+
+
+@pytest.mark.parametrize("b", [1, 2, 4, 8])
+@pytest.mark.parametrize("shape", [(64, 48, 3), (66, 50), (37, 41, 3)])
+def test_grey_binned_is_exact(rng, b, shape):
+    frame = rng.integers(0, 256, shape, dtype=np.uint8)
+    np.testing.assert_allclose(_grey_binned(frame, b), _bin(to_grey(frame), b), rtol=0, atol=1e-4)
+
+
+def test_fit_without_one_hot_equals_full_design(rng):
+    n_tracks, n = 9, 700
+    tix = np.sort(rng.integers(0, n_tracks, n))
+    t = rng.uniform(0, 3, n)
+    y = -40 * t + rng.normal(0, 5, n_tracks)[tix] + 0.7 * np.sin(2 * np.pi * 6.3 * t) + rng.normal(0, 0.2, n)
+    w = rng.uniform(0, 1, n)
+    w[tix == 3] = 0.0  # a track with no weight at all: offset 0, as the minimum-norm solution
+    for f, nh, weights in ((None, 0, None), (6.3, 3, None), (6.3, 3, w), (None, 0, w)):
+        coef, rss, res = motion._fit_res(t, y, tix, n_tracks, f, nh, weights)
+        A = motion._design(t, tix, n_tracks, f, nh)
+        sw = np.ones(n) if weights is None else np.sqrt(weights)
+        ref, *_ = np.linalg.lstsq(A * sw[:, None], y * sw, rcond=None)
+        np.testing.assert_allclose(coef, ref, rtol=1e-8, atol=1e-8)
+        np.testing.assert_allclose(res, y - A @ ref, rtol=1e-8, atol=1e-8)
+        np.testing.assert_allclose(rss, float(np.sum(sw**2 * (y - A @ ref) ** 2)), rtol=1e-9)
+
+
+def _runs_by_loop(z, mask, pos):
+    """One row at a time, one run at a time."""
+    zs = ndimage.gaussian_filter1d(z.astype(np.float32), 0.7, axis=1, mode="nearest")
+    ds, out = pos[1] - pos[0], []
+    for k in range(mask.shape[0]):
+        row = np.concatenate(([False], mask[k], [False]))
+        d = np.diff(row.astype(int))
+        for a, b in zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0], strict=True):
+            def cross(i_out, i_in, p=zs[k]):
+                lo, hi = float(p[i_out]), float(p[i_in])
+                f = 0.5 if lo == hi else min(max((0.5 - lo) / (hi - lo), 0.0), 1.0)
+                return pos[0] + ds * (i_out + f * (i_in - i_out))
+            top = np.nan if a == 0 else cross(a - 1, a)
+            bot = np.nan if b == mask.shape[1] else cross(b, b - 1)
+            out.append((k, a, b, top, bot))
+    return out
+
+
+def test_runs_vectorised_equal_loop(rng):
+    z = ndimage.uniform_filter((rng.random((120, 300)) < 0.5).astype(np.float32), (1, 25))
+    z = (z > 0.5) * 0.9 + rng.normal(0, 0.12, z.shape)
+    pos = np.arange(300) * 0.185
+    mask = plug_mask(z, mm_per_sample=0.185)
+    # the mask keeps exactly the runs of the smoothed, closed mask that are long enough
+    for k in range(0, 120, 17):
+        row = np.concatenate(([False], mask[k], [False]))
+        d = np.diff(row.astype(int))
+        assert (np.nonzero(d == -1)[0] - np.nonzero(d == 1)[0]).min() >= round(3.0 / 0.185)
+    runs = find_runs(z, mask, pos)
+    ref = _runs_by_loop(z, mask, pos)
+    assert len(runs) == len(ref) > 100
+    got = list(zip(runs.frame, runs.start, runs.stop, runs.top_mm, runs.bottom_mm, strict=True))
+    np.testing.assert_allclose(np.array(got, float), np.array(ref, float), rtol=0, atol=1e-9)
+
+
+def test_falling_grains_on_spread_pairs_agrees_with_all_pairs(rng):
+    n_t, n_s, shift = 1500, 400, 8  # specks moving 8 samples per frame through a bubble
+    z = np.full((n_t, n_s), 0.1, np.float32)
+    specks = rng.integers(0, n_s + shift * n_t, 4000)
+    for k in range(n_t):
+        s = specks - shift * (n_t - k)
+        s = s[(s >= 0) & (s < n_s)]
+        z[k, s] += 0.25
+    z += rng.normal(0, 0.01, z.shape).astype(np.float32)
+    all_pairs = falling_grains(z, mm_per_sample=0.2, fps=250.0, max_pairs=n_t)
+    spread = falling_grains(z, mm_per_sample=0.2, fps=250.0, max_pairs=300)
+    expected = shift * 0.2 * 250.0 / 1000.0
+    assert all_pairs.speed_m_s == pytest.approx(expected, abs=0.01)
+    assert spread.speed_m_s == pytest.approx(expected, abs=0.01)
+
+
+@pytest.fixture(scope="module")
+def result(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fw")
+    movie = synthesize(SynthConfig(n_frames=120, seed=2, regime="oscillating", celerity_m_s=0.03,
+                                   frequency_hz=8.0), d, fmt="tiff").movie
+    return analyze(movie)
+
+
+def test_figure_payload_is_small_and_drawable(result, tmp_path):
+    small = figure_payload(result)
+    assert small.normalized is None
+    assert small.diagram.values.shape[0] <= 1200 and small.diagram.values.shape[1] <= 1200
+    assert len(pickle.dumps(small)) < len(pickle.dumps(result))
+    assert {p.name for p in draw_figures(small, tmp_path)} == {"diagram.png", "frame.png", "spectrum.png"}
+
+
+def test_figure_worker_draws_in_a_helper_and_falls_back(result, tmp_path, monkeypatch):
+    here, there = tmp_path / "here", tmp_path / "there"
+    here.mkdir()
+    there.mkdir()
+    draw_figures(result, here)
+    with FigureWorker() as fw:
+        assert fw._pool is not None
+        names = {p.name for p in fw.draw(result, there)}
+    assert names == {"diagram.png", "frame.png", "spectrum.png"}
+    for name in names:
+        assert (there / name).stat().st_size > 0.5 * (here / name).stat().st_size
+    # a result that cannot be sent to the helper: drawn here instead, with a warning logged
+    fallback = tmp_path / "fallback"
+    fallback.mkdir()
+    monkeypatch.setattr("grainplug.outputs.figure_payload", lambda res: (lambda: None))
+    with FigureWorker() as fw:
+        names = {p.name for p in fw.draw(result, fallback)}
+        assert fw._pool is None
+    assert names == {"diagram.png", "frame.png", "spectrum.png"}
+
+
+def test_prefetch_window_follows_the_stream(tmp_path, monkeypatch):
+    """A movie larger than the read-ahead budget is requested window by window, never
+    more than the budget ahead of the frame being read, and to its end."""
+    import os
+
+    from grainplug.readers import base, open_movie
+
+    movie = synthesize(SynthConfig(n_frames=64, seed=1), tmp_path, fmt="tiff").movie
+    size = movie.stat().st_size
+    calls: list[tuple[int, int]] = []
+    monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: calls.append((off, n)), raising=False)
+    monkeypatch.setattr(base, "_free_memory_bytes", lambda: size / 2)  # budget: a quarter of the file
+    budget = size / 4
+    with open_movie(movie) as m:
+        m.prefetch()
+        assert calls == [(0, int(budget))]
+        offset, dt = m._contiguous
+        frame_bytes = m.info.width * m.info.height * m.info.channels * dt.itemsize
+        for k, _ in enumerate(m.analysis_frames()):
+            requested_to = calls[-1][0] + calls[-1][1]
+            assert requested_to <= offset + k * frame_bytes + budget + 1
+    ends = [off + n for off, n in calls]
+    assert ends == sorted(ends) and ends[-1] >= offset + m.info.n_frames * frame_bytes  # every frame
+    assert all(calls[i + 1][0] == ends[i] for i in range(len(calls) - 1))  # contiguous, no re-request
+    assert 4 <= len(calls) <= 40
