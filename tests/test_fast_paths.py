@@ -155,7 +155,7 @@ def test_figure_worker_draws_in_a_helper_and_falls_back(result, tmp_path, monkey
     there.mkdir()
     draw_figures(result, here)
     with FigureWorker() as fw:
-        assert fw._pool is not None
+        assert fw.running
         names = {p.name for p in fw.draw(result, there)}
     assert names == {"diagram.png", "frame.png", "spectrum.png"}
     for name in names:
@@ -166,7 +166,7 @@ def test_figure_worker_draws_in_a_helper_and_falls_back(result, tmp_path, monkey
     monkeypatch.setattr("grainplug.outputs.figure_payload", lambda res: (lambda: None))
     with FigureWorker() as fw:
         names = {p.name for p in fw.draw(result, fallback)}
-        assert fw._pool is None
+        assert not fw.running
     assert names == {"diagram.png", "frame.png", "spectrum.png"}
 
 
@@ -195,3 +195,19 @@ def test_prefetch_window_follows_the_stream(tmp_path, monkeypatch):
     assert ends == sorted(ends) and ends[-1] >= offset + m.info.n_frames * frame_bytes  # every frame
     assert all(calls[i + 1][0] == ends[i] for i in range(len(calls) - 1))  # contiguous, no re-request
     assert 4 <= len(calls) <= 40
+
+
+def test_figure_worker_survives_a_dead_helper(result, tmp_path):
+    with FigureWorker() as fw:  # dead before the job
+        fw._proc.kill()
+        fw._proc.wait()
+        assert {p.name for p in fw.draw(result, tmp_path)} == {"diagram.png", "frame.png", "spectrum.png"}
+    for k in range(2):  # dead while the job is on its way
+        folder = tmp_path / f"mid{k}"
+        folder.mkdir()
+        with FigureWorker() as fw:
+            proc = fw._proc
+            pending = fw.submit(result, folder)
+            proc.kill()
+            assert {p.name for p in pending()} == {"diagram.png", "frame.png", "spectrum.png"}
+            assert not fw.running

@@ -11,13 +11,15 @@ import dataclasses
 import io
 import json
 import logging
-import multiprocessing
 import os
+import pickle
 import shutil
+import subprocess
+import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 from types import TracebackType
 
@@ -114,36 +116,14 @@ def figure_payload(res: AnalysisResult) -> AnalysisResult:
     return dataclasses.replace(res, diagram=thin, normalized=None)
 
 
-def _warm_up() -> None:
-    """Helper process start-up: import matplotlib and render some text once (font cache)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from . import plotting  # noqa: F401
-
-    fig, ax = plt.subplots(figsize=(1, 1))
-    ax.set_title("grainplug")
-    fig.savefig(io.BytesIO(), format="png", dpi=20)
-    plt.close(fig)
-
-
-def _ready() -> bool:
-    return True
-
-
-def _draw_remote(res: AnalysisResult, folder: str) -> list[str]:
-    return [str(p) for p in draw_figures(res, folder)]
-
-
 class FigureWorker:
     """Draws a run's figures in a helper process started before the analysis.
 
-    matplotlib's import and first rendering (~0.5 s) then happen on another core
-    while the frames stream, and the drawing overlaps the writing of the tables.
-    Any failure of the helper (no process allowed, a crash, a result that cannot
-    be sent) falls back to drawing in this process. Use as a context manager.
+    The helper (``python -m grainplug.plotting.helper``, a fresh interpreter)
+    imports matplotlib and warms up its renderer (~0.5 s) on another core while
+    the frames stream; the drawing then overlaps the writing of the tables. Any
+    failure of the helper (no process allowed, a crash, a result that cannot be
+    sent) falls back to drawing in this process. Use as a context manager.
 
     Examples
     --------
@@ -153,34 +133,61 @@ class FigureWorker:
     """
 
     def __init__(self) -> None:
-        self._pool: ProcessPoolExecutor | None = None
-        self._warm: Future | None = None
+        import grainplug
+
+        env = dict(os.environ, MPLBACKEND="Agg")
+        # the helper imports this very grainplug, installed or not
+        root = str(Path(grainplug.__file__).resolve().parent.parent)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [root, env.get("PYTHONPATH")]))
+        self._proc: subprocess.Popen | None = None
         try:
-            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                                             initializer=_warm_up)
-            self._warm = self._pool.submit(_ready)
-        except (OSError, RuntimeError, ValueError) as exc:  # no helper: draw here
+            self._proc = subprocess.Popen([sys.executable, "-m", "grainplug.plotting.helper"],
+                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                          stderr=subprocess.DEVNULL, env=env)
+        except OSError as exc:  # no helper: draw here
             log.debug("figure helper not started (%s); figures are drawn in this process", exc)
-            self.close()
+
+    @property
+    def running(self) -> bool:
+        """Whether a helper process is there to take the job."""
+        return self._proc is not None and self._proc.poll() is None
 
     def submit(self, res: AnalysisResult, folder: str | Path) -> Callable[[], list[Path]]:
         """Start drawing the figures of ``res`` into ``folder``; call the result to wait for them."""
-        if self._pool is not None:
+        if not self.running:
+            self.close()
+            return lambda: draw_figures(res, folder)
+        proc = self._proc
+        try:
+            job = pickle.dumps((figure_payload(res), str(folder)), protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception as exc:  # a result that cannot be sent: draw here
+            return self._fallback(exc, res, folder)
+        sent: list[BaseException] = []
+
+        def send() -> None:  # in a thread: the helper may still be importing matplotlib
             try:
-                fut = self._pool.submit(_draw_remote, figure_payload(res), str(folder))
-            except Exception as exc:  # a helper that cannot take work: draw here
-                return self._fallback(exc, res, folder)
+                proc.stdin.write(job)
+                proc.stdin.close()
+            except OSError as exc:
+                sent.append(exc)
 
-            def wait() -> list[Path]:
-                try:
-                    return [Path(p) for p in fut.result()]
-                except Exception as exc:  # any helper failure: draw here instead
-                    return self._fallback(exc, res, folder)()
+        sender = threading.Thread(target=send, name="grainplug-figures", daemon=True)
+        sender.start()
 
-            return wait
-        return lambda: draw_figures(res, folder)
+        def wait() -> list[Path]:
+            sender.join()
+            try:
+                status, value = pickle.load(proc.stdout)
+            except Exception as exc:  # the helper died or said nothing
+                return self._fallback(sent[0] if sent else exc, res, folder)()
+            self.close()
+            if status != "ok":
+                return self._fallback(RuntimeError(value), res, folder)()
+            return [Path(p) for p in value]
 
-    def _fallback(self, exc: Exception, res: AnalysisResult, folder: str | Path) -> Callable[[], list[Path]]:
+        return wait
+
+    def _fallback(self, exc: BaseException, res: AnalysisResult, folder: str | Path) -> Callable[[], list[Path]]:
         log.warning("figure helper failed (%s: %s); drawing in this process", type(exc).__name__, exc)
         self.close()
         return lambda: draw_figures(res, folder)
@@ -190,10 +197,18 @@ class FigureWorker:
         return self.submit(res, folder)()
 
     def close(self) -> None:
-        """Stop the helper (at once if it is still starting)."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None
+        """Stop the helper: its reply, if any, has been read; it is not waited for otherwise."""
+        proc, self._proc = self._proc, None
+        if proc is None:
+            return
+        if proc.poll() is None:
+            proc.kill()
+        for pipe in (proc.stdin, proc.stdout):
+            try:
+                pipe.close()
+            except OSError:
+                pass
+        proc.wait()
 
     def __enter__(self) -> FigureWorker:
         return self

@@ -1,0 +1,53 @@
+"""The figure helper process: ``python -m grainplug.plotting.helper``.
+
+Started by :class:`grainplug.outputs.FigureWorker` before an analysis, it imports
+matplotlib and renders some text once (the font cache) while the frames stream in
+the parent, then reads one job from its standard input — a pickled
+``(AnalysisResult, folder)`` — draws the figures into ``folder`` and writes a
+pickled ``("ok", [paths])`` or ``("error", message)`` to its standard output.
+"""
+
+from __future__ import annotations
+
+import io
+import pickle
+import sys
+
+
+def warm_up() -> None:
+    """Import what drawing needs and render a small figure with text once."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .. import analysis, outputs  # noqa: F401 - unpickling the job needs them
+
+    fig, ax = plt.subplots(figsize=(1, 1))
+    ax.set_title("grainplug")
+    ax.plot([0, 1], [0, 1], "s")
+    fig.savefig(io.BytesIO(), format="png", dpi=20)
+    plt.close(fig)
+
+
+def main() -> int:
+    """Serve one job; the exit status is 0 when a reply was written."""
+    reply_to = sys.stdout.buffer
+    sys.stdout = sys.stderr  # nothing but the reply goes to the parent's pipe
+    try:
+        warm_up()
+        res, folder = pickle.load(sys.stdin.buffer)
+        from ..outputs import draw_figures
+
+        reply: tuple[str, object] = ("ok", [str(p) for p in draw_figures(res, folder)])
+    except EOFError:  # the parent went away or needs no figures
+        return 0
+    except Exception as exc:  # reported to the parent, which draws the figures itself
+        reply = ("error", f"{type(exc).__name__}: {exc}")
+    pickle.dump(reply, reply_to)
+    reply_to.flush()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
