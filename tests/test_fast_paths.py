@@ -181,7 +181,7 @@ def test_prefetch_window_follows_the_stream(tmp_path, monkeypatch):
     size = movie.stat().st_size
     calls: list[tuple[int, int]] = []
     monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: calls.append((off, n)), raising=False)
-    monkeypatch.setattr(base, "_free_memory_bytes", lambda: size / 2)  # budget: a quarter of the file
+    monkeypatch.setattr(base, "free_memory_bytes", lambda: size / 2)  # budget: a quarter of the file
     budget = size / 4
     with open_movie(movie) as m:
         m.prefetch()
@@ -211,3 +211,20 @@ def test_figure_worker_survives_a_dead_helper(result, tmp_path):
             proc.kill()
             assert {p.name for p in pending()} == {"diagram.png", "frame.png", "spectrum.png"}
             assert not fw.running
+
+
+def test_cli_asks_for_the_movie_before_importing(tmp_path, monkeypatch):
+    import os
+
+    from grainplug.cli import _early_readahead
+
+    movie = tmp_path / "run.tif"
+    movie.write_bytes(b"\0" * 10_000)
+    (tmp_path / "out").mkdir()
+    calls: list[tuple[int, int]] = []
+    monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: calls.append((off, n)), raising=False)
+    _early_readahead(["--debug", "analyze", str(movie), "--out", str(tmp_path / "out"), "--fps", "250"])
+    assert calls == [(0, 10_000)]
+    calls.clear()
+    _early_readahead(["info", str(movie)])
+    assert calls == []

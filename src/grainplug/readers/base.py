@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._system import free_memory_bytes
+
 
 @dataclass(frozen=True)
 class MovieInfo:
@@ -132,7 +134,7 @@ class Movie(abc.ABC):
         platform or the format does not allow it.
         """
         self._ahead_to = 0
-        self._ahead_limit = _free_memory_bytes() * self.PREFETCH_MEMORY_SHARE
+        self._ahead_limit = free_memory_bytes() * self.PREFETCH_MEMORY_SHARE
         self._advise_ahead(0)
 
     def _advise_ahead(self, position: int) -> None:
@@ -222,17 +224,3 @@ class Movie(abc.ABC):
         i = self.info
         return f"<{type(self).__name__} {i.path!r} {i.width}x{i.height}x{i.channels} n={i.n_frames}>"
 
-
-def _free_memory_bytes() -> float:
-    """Memory the system can give without swapping (MemAvailable), or 1 GiB when unknown."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024.0
-    except OSError:
-        pass
-    try:
-        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return float(2**30)
