@@ -21,7 +21,7 @@ import numpy as np
 
 from ._version import __version__
 from .calibration import TubeGeometry, find_tube
-from .diagram import BandSampler, Diagram, Normalized, build_diagram, normalize
+from .diagram import BandSampler, Diagram, Normalized, build_diagram, build_diagram_blocks, normalize
 from .errors import ParameterError
 from .measures import Lengths, Motion, measure_lengths, measure_motion
 from .measures.grains import falling_grains
@@ -155,7 +155,7 @@ def _flow_angle_deg(tube: TubeGeometry, reverse: bool) -> float:
 
 
 def analyze(path: str | Path, params: AnalysisParams | None = None, *,
-            progress: Callable[[int, int], None] | None = None) -> AnalysisResult:
+            progress: Callable[[int, int], None] | None = None, threads: int | None = None) -> AnalysisResult:
     """Analyse one movie of plug flow.
 
     Parameters
@@ -166,6 +166,9 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         Tunables; the defaults need no hand tuning.
     progress : callable, optional
         ``progress(done, total)`` called while frames are streamed.
+    threads : int, optional
+        Threads that read the frames, where the reader allows it (memory-mapped
+        uncompressed stacks); default: one per core. Results do not depend on it.
 
     Returns
     -------
@@ -218,8 +221,14 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         times = np.arange(info.n_frames) / info.fps
         cb = (lambda k: progress(k, info.n_frames)) if progress else None
         lap("setup_s")
-        diagram = build_diagram(movie.analysis_frames(), sampler, n_frames=info.n_frames, time_s=times,
-                                mm_per_px=mm_per_px, progress=cb)
+        n_threads = threads if threads is not None else (os.cpu_count() or 1)
+        read_block = movie.block_reader() if n_threads > 1 else None
+        if read_block is not None:
+            diagram = build_diagram_blocks(read_block, sampler, n_frames=info.n_frames, time_s=times,
+                                           mm_per_px=mm_per_px, threads=n_threads, progress=cb)
+        else:
+            diagram = build_diagram(movie.analysis_frames(), sampler, n_frames=info.n_frames, time_s=times,
+                                    mm_per_px=mm_per_px, progress=cb)
         lap("stream_s")
         if movie.has_file_timestamps and info.fps_source == "file":
             # presentation times from the file (recorded while streaming, for video)

@@ -9,8 +9,11 @@ length and the per-frame work is small.
 
 from __future__ import annotations
 
+import copy
 import logging
+import threading
 from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -166,3 +169,52 @@ def build_diagram(frames: Iterable[np.ndarray], sampler: BandSampler, *, n_frame
     if done < n_frames:
         out = out[:done]
     return Diagram(out, np.asarray(time_s[:done], float), sampler.axis_px * mm_per_px, mm_per_px)
+
+
+def build_diagram_blocks(read_block: Callable[[int, int], np.ndarray], sampler: BandSampler, *,
+                         n_frames: int, time_s: np.ndarray, mm_per_px: float, block_frames: int = 16,
+                         threads: int = 2, progress: Callable[[int], None] | None = None) -> Diagram:
+    """:func:`build_diagram` from blocks of frames read by several threads at once.
+
+    Parameters
+    ----------
+    read_block : callable
+        ``read_block(start, count)`` returns frames ``start .. start+count-1`` (for
+        example :meth:`grainplug.readers.base.Movie.block_reader`); called from
+        worker threads, in file order.
+    sampler : BandSampler
+        Where to read each frame (each thread works with its own copy).
+    n_frames, time_s, mm_per_px, progress
+        As for :func:`build_diagram`.
+    block_frames : int
+        Frames per block.
+    threads : int
+        Worker threads.
+
+    Notes
+    -----
+    Sampling a memory-mapped frame is mostly page faults and a gather, during which
+    numpy releases the GIL, so threads scale with the cores. Blocks are handed out
+    in file order, so every thread reads near the same front of the file.
+    """
+    out = np.empty((n_frames, len(sampler.axis_px)), np.float32)
+    local = threading.local()
+
+    def work(start: int) -> int:
+        smp = getattr(local, "sampler", None)
+        if smp is None:
+            smp = local.sampler = copy.copy(sampler)
+        count = min(block_frames, n_frames - start)
+        block = read_block(start, count)
+        for k in range(count):
+            out[start + k] = smp(block[k])
+        del block
+        return count
+
+    done = 0
+    with ThreadPoolExecutor(max_workers=max(1, threads), thread_name_prefix="grainplug-stream") as pool:
+        for count in pool.map(work, range(0, n_frames, block_frames)):
+            done += count
+            if progress is not None:
+                progress(done)
+    return Diagram(out, np.asarray(time_s[:n_frames], float), sampler.axis_px * mm_per_px, mm_per_px)

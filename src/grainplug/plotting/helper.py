@@ -10,8 +10,23 @@ pickled ``("ok", [paths])`` or ``("error", message)`` to its standard output.
 from __future__ import annotations
 
 import io
+import os
 import pickle
 import sys
+
+
+def _yield_to_the_analysis() -> None:
+    """Run only on cores the analysis leaves idle: its threads come first, and the
+    figures are needed only at its end (SCHED_IDLE on Linux, else a lower priority)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+        return
+    except (AttributeError, OSError):
+        pass
+    try:
+        os.nice(10)
+    except (AttributeError, OSError):
+        pass
 
 
 def warm_up() -> None:
@@ -34,6 +49,7 @@ def main() -> int:
     """Serve one job; the exit status is 0 when a reply was written."""
     reply_to = sys.stdout.buffer
     sys.stdout = sys.stderr  # nothing but the reply goes to the parent's pipe
+    _yield_to_the_analysis()
     try:
         warm_up()
         res, folder = pickle.load(sys.stdin.buffer)

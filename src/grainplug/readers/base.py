@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import abc
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -159,6 +159,16 @@ class Movie(abc.ABC):
         except OSError:
             return
         self._ahead_to = target
+
+    def block_reader(self) -> Callable[[int, int], np.ndarray] | None:
+        """A function ``(start, count) -> frames`` that any thread may call, or None.
+
+        Readers whose frames can be reached independently (memory-mapped
+        uncompressed stacks) return one, so that blocks of frames are read by
+        several threads at once; the arrays may be views (memory maps), valid
+        as long as they are referenced, and in any channel order.
+        """
+        return None
 
     def analysis_frames(self) -> Iterator[np.ndarray]:
         """All frames, in order, in whatever layout is cheapest to read.

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -111,6 +112,25 @@ class TiffStackMovie(Movie):
             for k in range(count):
                 yield mm[k][..., :3] if mm.ndim == 4 and mm.shape[-1] == 4 else mm[k]
             del mm  # unmapped as soon as the caller drops its last view
+
+    def block_reader(self) -> Callable[[int, int], np.ndarray] | None:
+        """Blocks of frames as memory maps, for uncompressed contiguous stacks (any thread).
+
+        Each call also moves the read-ahead window (:meth:`prefetch`) to the block's
+        start, so blocks taken in file order keep the disk ahead of every thread.
+        """
+        if self._contiguous is None:
+            return None
+        offset, dt = self._contiguous
+        frame_bytes = int(np.prod(self._page_shape)) * dt.itemsize
+        lock = threading.Lock()
+
+        def read_block(start: int, count: int) -> np.ndarray:
+            with lock:
+                self._advise_ahead(offset + start * frame_bytes)
+            return self._map(start, count)
+
+        return read_block
 
     def _page(self, index: int) -> np.ndarray:
         if self._contiguous is not None:

@@ -233,6 +233,48 @@ class VideoMovie(Movie):
             return None
         return wanted, out  # type: ignore[return-value]
 
+    def read(self, index: int) -> np.ndarray:
+        """One frame by index: a seek to the key frame before it, then a few frames decoded.
+
+        The frame is found by its presentation time (from the container's packets
+        when they were counted, else from the frame rate); where the container
+        cannot seek to it, the movie is decoded from the start.
+        """
+        n = self.info.n_frames
+        if not 0 <= index < n:
+            raise IndexError(f"frame {index} out of range 0..{n - 1}")
+        if index > 0:
+            got = self._read_by_seeking(index)
+            if got is not None:
+                return got
+        return super().read(index)
+
+    def _read_by_seeking(self, index: int) -> np.ndarray | None:
+        try:
+            with av.open(str(self.path)) as container:
+                stream = container.streams.video[0]
+                stream.thread_type = "SLICE"
+                tb = float(stream.time_base or 0) or 1.0
+                rate = float(stream.average_rate or self.info.fps or 0)
+                if self._pts is not None and len(self._pts) == self.info.n_frames:
+                    target = int(self._pts[index])
+                elif rate > 0:
+                    target = (stream.start_time or 0) + int(round(index / rate / tb))
+                else:
+                    return None
+                half = 0.5 / rate / tb if rate > 0 else 0.5
+                container.seek(target, stream=stream, backward=True, any_frame=False)
+                for frame in container.decode(stream):
+                    if frame.pts is None:
+                        return None
+                    if frame.pts >= target - half:
+                        if abs(frame.pts - target) <= half:
+                            return frame.to_ndarray(format=self._target)
+                        return None  # the seek landed past the frame
+        except av.error.FFmpegError:
+            return None
+        return None
+
     def analysis_frames(self) -> Iterator[np.ndarray]:
         """Decoded frames in their native layout: packed RGB/BGR as they are, luma only for
         YUV and the first plane for planar RGB, 16-bit through a conversion. No colour
