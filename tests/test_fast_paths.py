@@ -267,3 +267,21 @@ def test_threaded_stream_equals_serial(tmp_path):
     one, two = analyze(movie, threads=1), analyze(movie, threads=2)
     assert one.summary["celerity_m_s"] == two.summary["celerity_m_s"]
     np.testing.assert_array_equal(one.diagram.values, two.diagram.values)
+
+
+def test_tiff_stacks_beyond_4_gb_are_written_as_bigtiff(tmp_path, rng):
+    import tifffile
+
+    from grainplug.readers import open_movie
+    from grainplug.synthetic import MovieWriter
+
+    frames = rng.integers(0, 256, (3, 64, 48, 3), dtype=np.uint8)
+    for n_frames, big in ((3, False), (2_000_000, True)):  # 2e6 frames of 9 kB: 18 GB announced
+        path = tmp_path / f"m{n_frames}.tif"
+        with MovieWriter(path, "tiff", fps=250.0, n_frames=n_frames) as w:
+            for f in frames:
+                w.write(f)
+        with tifffile.TiffFile(path) as tif:
+            assert tif.is_bigtiff is big
+        with open_movie(path) as m:
+            np.testing.assert_array_equal(np.stack(list(m.frames())), frames)

@@ -124,7 +124,8 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
     """
     d = np.asarray(values, dtype=np.float32)
     scale = max(float(np.percentile(d[:: max(1, d.shape[0] // 200)], 99)), 1e-9)
-    L = np.log(np.maximum(d, np.float32(1e-3 * scale)))
+    L = np.maximum(d, np.float32(1e-3 * scale))
+    np.log(L, out=L)
     n_t, n_s = L.shape
     rows = np.unique(np.linspace(0, n_t - 1, min(n_t, max_fit_frames)).round().astype(int))
     Lf = L[rows]

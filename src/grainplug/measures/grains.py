@@ -20,6 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+#: frame pairs correlated at once
+PAIRS_PER_BLOCK = 64
+
 
 @dataclass(frozen=True)
 class GrainMotion:
@@ -45,28 +48,36 @@ def falling_grains(z: np.ndarray, *, mm_per_sample: float, fps: float, min_speed
                    max_speed_m_s: float = 4.0, min_score: float = 8.0, max_pairs: int = 600) -> GrainMotion:
     """Speed of the specks moving through the bubbles of the contrast diagram ``z``.
 
-    The cross-correlation of consecutive frames is summed over at most ``max_pairs``
-    pairs spread over the record (enough for a clear peak; a long record adds time,
-    not information).
+    The cross-correlation of consecutive frames is summed over every pair, or over
+    ``max_pairs`` pairs spread over a record longer than ``2 max_pairs`` frames
+    (enough for a clear peak; a long record adds time and memory, not information).
     """
     n_t, n_s = z.shape
     if n_t < 3 or n_s < 16:
         return GrainMotion(None, 0.0, 0.0)
-    if n_t - 1 <= max_pairs:  # every consecutive pair
-        zz, one, two = z, slice(0, -1), slice(1, None)
-    else:  # pairs spread over the record, each pair's two frames side by side
-        first = np.unique(np.linspace(0, n_t - 2, max_pairs).round().astype(int))
-        zz, one, two = z[np.stack([first, first + 1], axis=1).ravel()], slice(0, None, 2), slice(1, None, 2)
-    bubble = ndimage.binary_erosion(zz < 0.35, structure=np.ones((1, 7), bool))
-    if bubble.mean() < 0.05:
-        return GrainMotion(None, 0.0, 0.0)
-    x = np.where(bubble, zz, 0.0).astype(np.float32)
-    # specks: what stands out of the bubble's own level along the tube
-    x -= np.where(bubble, ndimage.uniform_filter1d(x, 15, axis=1), 0.0)
-    x = np.where(bubble, x, 0.0)
+    if n_t <= 2 * max_pairs:  # every consecutive pair
+        firsts = np.arange(n_t - 1)
+    else:  # pairs spread over the record
+        firsts = np.unique(np.linspace(0, n_t - 2, max_pairs).round().astype(int))
     n_fft = 1 << int(np.ceil(np.log2(2 * n_s)))
-    spec = np.fft.rfft(x, n_fft, axis=1)
-    cross = np.fft.irfft((np.conj(spec[one]) * spec[two]).sum(axis=0), n_fft)
+    acc = np.zeros(n_fft // 2 + 1, complex)
+    n_bubble = n_seen = 0
+    for lo in range(0, len(firsts), PAIRS_PER_BLOCK):  # in blocks: memory bounded by the block
+        first = firsts[lo: lo + PAIRS_PER_BLOCK]
+        rows = np.union1d(first, first + 1)
+        zz = z[rows]
+        bubble = ndimage.binary_erosion(zz < 0.35, structure=np.ones((1, 7), bool))
+        n_bubble += int(bubble.sum())
+        n_seen += bubble.size
+        x = np.where(bubble, zz, 0.0).astype(np.float32)
+        # specks: what stands out of the bubble's own level along the tube
+        x -= np.where(bubble, ndimage.uniform_filter1d(x, 15, axis=1), 0.0)
+        x = np.where(bubble, x, 0.0)
+        spec = np.fft.rfft(x, n_fft, axis=1)
+        acc += (np.conj(spec[np.searchsorted(rows, first)]) * spec[np.searchsorted(rows, first + 1)]).sum(axis=0)
+    if n_bubble < 0.05 * n_seen:
+        return GrainMotion(None, 0.0, 0.0)
+    cross = np.fft.irfft(acc, n_fft)
     shifts = np.fft.fftfreq(n_fft, 1.0 / n_fft).astype(int)  # shift d: row k at s -> row k+1 at s+d
     step_mm = 1000.0 / fps  # mm per frame at 1 m/s
     lo = max(2, int(np.ceil(min_speed_m_s * step_mm / mm_per_sample)))

@@ -72,11 +72,13 @@ def plug_mask(z: np.ndarray, *, mm_per_sample: float, min_plug_mm: float = 3.0,
     min_len = max(1, int(round(min_plug_mm / mm_per_sample)))
     rows, starts, stops = _runs_2d(mask)
     short = stops - starts < min_len
-    # clear the short runs: +1 at their start, -1 at their stop, cumulated along each row
-    step = np.zeros((mask.shape[0], mask.shape[1] + 1), np.int32)
-    np.add.at(step, (rows[short], starts[short]), 1)
-    np.add.at(step, (rows[short], stops[short]), -1)
-    return mask & (np.cumsum(step[:, :-1], axis=1) == 0)
+    # clear the short runs, pixel by pixel (they are short: few pixels, no full-size temporaries)
+    lengths = (stops - starts)[short]
+    first = rows[short] * mask.shape[1] + starts[short]
+    within = np.arange(int(lengths.sum())) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    out = np.ascontiguousarray(mask)
+    out.reshape(-1)[np.repeat(first, lengths) + within] = False
+    return out
 
 
 def _crossings(zs: np.ndarray, rows: np.ndarray, i_out: np.ndarray, i_in: np.ndarray) -> np.ndarray:

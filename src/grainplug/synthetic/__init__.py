@@ -134,7 +134,7 @@ def synthesize(config: SynthConfig, out_dir: str | Path, *, fmt: str = "tiff",
     path = movie_path(out, fmt, stem)
     meta = {"software": f"grainplug {__version__} synthetic", "seed": config.seed}
     tmp = path.with_name(path.name + ".part" + (path.suffix if path.suffix else ""))
-    with MovieWriter(tmp, fmt, fps=config.fps, metadata=meta) as writer:
+    with MovieWriter(tmp, fmt, fps=config.fps, metadata=meta, n_frames=config.n_frames) as writer:
         for frame in renderer.frames():
             writer.write(frame)
     _move_into_place(tmp, path, fmt)

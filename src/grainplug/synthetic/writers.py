@@ -60,13 +60,17 @@ class MovieWriter:
         Frame rate recorded in the file where the format holds one.
     metadata : dict, optional
         JSON-able description stored where the format allows (TIFF, containers).
+    n_frames : int, optional
+        Frames to come, when known: a TIFF stack beyond 4 GB is then written as BigTIFF.
     """
 
-    def __init__(self, path: Path, fmt: str, *, fps: float, metadata: dict | None = None) -> None:
+    def __init__(self, path: Path, fmt: str, *, fps: float, metadata: dict | None = None,
+                 n_frames: int | None = None) -> None:
         if fmt not in FORMATS:
             raise ParameterError(f"unknown movie format {fmt!r}; choose one of {', '.join(FORMATS)}")
         self.path, self.fmt, self.fps = Path(path), fmt, float(fps)
         self.metadata = dict(metadata or {})
+        self.n_frames = n_frames
         self.count = 0
         self._impl: object | None = None
         self._shape: tuple[int, ...] | None = None
@@ -117,7 +121,9 @@ class MovieWriter:
         if fmt == "tiff":
             import tifffile
 
-            self._impl = tifffile.TiffWriter(str(self.path), bigtiff=False)
+            # classic TIFF addresses 4 GiB: larger stacks are written as BigTIFF
+            big = self.n_frames is not None and self.n_frames * frame.nbytes > 4.0e9
+            self._impl = tifffile.TiffWriter(str(self.path), bigtiff=big)
         elif fmt == "mraw":
             if frame.ndim != 2:
                 raise ParameterError("the .mraw writer takes grey frames — render with rgb=False")
