@@ -59,8 +59,13 @@ def _safe_name(run: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in run) or "run"
 
 
-def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True) -> dict[str, object]:
-    """Analyse one run into ``out_dir/runs/<run>`` (or reuse it); a record for the table."""
+def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True,
+                threads: int | None = None) -> dict[str, object]:
+    """Analyse one run into ``out_dir/runs/<run>`` (or reuse it); a record for the table.
+
+    ``threads``: reading threads of the analysis (see :func:`grainplug.analysis.analyze`);
+    1 where runs already go in parallel.
+    """
     run_dir = Path(out_dir) / "runs" / _safe_name(spec.run)
     record: dict[str, object] = {"run": spec.run, "movie": str(spec.movie), **spec.meta}
     try:
@@ -81,7 +86,7 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True) -> dict[st
     try:
         from ..outputs import write_outputs
 
-        res = analyze(spec.movie, spec.params)
+        res = analyze(spec.movie, spec.params, threads=threads)
         write_outputs(res, run_dir, figures=figures, report=figures,
                       extra={"batch": {"run": spec.run, "run_key": key, "meta": spec.meta}})
         return {**record, "status": "ok", **_flat(res.summary)}
@@ -183,14 +188,15 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         except (OSError, TimeoutError) as exc:
             raise GrainplugError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
         try:
-            futures = [client.submit(process_run, s, str(out), figures=figures, pure=False) for s in specs]
+            futures = [client.submit(process_run, s, str(out), figures=figures, threads=1, pure=False)
+                       for s in specs]
             for fut in dask_completed(futures):
                 done(fut.result())
         finally:
             client.close()
     elif workers > 1:
         with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = [pool.submit(process_run, s, str(out), figures=figures) for s in specs]
+            futures = [pool.submit(process_run, s, str(out), figures=figures, threads=1) for s in specs]
             for fut in as_completed(futures):
                 done(fut.result())
     else:
