@@ -187,7 +187,7 @@ def measure(path: Path, label: str, out: Path, can_drop: bool, baseline_frames: 
                      "celerity_m_s": summary["celerity_m_s"]})
         r = rows[-1]
         fixed = an_s - tm["stream_s"]
-        print(f"{label} {cache}: {n} frames, {r['gb']:.2f} GB | decode-only {fps_dec:7.1f} fps "
+        print(f"{label} {cache}: {n} frames, {_size(r['gb'])} | decode-only {fps_dec:7.1f} fps "
               f"(cpu/wall {r['decode_cpu_over_wall']:.2f}) | analyze end to end {fps_an:6.1f} fps = "
               f"{r['analyze_over_decode']:.2f} x decode, {r['analyze_over_baseline']:.1f} x baseline "
               f"| streaming pass {tm['stream_fps']:7.1f} fps = {r['stream_over_decode']:.2f} x decode, "
@@ -196,12 +196,16 @@ def measure(path: Path, label: str, out: Path, can_drop: bool, baseline_frames: 
     return rows
 
 
+def _size(gb: float) -> str:
+    return f"{gb:.2f} GB" if gb >= 0.1 else f"{gb * 1000:.1f} MB"
+
+
 def markdown(rows: list[dict]) -> str:
     """The table of docs/performance.md."""
     head = ("| movie | cache | decode only (fps) | analyze end to end (fps) | ratio | streaming pass (fps) "
             "| ratio | vs baseline: end to end / streaming | peak RSS |\n" + "| --- " * 9 + "|\n")
     return head + "".join(
-        f"| {r['movie']}, {r['frames']} fr., {r['gb']:.2f} GB | {r['cache']} | {r['decode_fps']:.0f} "
+        f"| {r['movie']}, {r['frames']} fr., {_size(r['gb'])} | {r['cache']} | {r['decode_fps']:.0f} "
         f"| {r['analyze_fps']:.0f} | {r['analyze_over_decode']:.2f} | {r['stream_fps']:.0f} "
         f"| {r['stream_over_decode']:.2f} | {r['analyze_over_baseline']:.1f}x / {r['stream_over_baseline']:.0f}x "
         f"| {r['peak_rss_mb']:.0f} MB |\n" for r in rows)
