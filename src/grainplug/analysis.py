@@ -167,8 +167,9 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
     progress : callable, optional
         ``progress(done, total)`` called while frames are streamed.
     threads : int, optional
-        Threads that read the frames, where the reader allows it (memory-mapped
-        uncompressed stacks); default: one per core. Results do not depend on it.
+        Threads that read the frames, where the reader allows it (uncompressed TIFF
+        stacks and raw video, memory-mapped); default: one per core. Results do not
+        depend on it.
 
     Returns
     -------
@@ -221,8 +222,8 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         times = np.arange(info.n_frames) / info.fps
         cb = (lambda k: progress(k, info.n_frames)) if progress else None
         lap("setup_s")
-        n_threads = threads if threads is not None else (os.cpu_count() or 1)
-        read_block = movie.block_reader() if n_threads > 1 else None
+        n_threads = max(1, threads if threads is not None else (os.cpu_count() or 1))
+        read_block = movie.block_reader()  # frames straight from the file, where the format allows
         if read_block is not None:
             diagram = build_diagram_blocks(read_block, sampler, n_frames=info.n_frames, time_s=times,
                                            mm_per_px=mm_per_px, threads=n_threads, progress=cb)

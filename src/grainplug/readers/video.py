@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable, Iterator
 from fractions import Fraction
 from pathlib import Path
+from typing import ClassVar
 
 import av
 import numpy as np
@@ -67,6 +69,7 @@ class VideoMovie(Movie):
             file_fps = float(rate) if rate else None
             n_frames = int(stream.frames or 0)
             self._pts: np.ndarray | None = None
+            self._blocks: Callable | bool | None = None
             self._time_base = stream.time_base or Fraction(1, 1)
             announced = n_frames
             if announced <= 0 and container.duration and file_fps:
@@ -233,6 +236,87 @@ class VideoMovie(Movie):
             return None
         return wanted, out  # type: ignore[return-value]
 
+    #: packed uncompressed layouts that can be read straight from the file: channels per pixel
+    _PACKED: ClassVar[dict[str, int]] = {"gray": 1, "rgb24": 3, "bgr24": 3, "rgba": 4, "bgra": 4, "rgb0": 4, "bgr0": 4}
+
+    def block_reader(self) -> Callable[[int, int], list[np.ndarray]] | None:
+        """Frames of uncompressed video read straight from the file (memory maps), or None.
+
+        For raw video whose container indexes every frame (AVI, MOV...): the byte
+        position of each frame comes from the index, and the layout is checked
+        once against PyAV's own decoding of three frames (first, middle, last),
+        so that row order, padding and offsets are proven, not assumed. Anything
+        else (compressed video, no index, a mismatch) gets None and is decoded.
+        """
+        if self._blocks is None:
+            self._blocks = self._make_block_reader() or False
+        return self._blocks or None
+
+    def _make_block_reader(self) -> Callable[[int, int], list[np.ndarray]] | None:
+        if self._codec != "rawvideo":
+            return None
+        n, h, w = self.info.n_frames, self.info.height, self.info.width
+        try:
+            with av.open(str(self.path)) as container:
+                stream = container.streams.video[0]
+                fmt = stream.codec_context.format.name if stream.codec_context.format else ""
+                entries = stream.index_entries
+                if fmt not in self._PACKED or len(entries) != n:
+                    return None
+                pos = np.array([e.pos for e in entries], dtype=np.int64)
+                size = np.array([e.size for e in entries], dtype=np.int64)
+                stamps = np.array([e.timestamp for e in entries], dtype=np.int64)
+        except (av.error.FFmpegError, AttributeError, TypeError, ValueError):
+            return None
+        ch = self._PACKED[fmt]
+        frame_bytes = int(size[0])
+        if not (size == frame_bytes).all() or frame_bytes % h or frame_bytes // h < w * ch or np.any(np.diff(pos) <= 0):
+            return None
+        line = frame_bytes // h
+        file_size = self.path.stat().st_size
+
+        def view(mm: np.ndarray, at: int, skip: int, flip: bool) -> np.ndarray:
+            """Frame whose data start at byte ``at + skip`` of ``mm``, in the decoder's native layout."""
+            rows = mm[at + skip: at + skip + frame_bytes].reshape(h, line)[:, : w * ch].reshape(h, w, ch)
+            rows = rows[::-1] if flip else rows
+            return rows[..., 0] if ch == 1 else rows[..., :3] if ch == 4 and fmt[-1] in "a0" else rows
+
+        # the index may point at each chunk's header or at its data; rows may run bottom-up
+        probe = sorted({0, n // 2, n - 1})
+        decoded = [self._seek_frame(k, lambda f: np.array(self._native(f, self._target))) for k in probe]
+        if any(d is None for d in decoded):
+            return None
+        layout = None
+        for skip in (0, 8, 16):
+            for flip in (False, True):
+                ok = all(int(pos[k]) + skip + frame_bytes <= file_size for k in probe)
+                for k, ref in zip(probe, decoded, strict=True) if ok else ():
+                    mm = np.memmap(self.path, np.uint8, "r", offset=int(pos[k]) + skip, shape=(frame_bytes,))
+                    if not np.array_equal(view(mm, 0, 0, flip), ref):
+                        ok = False
+                        break
+                if ok:
+                    layout = (skip, flip)
+                    break
+            if layout:
+                break
+        if layout is None:
+            log.debug("%s: raw frames not found where the index says; decoding them instead", self.path)
+            return None
+        skip, flip = layout
+        if (stamps >= 0).all() and len(np.unique(stamps)) == n:
+            self._pts = np.sort(stamps)  # presentation times from the index: no pass over the packets
+        lock = threading.Lock()
+
+        def read_block(start: int, count: int) -> list[np.ndarray]:
+            lo, hi = int(pos[start]) + skip, int(pos[start + count - 1]) + skip + frame_bytes
+            with lock:
+                self._advise_ahead(lo)
+            mm = np.memmap(self.path, np.uint8, "r", offset=lo, shape=(hi - lo,))
+            return [view(mm, int(pos[k] - pos[start]), 0, flip) for k in range(start, start + count)]
+
+        return read_block
+
     def read(self, index: int) -> np.ndarray:
         """One frame by index: a seek to the key frame before it, then a few frames decoded.
 
@@ -250,6 +334,10 @@ class VideoMovie(Movie):
         return super().read(index)
 
     def _read_by_seeking(self, index: int) -> np.ndarray | None:
+        return self._seek_frame(index, lambda f: f.to_ndarray(format=self._target))
+
+    def _seek_frame(self, index: int, convert: Callable[[av.VideoFrame], np.ndarray]) -> np.ndarray | None:
+        """``convert(frame k)``, reached by seeking; None where the container cannot seek to it."""
         try:
             with av.open(str(self.path)) as container:
                 stream = container.streams.video[0]
@@ -269,7 +357,7 @@ class VideoMovie(Movie):
                         return None
                     if frame.pts >= target - half:
                         if abs(frame.pts - target) <= half:
-                            return frame.to_ndarray(format=self._target)
+                            return convert(frame)
                         return None  # the seek landed past the frame
         except av.error.FFmpegError:
             return None
