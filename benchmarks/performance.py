@@ -170,6 +170,10 @@ def measure(path: Path, label: str, out: Path, can_drop: bool, baseline_frames: 
                 print(f"warning: {left / 1e6:.0f} MB of {path.name} stayed in memory", file=sys.stderr)
         else:
             decode_only(path)  # both measures read from memory
+            left = resident_bytes(path)
+            if left is not None and left < 0.99 * path.stat().st_size:
+                print(f"warning: only {left / path.stat().st_size:.0%} of {path.name} stays in memory",
+                      file=sys.stderr)
         n, dec_s, dec_cpu = decode_only(path)
         if cache == "cold":
             evict(path)
@@ -232,12 +236,20 @@ def main() -> int:
                     "grainplug.plotting.helper, av, tifffile, skimage.measure; "
                     "grainplug.plotting.helper.warm_up()"], check=True)
     rows = []
+
+    def only(path: Path) -> Path:
+        """Evict the other movies of the folder: the measured one has the memory to itself."""
+        for other in args.dir.glob("*/movie_*"):
+            if other.is_file() and other != path and other.suffix in (".tif", ".avi", ".mkv", ".mp4"):
+                evict(other)
+        return path
+
     names = {"tiff": "TIFF", "avi": "raw AVI", "ffv1": "FFV1 MKV", "h264": "H.264 MP4"}
     for fmt in filter(None, args.formats.split(",")):
-        path = ensure_movie(args.dir, fmt, args.frames)
+        path = only(ensure_movie(args.dir, fmt, args.frames))
         rows += measure(path, names.get(fmt, fmt), args.dir / f"out_{fmt}", can_drop, args.baseline_frames)
     if args.long_frames:  # a run of realistic length ("thousands of frames"), rendered like the others
-        path = ensure_movie(args.dir, "tiff", args.long_frames)
+        path = only(ensure_movie(args.dir, "tiff", args.long_frames))
         rows += measure(path, "TIFF", args.dir / "out_long", can_drop, args.baseline_frames)
     print()
     print(markdown(rows))
