@@ -60,7 +60,7 @@ def plot_diagram(res: AnalysisResult, *, max_markers: int = 4000) -> Figure:
     ax.set_ylim(s[-1], s[0])
     ax.set_xlim(t[0], t[-1])
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("position along the tube (mm, flow downward)")
+    ax.set_ylabel(f"position along the tube (mm, flow {res.flow_direction} in the image)")
     ax.set_title(title, fontsize=10)
     if len(runs):
         ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
