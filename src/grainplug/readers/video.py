@@ -373,6 +373,12 @@ class VideoMovie(Movie):
     def _native(frame: av.VideoFrame, fallback: str) -> np.ndarray:
         name = frame.format.name
         w, h = frame.width, frame.height
+        if any(p.line_size <= 0 for p in frame.planes):
+            # rows stored bottom-up (an AVI's DIB): PyAV's own conversion reads them in order
+            try:
+                return frame.to_ndarray()
+            except ValueError:
+                return frame.to_ndarray(format=fallback)
         if name in ("gray", "rgb24", "bgr24"):
             plane = frame.planes[0]
             ch = 1 if name == "gray" else 3
