@@ -170,31 +170,57 @@ def test_figure_worker_draws_in_a_helper_and_falls_back(result, tmp_path, monkey
     assert names == {"diagram.png", "frame.png", "spectrum.png"}
 
 
-def test_prefetch_window_follows_the_stream(tmp_path, monkeypatch):
-    """A movie larger than the read-ahead budget is requested window by window, never
-    more than the budget ahead of the frame being read, and to its end."""
-    import os
+def _wait(cond, timeout=5.0):
+    import time
 
+    t0 = time.monotonic()
+    while not cond():
+        if time.monotonic() - t0 > timeout:
+            return False
+        time.sleep(0.002)
+    return True
+
+
+def test_prefetch_window_follows_the_stream(tmp_path, monkeypatch):
+    """A movie larger than the read-ahead budget is requested chunk by chunk from a
+    background thread, never more than the budget ahead of the frame being read,
+    contiguously, to its end; closing the movie stops the thread."""
+    import os
+    import threading
+
+    from grainplug import _system
     from grainplug.readers import base, open_movie
 
     movie = synthesize(SynthConfig(n_frames=64, seed=1), tmp_path, fmt="tiff").movie
     size = movie.stat().st_size
     calls: list[tuple[int, int]] = []
-    monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: calls.append((off, n)), raising=False)
+    lock = threading.Lock()
+
+    def record(fd, off, n, advice):
+        with lock:
+            calls.append((off, n))
+
+    monkeypatch.setattr(os, "posix_fadvise", record, raising=False)
+    monkeypatch.setattr(_system, "readahead_chunk_bytes", lambda path: 64 * 1024)
     monkeypatch.setattr(base, "free_memory_bytes", lambda: size / 2)  # budget: a quarter of the file
-    budget = size / 4
+    budget = int(size / 4)
     with open_movie(movie) as m:
         m.prefetch()
-        assert calls == [(0, int(budget))]
+        ra = m._readahead
+        assert _wait(lambda: ra.requested_to >= budget)
+        assert ra.requested_to == budget
         offset, dt = m._contiguous
         frame_bytes = m.info.width * m.info.height * m.info.channels * dt.itemsize
         for k, _ in enumerate(m.analysis_frames()):
-            requested_to = calls[-1][0] + calls[-1][1]
-            assert requested_to <= offset + k * frame_bytes + budget + 1
+            assert ra.requested_to <= offset + k * frame_bytes + budget + 1
+        end = offset + m.info.n_frames * frame_bytes
+        assert _wait(lambda: ra.requested_to >= min(size, offset + 48 * frame_bytes + budget))
+        assert ra.requested_to >= end  # every frame asked for
+        thread = ra._thread
+    assert _wait(lambda: not thread.is_alive())
     ends = [off + n for off, n in calls]
-    assert ends == sorted(ends) and ends[-1] >= offset + m.info.n_frames * frame_bytes  # every frame
+    assert all(n <= 64 * 1024 for _, n in calls) and len(calls) > 20
     assert all(calls[i + 1][0] == ends[i] for i in range(len(calls) - 1))  # contiguous, no re-request
-    assert 4 <= len(calls) <= 40
 
 
 def test_figure_worker_survives_a_dead_helper(result, tmp_path):
@@ -223,11 +249,11 @@ def test_cli_asks_for_the_movie_before_importing(tmp_path, monkeypatch):
     (tmp_path / "out").mkdir()
     calls: list[tuple[int, int]] = []
     monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: calls.append((off, n)), raising=False)
-    _early_readahead(["--debug", "analyze", str(movie), "--out", str(tmp_path / "out"), "--fps", "250"])
+    started = _early_readahead(["--debug", "analyze", str(movie), "--out", str(tmp_path / "out"), "--fps", "250"])
+    assert len(started) == 1
+    assert _wait(lambda: started[0].requested_to == 10_000)
     assert calls == [(0, 10_000)]
-    calls.clear()
-    _early_readahead(["info", str(movie)])
-    assert calls == []
+    assert _early_readahead(["info", str(movie)]) == []
 
 
 @pytest.mark.parametrize("fmt", ["avi", "ffv1", "h264", "mjpeg"])

@@ -13,36 +13,35 @@ import sys
 log = logging.getLogger("grainplug")
 
 
-def _early_readahead(args: list[str]) -> None:
+def _early_readahead(args: list[str]) -> list[object]:
     """For ``analyze``: ask the disk for the movie before the heavy imports (numpy, scipy...).
 
     The reads then overlap the interpreter's start-up; the analysis asks again, in
     a window that follows its stream (:meth:`grainplug.readers.base.Movie.prefetch`).
-    Only a hint: every argument that names a regular file is advised, up to half
-    of the free memory, and nothing is read here.
+    Only a hint: every argument that names a regular file is asked for, up to half
+    of the free memory, by a background thread; nothing is read here.
     """
     if "analyze" not in args or not hasattr(os, "posix_fadvise"):
-        return
-    from .._system import free_memory_bytes
+        return []
+    from .._system import ReadAhead, free_memory_bytes
 
     budget = free_memory_bytes() * 0.5
-    for arg in args[args.index("analyze") + 1:]:
-        if arg.startswith("-") or not os.path.isfile(arg):
-            continue
-        try:
-            fd = os.open(arg, os.O_RDONLY)
-            try:
-                os.posix_fadvise(fd, 0, int(min(os.fstat(fd).st_size, budget)), os.POSIX_FADV_WILLNEED)
-            finally:
-                os.close(fd)
-        except OSError:
-            pass
+    return [ReadAhead(arg, budget) for arg in args[args.index("analyze") + 1:]
+            if not arg.startswith("-") and os.path.isfile(arg)]
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit status."""
     args = list(sys.argv[1:] if argv is None else argv)
-    _early_readahead(args)
+    readahead = _early_readahead(args)
+    try:
+        return _main(args)
+    finally:
+        for ra in readahead:
+            ra.close()
+
+
+def _main(args: list[str]) -> int:
     import click
 
     from ..errors import GrainplugError

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import abc
-import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .._system import free_memory_bytes
+from .._system import ReadAhead, free_memory_bytes
 
 
 @dataclass(frozen=True)
@@ -126,39 +125,28 @@ class Movie(abc.ABC):
     def prefetch(self) -> None:
         """Ask the operating system to start reading the movie into its cache.
 
-        Returns at once; the reads overlap whatever the caller does next (finding
-        the tube), so the streaming pass finds the data in memory. At most half of
-        the free memory is asked for: a movie larger than that is read ahead in a
-        window that :meth:`_advise_ahead` moves along with the stream, so that the
-        read-ahead never evicts frames before they are used. A no-op where the
-        platform or the format does not allow it.
+        Returns at once; a background thread asks the kernel for the file chunk by
+        chunk (:class:`grainplug._system.ReadAhead`), so the reads overlap whatever
+        the caller does next (finding the tube) and the streaming pass finds the
+        data in memory. At most half of the free memory is asked for: a movie
+        larger than that is read ahead in a window that :meth:`_advise_ahead` moves
+        along with the stream, so the read-ahead never evicts frames before they
+        are used. Stopped when the movie is closed; a no-op for folders.
         """
-        self._ahead_to = 0
-        self._ahead_limit = free_memory_bytes() * self.PREFETCH_MEMORY_SHARE
-        self._advise_ahead(0)
+        if getattr(self, "_readahead", None) is None and self.path.is_file():
+            self._readahead = ReadAhead(self.path, free_memory_bytes() * self.PREFETCH_MEMORY_SHARE)
 
     def _advise_ahead(self, position: int) -> None:
-        """Keep the read-ahead window ``[position, position + limit)`` of the file requested.
+        """The stream is at byte ``position`` of the file: move the read-ahead window."""
+        ra = getattr(self, "_readahead", None)
+        if ra is not None:
+            ra.advance(position)
 
-        Called by readers that know the byte position of their stream; requests
-        are issued in steps of an eighth of the window (few system calls).
-        """
-        limit = getattr(self, "_ahead_limit", None)
-        if limit is None or not hasattr(os, "posix_fadvise") or not self.path.is_file():
-            return
-        size = self.path.stat().st_size
-        target = int(min(size, position + limit))
-        if target <= self._ahead_to or (target < size and target - self._ahead_to < limit / 8):
-            return
-        try:
-            fd = os.open(self.path, os.O_RDONLY)
-            try:
-                os.posix_fadvise(fd, self._ahead_to, target - self._ahead_to, os.POSIX_FADV_WILLNEED)
-            finally:
-                os.close(fd)
-        except OSError:
-            return
-        self._ahead_to = target
+    def _stop_prefetch(self) -> None:
+        ra = getattr(self, "_readahead", None)
+        if ra is not None:
+            ra.close()
+            self._readahead = None
 
     def block_reader(self) -> Callable[[int, int], np.ndarray] | None:
         """A function ``(start, count) -> frames`` that any thread may call, or None.
@@ -228,6 +216,7 @@ class Movie(abc.ABC):
         return self
 
     def __exit__(self, *exc: object) -> None:
+        self._stop_prefetch()
         self.close()
 
     def __repr__(self) -> str:
