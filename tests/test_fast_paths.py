@@ -403,3 +403,29 @@ def test_bottom_up_avi_written_by_other_means(tmp_path, rng):
     assert b.flow_direction == a.flow_direction == "down"
     assert b.summary["celerity_m_s"] == pytest.approx(a.summary["celerity_m_s"], rel=1e-6)
     np.testing.assert_allclose(b.diagram.values, a.diagram.values, rtol=0, atol=1e-4)
+
+
+def test_readahead_pauses_and_is_adopted_by_the_reader(tmp_path, monkeypatch):
+    import os
+    import time
+
+    from grainplug import _system
+    from grainplug._system import ReadAhead
+    from grainplug.readers import open_movie
+
+    movie = synthesize(SynthConfig(n_frames=32, seed=1), tmp_path, fmt="tiff").movie
+    calls: list[int] = []
+    monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: calls.append(off), raising=False)
+    monkeypatch.setattr(_system, "readahead_chunk_bytes", lambda path: 16 * 1024)
+    ra = ReadAhead(movie, 1e12)
+    ra.pause()
+    time.sleep(0.05)
+    n_paused = len(calls)
+    time.sleep(0.1)
+    assert len(calls) == n_paused and ra.requested_to < ra.size  # nothing more asked while paused
+    assert ReadAhead.for_path(str(movie)) is ra
+    with open_movie(movie) as m:
+        m.prefetch()
+        assert m._readahead is ra  # the reader adopts the command line's read-ahead, and resumes it
+        assert _wait(lambda: ra.requested_to == ra.size)
+    assert ReadAhead.for_path(movie) is None  # closed with the movie

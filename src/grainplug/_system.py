@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import os
 import threading
 
@@ -44,25 +45,44 @@ class ReadAhead:
     """Asks the kernel to read a file ahead of its reader, from a background thread.
 
     Requests go out in chunks of the disk's read-ahead size (one call reads no
-    more), up to ``limit`` bytes beyond the position given to :meth:`advance`; the
-    calls release the GIL, so the reads overlap whatever the program does. Only a
-    hint: nothing is read into the program, and without ``posix_fadvise`` it does
-    nothing.
+    more), at most ``DEPTH`` at a time, up to ``limit`` bytes beyond the position
+    given to :meth:`advance`; the calls release the GIL, so the reads overlap
+    whatever the program does. :meth:`pause` lets the program's own small reads
+    (file headers, an index, sampled frames) have the disk first. One instance per
+    file at a time (:meth:`for_path`), so the command line can start it before its
+    imports and the reader adopt it. Only a hint: nothing is read into the
+    program, and without ``posix_fadvise`` it does nothing.
     """
 
+    #: read-ahead chunks queued at the disk at once
+    DEPTH = 8
+
+    _registry: dict[str, ReadAhead] = {}  # noqa: RUF012 - shared on purpose
+    _registry_lock = threading.Lock()
+
     def __init__(self, path: str | os.PathLike, limit: float, *, start: int = 0) -> None:
-        self.path = os.fspath(path)
+        self.path = os.path.realpath(os.fspath(path))
         self.size = os.path.getsize(self.path)
         self.limit = float(limit)
         self._to = int(start)  # requested so far
         self._target = int(min(self.size, start + self.limit))
         self._closed = False
+        self._paused = False
         self._cond = threading.Condition()
         self._chunk = readahead_chunk_bytes(self.path)
         self._thread = None
         if hasattr(os, "posix_fadvise") and self.size > 0:
+            with ReadAhead._registry_lock:
+                ReadAhead._registry[self.path] = self
             self._thread = threading.Thread(target=self._run, name="grainplug-readahead", daemon=True)
             self._thread.start()
+
+    @classmethod
+    def for_path(cls, path: str | os.PathLike) -> ReadAhead | None:
+        """The running read-ahead of ``path``, if any."""
+        with cls._registry_lock:
+            ra = cls._registry.get(os.path.realpath(os.fspath(path)))
+        return ra if ra is not None and not ra._closed else None
 
     def advance(self, position: int) -> None:
         """The reader is at byte ``position``: keep ``limit`` bytes beyond it requested."""
@@ -71,6 +91,16 @@ class ReadAhead:
             if target > self._target:
                 self._target = target
                 self._cond.notify()
+
+    def pause(self) -> None:
+        """Ask for nothing more until :meth:`resume` (requests already queued complete)."""
+        with self._cond:
+            self._paused = True
+
+    def resume(self) -> None:
+        with self._cond:
+            self._paused = False
+            self._cond.notify()
 
     @property
     def requested_to(self) -> int:
@@ -82,16 +112,20 @@ class ReadAhead:
         with self._cond:
             self._closed = True
             self._cond.notify()
+        with ReadAhead._registry_lock:
+            if ReadAhead._registry.get(self.path) is self:
+                del ReadAhead._registry[self.path]
 
     def _run(self) -> None:
         try:
             fd = os.open(self.path, os.O_RDONLY)
         except OSError:
             return
+        inflight: collections.deque[int] = collections.deque()
         try:
             while True:
                 with self._cond:
-                    while not self._closed and self._to >= self._target and self._to < self.size:
+                    while not self._closed and self._to < self.size and (self._paused or self._to >= self._target):
                         self._cond.wait()
                     if self._closed or self._to >= self.size:
                         return
@@ -99,6 +133,12 @@ class ReadAhead:
                     hi = min(self._target, lo + self._chunk)
                 try:
                     os.posix_fadvise(fd, lo, hi - lo, os.POSIX_FADV_WILLNEED)
+                    inflight.append(hi)
+                    if len(inflight) > self.DEPTH:
+                        # wait for the oldest request (its last byte): only DEPTH chunks queue
+                        # at the disk, so a pause takes effect and other reads are not stuck
+                        # behind the whole file
+                        os.pread(fd, 1, inflight.popleft() - 1)
                 except OSError:
                     return
                 with self._cond:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._system import ReadAhead
 from ._version import __version__
 from .calibration import TubeGeometry, find_tube
 from .diagram import BandSampler, Diagram, Normalized, build_diagram, build_diagram_blocks, normalize
@@ -184,6 +185,9 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         timings[name] = round(now - clock[0], 4)
         clock[0] = now
 
+    early = ReadAhead.for_path(path) if Path(path).is_file() else None
+    if early is not None:  # the file's headers and the sampled frames get the disk first
+        early.pause()
     with open_movie(path, glob=params.glob, fps=params.fps) as movie:
         info = movie.info
         if not info.fps:
@@ -196,9 +200,9 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         orientation = None
         if direction:
             orientation = "vertical" if direction in ("down", "up") else "horizontal"
-        movie.prefetch()
         lap("open_s")
         sample_idx, sample = movie.sample(params.sample_frames)
+        movie.prefetch()  # the rest of the file is read while the tube is found
         lap("sample_s")
         tube = find_tube(sample, orientation=orientation)
         lap("tube_s")

@@ -133,7 +133,13 @@ class Movie(abc.ABC):
         along with the stream, so the read-ahead never evicts frames before they
         are used. Stopped when the movie is closed; a no-op for folders.
         """
-        if getattr(self, "_readahead", None) is None and self.path.is_file():
+        if getattr(self, "_readahead", None) is not None or not self.path.is_file():
+            return
+        running = ReadAhead.for_path(self.path)  # started by the command line: adopt it
+        if running is not None:
+            running.resume()
+            self._readahead = running
+        else:
             self._readahead = ReadAhead(self.path, free_memory_bytes() * self.PREFETCH_MEMORY_SHARE)
 
     def _advise_ahead(self, position: int) -> None:
