@@ -83,6 +83,7 @@ def test_folder_needs_fps(tmp_path, capsys):
     (["--tube-diameter-mm", "0"], ["tube-diameter"]),
     (["--fps", "0"], ["fps"]),
     (["--mm-per-px", "0.2", "--tube-diameter-mm", "3"], ["either"]),
+    (["--threads", "0"], ["threads"]),
 ])
 def test_bad_parameters(tmp_path, capsys, movie, args, words):
     code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "o", *args)
@@ -134,3 +135,15 @@ def test_given_direction_against_the_grains_is_flagged(tmp_path, capsys):
     s = json.loads(out)
     assert s["flow_direction"] == "down" and s["warnings"]
     assert "against --flow-direction" in s["warnings"][0]
+
+
+def test_threads_do_not_change_the_result(tmp_path, capsys):
+    res = synthesize(SynthConfig(n_frames=80, seed=9), tmp_path / "m", fmt="tiff")
+    out = []
+    for n in ("1", "2"):
+        code, stdout, err = run(capsys, "analyze", res.movie, "--out", tmp_path / n, "--threads", n, "--json",
+                                "--no-figures")
+        assert code == 0, err
+        out.append(json.loads(stdout))
+    assert out[0]["celerity_m_s"] == out[1]["celerity_m_s"]
+    assert out[0]["plug_length_mm"] == out[1]["plug_length_mm"]

@@ -149,11 +149,13 @@ def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwar
 @click.option("--min-plug-mm", type=float, default=3.0, show_default=True,
               help="Shortest grain region counted as a plug.")
 @click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
+@click.option("--threads", type=int, default=None,
+              help="Threads reading uncompressed frames (TIFF stacks, raw video) [default: one per core].")
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
             tube_diameter_mm: float | None, flow_direction: str | None, min_plug_mm: float,
-            glob_: str | None, no_figures: bool, as_json: bool) -> None:
+            glob_: str | None, threads: int | None, no_figures: bool, as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -164,6 +166,8 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
     if mm_per_px is not None and tube_diameter_mm is not None:
         raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
                              "not both")
+    if threads is not None and threads < 1:
+        raise ParameterError(f"--threads {threads}: give at least 1 (or leave it out for one per core)")
     diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_)
@@ -177,7 +181,7 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
             def progress(done: int, total: int) -> None:
                 bar.update(task, completed=done, total=total)
 
-            result = run_analysis(movie, params, progress=progress)
+            result = run_analysis(movie, params, progress=progress, threads=threads)
         write_outputs(result, out, figures=not no_figures, report=not no_figures, figure_worker=figure_worker)
     s = result.summary
     if as_json:
