@@ -6,6 +6,9 @@ import collections
 import os
 import threading
 
+#: share of the free memory that read-ahead may ask for beyond a reader's position
+READAHEAD_MEMORY_SHARE = 0.5
+
 
 def free_memory_bytes() -> float:
     """Memory the system can give without swapping (MemAvailable), or 1 GiB when unknown."""

@@ -264,10 +264,7 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
             os.replace(f, dest)
             written[f.stem if f.suffix != ".png" else "fig_" + f.stem] = dest
     finally:
-        if figures_done is not None:  # failed meanwhile: let the helper finish before cleaning up
-            try:
-                figures_done()
-            except Exception:  # the first error is the one reported
-                log.debug("figures abandoned after an error", exc_info=True)
+        if figures_done is not None and figure_worker is not None:
+            figure_worker.close()  # failed meanwhile: stop the helper before its folder goes
         shutil.rmtree(tmp, ignore_errors=True)
     return written

@@ -9,11 +9,15 @@ from __future__ import annotations
 import logging
 import os
 import sys
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .._system import ReadAhead
 
 log = logging.getLogger("grainplug")
 
 
-def _early_readahead(args: list[str]) -> list[object]:
+def _early_readahead(args: list[str]) -> list[ReadAhead]:
     """For ``analyze``: ask the disk for the movie before the heavy imports (numpy, scipy...).
 
     The reads then overlap the interpreter's start-up; the analysis asks again, in
@@ -23,9 +27,9 @@ def _early_readahead(args: list[str]) -> list[object]:
     """
     if "analyze" not in args or not hasattr(os, "posix_fadvise"):
         return []
-    from .._system import ReadAhead, free_memory_bytes
+    from .._system import READAHEAD_MEMORY_SHARE, ReadAhead, free_memory_bytes
 
-    budget = free_memory_bytes() * 0.5
+    budget = free_memory_bytes() * READAHEAD_MEMORY_SHARE
     return [ReadAhead(arg, budget) for arg in args[args.index("analyze") + 1:]
             if not arg.startswith("-") and os.path.isfile(arg)]
 

@@ -87,18 +87,23 @@ class Motion:
     n_tracks_used: int
 
 
-def _design(t: np.ndarray, track_idx: np.ndarray, n_tracks: int, f: float | None,
-            n_harm: int) -> np.ndarray:
-    cols = [t[:, None]]
-    onehot = np.zeros((len(t), n_tracks))
-    onehot[np.arange(len(t)), track_idx] = 1.0
-    cols.append(onehot)
+def _drift_and_harmonics(t: np.ndarray, f: float | None, n_harm: int) -> np.ndarray:
+    """Columns ``t, cos(2 pi h f t), sin(2 pi h f t)`` for ``h = 1 .. n_harm`` (``t`` alone without ``f``)."""
+    cols = [t]
     if f:
         for h in range(1, n_harm + 1):
-            w = 2 * np.pi * h * f * t
-            cols.append(np.cos(w)[:, None])
-            cols.append(np.sin(w)[:, None])
-    return np.hstack(cols)
+            ph = 2 * np.pi * h * f * t
+            cols += [np.cos(ph), np.sin(ph)]
+    return np.stack(cols, axis=1)
+
+
+def _design(t: np.ndarray, track_idx: np.ndarray, n_tracks: int, f: float | None,
+            n_harm: int) -> np.ndarray:
+    """The full design: drift, one offset per track, harmonics (what ``_fit_res`` solves)."""
+    onehot = np.zeros((len(t), n_tracks))
+    onehot[np.arange(len(t)), track_idx] = 1.0
+    B = _drift_and_harmonics(t, f, n_harm)
+    return np.hstack([B[:, :1], onehot, B[:, 1:]])
 
 
 def _fit_res(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
@@ -113,13 +118,7 @@ def _fit_res(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: fl
     zero gets offset 0, as the minimum-norm solution of the full design would).
     """
     w = np.ones_like(y) if weights is None else weights
-    cols = [t]
-    if f:
-        for h in range(1, n_harm + 1):
-            ph = 2 * np.pi * h * f * t
-            cols.append(np.cos(ph))
-            cols.append(np.sin(ph))
-    B = np.stack(cols, axis=1)
+    B = _drift_and_harmonics(t, f, n_harm)
     wsum = np.bincount(tix, weights=w, minlength=n_tracks)
     inv = np.divide(1.0, wsum, out=np.zeros(n_tracks), where=wsum > 0)
 
@@ -251,16 +250,18 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
             if f0 < f_lo:
                 continue
             nh = max(m, _harmonics_for(f0, fps))
-            cand = None
-            # a grid of 13 over +-1.5 bins, then 11 around the best: the resolution of 61 in one grid
-            width = 1.5 * step / m
-            for grid in (np.linspace(f0 - width, f0 + width, 13), None):
-                if grid is None:
-                    grid = np.linspace(cand[0] - width / 6, cand[0] + width / 6, 11)
+
+            def scan(grid: np.ndarray, cand: tuple | None, m: int = m, nh: int = nh) -> tuple:
                 for f in grid:
                     c_f, rss = _fit(t, y, tix, n_tr, float(f), nh, weights)
                     if cand is None or rss < cand[2]:
                         cand = (float(f), c_f, rss, m, nh)
+                return cand
+
+            # a grid of 13 over +-1.5 bins, then 11 around the best: the resolution of 61 in one grid
+            width = 1.5 * step / m
+            cand = scan(np.linspace(f0 - width, f0 + width, 13), None)
+            cand = scan(np.linspace(cand[0] - width / 6, cand[0] + width / 6, 11), cand)
             if best is None or cand[2] < 0.8 * best[2]:
                 best = cand
         if best is not None:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._system import ReadAhead, free_memory_bytes
+from .._system import READAHEAD_MEMORY_SHARE, ReadAhead, free_memory_bytes
 
 
 @dataclass(frozen=True)
@@ -119,9 +119,6 @@ class Movie(abc.ABC):
             return iter(())
         return self._iter(start, stop, step)
 
-    #: at most this share of the memory the system has free is asked for ahead of the stream
-    PREFETCH_MEMORY_SHARE = 0.5
-
     def prefetch(self) -> None:
         """Ask the operating system to start reading the movie into its cache.
 
@@ -140,7 +137,7 @@ class Movie(abc.ABC):
             running.resume()
             self._readahead = running
         else:
-            self._readahead = ReadAhead(self.path, free_memory_bytes() * self.PREFETCH_MEMORY_SHARE)
+            self._readahead = ReadAhead(self.path, free_memory_bytes() * READAHEAD_MEMORY_SHARE)
 
     def _advise_ahead(self, position: int) -> None:
         """The stream is at byte ``position`` of the file: move the read-ahead window."""
@@ -228,4 +225,3 @@ class Movie(abc.ABC):
     def __repr__(self) -> str:
         i = self.info
         return f"<{type(self).__name__} {i.path!r} {i.width}x{i.height}x{i.channels} n={i.n_frames}>"
-

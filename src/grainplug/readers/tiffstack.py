@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import logging
-import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -90,11 +89,21 @@ class TiffStackMovie(Movie):
     #: frames mapped at once while streaming (the map is released after each chunk)
     CHUNK_FRAMES = 16
 
+    @property
+    def _frame_bytes(self) -> int:
+        return int(np.prod(self._page_shape)) * self._contiguous[1].itemsize
+
     def _map(self, start: int, count: int) -> np.ndarray:
         offset, dt = self._contiguous
-        frame_bytes = int(np.prod(self._page_shape)) * dt.itemsize
-        return np.memmap(str(self.path), dtype=dt, mode="r", offset=offset + start * frame_bytes,
+        return np.memmap(str(self.path), dtype=dt, mode="r", offset=offset + start * self._frame_bytes,
                          shape=(count, *self._page_shape))
+
+    def _read_block(self, start: int, count: int) -> np.ndarray:
+        """Frames ``start .. start+count-1`` as a memory map; moves the read-ahead window
+        (:meth:`prefetch`) to the block's start, so blocks read in file order keep the
+        disk ahead of the stream. Safe from any thread."""
+        self._advise_ahead(self._contiguous[0] + start * self._frame_bytes)
+        return self._map(start, count)
 
     def analysis_frames(self) -> Iterator[np.ndarray]:
         """Frames as views into memory maps of a few frames at a time (uncompressed stacks):
@@ -103,34 +112,15 @@ class TiffStackMovie(Movie):
             yield from self.frames()
             return
         n = self.info.n_frames
-        offset, dt = self._contiguous
-        frame_bytes = int(np.prod(self._page_shape)) * dt.itemsize
         for start in range(0, n, self.CHUNK_FRAMES):
-            count = min(self.CHUNK_FRAMES, n - start)
-            self._advise_ahead(offset + start * frame_bytes)  # no-op unless prefetch() was called
-            mm = self._map(start, count)
-            for k in range(count):
-                yield mm[k][..., :3] if mm.ndim == 4 and mm.shape[-1] == 4 else mm[k]
+            mm = self._read_block(start, min(self.CHUNK_FRAMES, n - start))
+            for frame in mm:
+                yield frame[..., :3] if mm.ndim == 4 and mm.shape[-1] == 4 else frame
             del mm  # unmapped as soon as the caller drops its last view
 
     def block_reader(self) -> Callable[[int, int], np.ndarray] | None:
-        """Blocks of frames as memory maps, for uncompressed contiguous stacks (any thread).
-
-        Each call also moves the read-ahead window (:meth:`prefetch`) to the block's
-        start, so blocks taken in file order keep the disk ahead of every thread.
-        """
-        if self._contiguous is None:
-            return None
-        offset, dt = self._contiguous
-        frame_bytes = int(np.prod(self._page_shape)) * dt.itemsize
-        lock = threading.Lock()
-
-        def read_block(start: int, count: int) -> np.ndarray:
-            with lock:
-                self._advise_ahead(offset + start * frame_bytes)
-            return self._map(start, count)
-
-        return read_block
+        """Blocks of frames as memory maps, for uncompressed contiguous stacks (any thread)."""
+        return self._read_block if self._contiguous is not None else None
 
     def _page(self, index: int) -> np.ndarray:
         if self._contiguous is not None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-import threading
 from collections.abc import Callable, Iterator
 from fractions import Fraction
 from pathlib import Path
@@ -275,9 +274,9 @@ class VideoMovie(Movie):
         line = frame_bytes // h
         file_size = self.path.stat().st_size
 
-        def view(mm: np.ndarray, at: int, skip: int, flip: bool) -> np.ndarray:
-            """Frame whose data start at byte ``at + skip`` of ``mm``, in the decoder's native layout."""
-            rows = mm[at + skip: at + skip + frame_bytes].reshape(h, line)[:, : w * ch].reshape(h, w, ch)
+        def view(mm: np.ndarray, at: int, flip: bool) -> np.ndarray:
+            """Frame whose data start at byte ``at`` of ``mm``, in the decoder's native layout."""
+            rows = mm[at: at + frame_bytes].reshape(h, line)[:, : w * ch].reshape(h, w, ch)
             rows = rows[::-1] if flip else rows
             return rows[..., 0] if ch == 1 else rows[..., :3] if ch == 4 and fmt[-1] in "a0" else rows
 
@@ -286,34 +285,30 @@ class VideoMovie(Movie):
         decoded = [self._seek_frame(k, lambda f: np.array(self._native(f, self._target))) for k in probe]
         if any(d is None for d in decoded):
             return None
-        layout = None
-        for skip in (0, 8, 16):
-            for flip in (False, True):
-                ok = all(int(pos[k]) + skip + frame_bytes <= file_size for k in probe)
-                for k, ref in zip(probe, decoded, strict=True) if ok else ():
-                    mm = np.memmap(self.path, np.uint8, "r", offset=int(pos[k]) + skip, shape=(frame_bytes,))
-                    if not np.array_equal(view(mm, 0, 0, flip), ref):
-                        ok = False
-                        break
-                if ok:
-                    layout = (skip, flip)
-                    break
-            if layout:
-                break
+
+        def matches(skip: int, flip: bool) -> bool:
+            for k, ref in zip(probe, decoded, strict=True):
+                at = int(pos[k]) + skip
+                if at + frame_bytes > file_size:
+                    return False
+                if not np.array_equal(view(np.memmap(self.path, np.uint8, "r", offset=at, shape=(frame_bytes,)),
+                                           0, flip), ref):
+                    return False
+            return True
+
+        layout = next(((skip, flip) for skip in (0, 8, 16) for flip in (False, True) if matches(skip, flip)), None)
         if layout is None:
             log.debug("%s: raw frames not found where the index says; decoding them instead", self.path)
             return None
         skip, flip = layout
         if (stamps >= 0).all() and len(np.unique(stamps)) == n:
             self._pts = np.sort(stamps)  # presentation times from the index: no pass over the packets
-        lock = threading.Lock()
 
         def read_block(start: int, count: int) -> list[np.ndarray]:
             lo, hi = int(pos[start]) + skip, int(pos[start + count - 1]) + skip + frame_bytes
-            with lock:
-                self._advise_ahead(lo)
+            self._advise_ahead(lo)
             mm = np.memmap(self.path, np.uint8, "r", offset=lo, shape=(hi - lo,))
-            return [view(mm, int(pos[k] - pos[start]), 0, flip) for k in range(start, start + count)]
+            return [view(mm, int(pos[k] - pos[start]), flip) for k in range(start, start + count)]
 
         return read_block
 
