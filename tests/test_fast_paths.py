@@ -256,6 +256,25 @@ def test_cli_asks_for_the_movie_before_importing(tmp_path, monkeypatch):
     assert _early_readahead(["info", str(movie)]) == []
 
 
+@pytest.mark.parametrize("preset", [None, "3"])
+def test_cli_runs_blas_on_one_thread_unless_told(preset):
+    """The command line sets the BLAS pools to one thread before numpy is imported,
+    and leaves a value the user set alone."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import sys; from grainplug.cli import main; assert 'numpy' not in sys.modules; "
+            "main(['--version']); import os, numpy; "
+            "print(os.environ['OPENBLAS_NUM_THREADS'], os.environ['OMP_NUM_THREADS'])")
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS",
+                                                            "MKL_NUM_THREADS")}
+    if preset:
+        env["OPENBLAS_NUM_THREADS"] = preset
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split()[-2:] == [preset or "1", "1"]
+
+
 @pytest.mark.parametrize("fmt", ["avi", "ffv1", "h264", "mjpeg"])
 def test_video_read_seeks_to_the_frame(tmp_path, fmt):
     """``read(k)`` reaches frame k by seeking (no decoding from the start) and returns
@@ -327,6 +346,14 @@ def test_raw_video_read_straight_from_the_file(tmp_path, fmt, width, rgb):
     with open_movie(movie) as m:
         decoded = list(m.analysis_frames())
         stamps = m.timestamps_s()
+        converted = list(m.frames())
+    with open_movie(movie) as m:  # the sample is copied from the file, in the layout of frames()
+        idx, sample = m.sample(16)
+        assert m._raw_frame is not None
+        assert len(idx) == 16
+        for k, frame in zip(idx, sample, strict=True):
+            assert frame.flags.c_contiguous
+            np.testing.assert_array_equal(frame, converted[k])
     with open_movie(movie) as m:
         read_block = m.block_reader()
         assert read_block is not None
@@ -394,6 +421,8 @@ def test_bottom_up_avi_written_by_other_means(tmp_path, rng):
         assert read_block is not None
         np.testing.assert_array_equal(np.stack(read_block(0, 12)), native)
         np.testing.assert_array_equal(m.read(7), frames[7])
+        idx, sample = m.sample(5)  # copied from the file: RGB, the right way up
+        np.testing.assert_array_equal(np.stack(sample), frames[idx])
 
     tif = synthesize(SynthConfig(n_frames=150, seed=8, celerity_m_s=-0.05), tmp_path / "t", fmt="tiff")
     with open_movie(tif.movie) as m:
