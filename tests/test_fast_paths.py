@@ -314,6 +314,40 @@ def test_threaded_stream_equals_serial(tmp_path):
     np.testing.assert_array_equal(one.diagram.values, two.diagram.values)
 
 
+@pytest.mark.parametrize("orientation", ["vertical", "horizontal"])
+@pytest.mark.parametrize("flip", [(0,), (1,), (2,), (0, 1), (0, 1, 2)])
+def test_band_sampler_reads_backward_layouts_in_place(rng, monkeypatch, orientation, flip):
+    """Frames whose axes are stored backwards (bottom-up AVI rows, BGR) are sampled
+    through a reversed view, not copied: same profile as from a C-ordered copy, and
+    the offsets are computed once for the whole stream."""
+    from grainplug.calibration.tube import TubeGeometry
+    from grainplug.diagram import BandSampler
+
+    stored = rng.integers(0, 256, (6, 48, 40, 3), dtype=np.uint8)
+    views = [f[tuple(slice(None, None, -1) if a in flip else slice(None) for a in range(3))] for f in stored]
+    tube = TubeGeometry(orientation=orientation, tilt_deg=4.0, axis_x0_px=18.3, inner_diameter_px=11.0,
+                        contrast=0.5, method="test", canonical_shape=(48, 40) if orientation == "vertical"
+                        else (40, 48), background_level=100.0)
+    ref = BandSampler(tube)
+    expected = [ref(np.ascontiguousarray(v)) for v in views]
+    sampler = BandSampler(tube)
+    prepared = []
+    original = BandSampler._prepare
+    monkeypatch.setattr(BandSampler, "_prepare", lambda self, f: (prepared.append(f.strides), original(self, f)))
+    contiguous = np.ascontiguousarray
+
+    def no_frame_copies(a, *args, **kwargs):
+        if np.ndim(a) == 3:
+            pytest.fail("a frame was copied")
+        return contiguous(a, *args, **kwargs)
+
+    monkeypatch.setattr(np, "ascontiguousarray", no_frame_copies)
+    got = [sampler(v) for v in views]
+    assert len(prepared) == 1
+    for a, b in zip(got, expected, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-6)
+
+
 def test_tiff_stacks_beyond_4_gb_are_written_as_bigtiff(tmp_path, rng):
     import tifffile
 

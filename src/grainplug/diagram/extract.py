@@ -103,13 +103,22 @@ class BandSampler:
         self._key: tuple | None = None
 
     def _prepare(self, frame: np.ndarray) -> None:
-        """Flat element offsets of the band in an array laid out like ``frame``."""
+        """Flat element offsets of the band in an array laid out like ``frame``.
+
+        Axes stored backwards (negative strides: the bottom-up rows of an AVI's
+        DIB) are read through a reversed view, whose first element is the lowest
+        address; the offsets count from there, so no frame is copied.
+        """
         item = frame.itemsize
-        st = [s // item for s in frame.strides]
+        self._lowest = tuple(slice(None, None, -1) if s < 0 else slice(None) for s in frame.strides)
+        st = [abs(s) // item for s in frame.strides]
         n_ch = frame.shape[2] if frame.ndim == 3 else 1
-        off = self._r * st[0] + self._c * st[1]
+        r = frame.shape[0] - 1 - self._r if frame.strides[0] < 0 else self._r
+        c = frame.shape[1] - 1 - self._c if frame.strides[1] < 0 else self._c
+        off = r * st[0] + c * st[1]
         if n_ch > 1:
-            off = off[:, :, None] + np.arange(n_ch) * st[2]
+            ch = np.arange(n_ch)
+            off = off[:, :, None] + (ch[::-1] if frame.strides[2] < 0 else ch) * st[2]
         self._idx = np.ascontiguousarray(off.reshape(len(self.rows), -1), dtype=np.intp)
         self._span = int(self._idx.max()) + 1
         w = self.weights if n_ch == 1 else np.repeat(self.weights, n_ch, axis=1) / n_ch
@@ -127,9 +136,11 @@ class BandSampler:
         if frame.ndim == 3 and frame.shape[2] == 4:
             frame = frame[..., :3]
         if self._key != (frame.shape, frame.strides, frame.dtype.str):
-            if any(s <= 0 for s in frame.strides):
+            if any(s == 0 for s in frame.strides):  # broadcast axes: no layout to follow
                 frame = np.ascontiguousarray(frame)
             self._prepare(frame)
+        if frame.strides[0] < 0 or frame.strides[1] < 0 or (frame.ndim == 3 and frame.strides[2] < 0):
+            frame = frame[self._lowest]
         flat = np.lib.stride_tricks.as_strided(frame, shape=(self._span,), strides=(frame.itemsize,))
         vals = np.take(flat, self._idx)
         return np.einsum("ij,ij->i", vals.astype(np.float32), self._w)
