@@ -2,7 +2,7 @@
 and against a straightforward per-frame port of the paper's algorithm.
 
     .venv/bin/python benchmarks/performance.py [--frames 600] [--dir /tmp/grainplug-bench]
-        [--formats tiff,avi,ffv1,h264] [--long-frames 3000]
+        [--formats tiff,avi,ffv1,h264,tiff-h] [--long-frames 3000]
 
 For each format it renders (once, cached in --dir) a 1280x1024 RGB movie of plug
 flow, then measures in one run on the same file:
@@ -15,6 +15,8 @@ flow, then measures in one run on the same file:
 - baseline: `baseline_paper_port` below on a subset of frames (every whole frame
   converted to grey, binarised, labelled with scikit-image);
 - peak memory (max RSS) of `analyze`, also on a long movie (--long-frames);
+- from the disk, the share of the file the analysis read (``tiff-h``, a horizontal
+  tube across landscape frames, needs only its band's rows);
 - for H.264, the CPU time / wall time of decoding (decoding on all cores).
 
 Each is measured "cold" (the movie evicted from the page cache: its bytes come from
@@ -37,20 +39,24 @@ from grainplug.readers import open_movie
 from grainplug.synthetic import SynthConfig, synthesize
 
 
-def movie_config(n_frames: int) -> SynthConfig:
-    # 1280 px along the tube (the paper's 237 mm field of view at 0.185 mm/px), 1024 across
+def movie_config(n_frames: int, *, horizontal: bool = False) -> SynthConfig:
+    # 1280 px along the tube (the paper's 237 mm field of view at 0.185 mm/px), 1024 across;
+    # horizontal: the same view with the camera turned a quarter (1280 x 1024 landscape frames)
     return SynthConfig(width_px=1024, height_px=1280, n_frames=n_frames, fps=250.0, mm_per_px=0.185,
-                       tube_offset_px=-140.0, noise_sigma=3.0, celerity_m_s=-0.05, seed=6)
+                       tube_offset_px=-140.0, noise_sigma=3.0, celerity_m_s=-0.05, seed=6,
+                       flow_direction="right" if horizontal else "down")
 
 
 def ensure_movie(folder: Path, fmt: str, n_frames: int) -> Path:
+    """The benchmark's movie in format ``fmt`` (``tiff-h``: a TIFF stack of a horizontal tube)."""
     stem = f"movie_{n_frames}"
     target = folder / fmt
     done = target / f".{stem}.done"
     if done.exists():
         return Path(done.read_text())
     t0 = time.perf_counter()
-    res = synthesize(movie_config(n_frames), target, fmt=fmt, stem=stem)
+    horizontal = fmt.endswith("-h")
+    res = synthesize(movie_config(n_frames, horizontal=horizontal), target, fmt=fmt.removesuffix("-h"), stem=stem)
     done.write_text(str(res.movie))
     print(f"rendered {res.movie} ({res.movie.stat().st_size / 1e9:.2f} GB) in {time.perf_counter() - t0:.0f} s",
           file=sys.stderr)
@@ -185,6 +191,9 @@ def measure(path: Path, label: str, out: Path, can_drop: bool, baseline_frames: 
             if cache == "cold":
                 evict(path)
             an_s, rss, summary = run_analyze(path, out)
+            if cache == "cold":  # what the analysis brought into memory is what it read
+                got = resident_bytes(path)
+                summary["read_fraction"] = None if got is None else got / path.stat().st_size
             pairs.append((dec_s, dec_cpu, an_s, rss, summary))
         ratios = [p[0] / p[2] for p in pairs]
         dec_s, dec_cpu, an_s, rss, summary = sorted(pairs, key=lambda p: p[0] / p[2])[len(pairs) // 2]
@@ -200,7 +209,8 @@ def measure(path: Path, label: str, out: Path, can_drop: bool, baseline_frames: 
                      "stream_over_baseline": tm["stream_fps"] / fps_base,
                      "peak_rss_mb": max(p[3] for p in pairs) / 1e6,
                      "decode_cpu_over_wall": dec_cpu / dec_s, "timings_s": tm,
-                     "celerity_m_s": summary["celerity_m_s"]})
+                     "celerity_m_s": summary["celerity_m_s"],
+                     "read_fraction": summary.get("read_fraction")})
         r = rows[-1]
         fixed = an_s - tm["stream_s"]
         spread = f" (range {r['ratio_min']:.2f}-{r['ratio_max']:.2f} over {repeat})" if repeat > 1 else ""
@@ -209,12 +219,19 @@ def measure(path: Path, label: str, out: Path, can_drop: bool, baseline_frames: 
               f"{r['analyze_over_decode']:.2f} x decode{spread}, {r['analyze_over_baseline']:.1f} x baseline "
               f"| streaming pass {tm['stream_fps']:7.1f} fps = {r['stream_over_decode']:.2f} x decode, "
               f"{r['stream_over_baseline']:.0f} x baseline | rest of the run {fixed:.2f} s | baseline "
-              f"{fps_base:.1f} fps | peak RSS {r['peak_rss_mb']:.0f} MB", flush=True)
+              f"{fps_base:.1f} fps | peak RSS {r['peak_rss_mb']:.0f} MB{_read(r)}", flush=True)
     return rows
 
 
 def _size(gb: float) -> str:
     return f"{gb:.2f} GB" if gb >= 0.1 else f"{gb * 1000:.1f} MB"
+
+
+def _read(r: dict, *, short: bool = False) -> str:
+    f = r.get("read_fraction")
+    if f is None:
+        return ""
+    return f"{f:.0%}" if short else f" | read from disk {f:.0%} of the file"
 
 
 def _range(r: dict) -> str:
@@ -224,12 +241,12 @@ def _range(r: dict) -> str:
 def markdown(rows: list[dict]) -> str:
     """The table of docs/performance.md."""
     head = ("| movie | cache | decode only (fps) | analyze end to end (fps) | ratio (range) | streaming pass (fps) "
-            "| ratio | vs baseline: end to end / streaming | peak RSS |\n" + "| --- " * 9 + "|\n")
+            "| ratio | vs baseline: end to end / streaming | peak RSS | file read |\n" + "| --- " * 10 + "|\n")
     return head + "".join(
         f"| {r['movie']}, {r['frames']} fr., {_size(r['gb'])} | {r['cache']} | {r['decode_fps']:.0f} "
         f"| {r['analyze_fps']:.0f} | {r['analyze_over_decode']:.2f}{_range(r)} | {r['stream_fps']:.0f} "
         f"| {r['stream_over_decode']:.2f} | {r['analyze_over_baseline']:.1f}x / {r['stream_over_baseline']:.0f}x "
-        f"| {r['peak_rss_mb']:.0f} MB |\n" for r in rows)
+        f"| {r['peak_rss_mb']:.0f} MB | {_read(r, short=True)} |\n" for r in rows)
 
 
 def main() -> int:
@@ -263,7 +280,8 @@ def main() -> int:
                 evict(other)
         return path
 
-    names = {"tiff": "TIFF", "avi": "raw AVI", "ffv1": "FFV1 MKV", "h264": "H.264 MP4"}
+    names = {"tiff": "TIFF", "avi": "raw AVI", "ffv1": "FFV1 MKV", "h264": "H.264 MP4",
+             "tiff-h": "TIFF, horizontal tube", "avi-h": "raw AVI, horizontal tube"}
     for fmt in filter(None, args.formats.split(",")):
         path = only(ensure_movie(args.dir, fmt, args.frames))
         rows += measure(path, names.get(fmt, fmt), args.dir / f"out_{fmt}", can_drop, args.baseline_frames,

@@ -223,6 +223,114 @@ def test_prefetch_window_follows_the_stream(tmp_path, monkeypatch):
     assert all(calls[i + 1][0] == ends[i] for i in range(len(calls) - 1))  # contiguous, no re-request
 
 
+def test_readahead_asks_only_for_the_band_of_a_horizontal_tube(tmp_path, monkeypatch):
+    """A horizontal tube crosses a landscape frame: once the tube is found, the
+    read-ahead asks only for the rows its band touches, for every frame, and the
+    analysis is the same as with the whole file read."""
+    import os
+    import threading
+
+    from grainplug import _system
+    from grainplug.readers import base
+
+    movie = synthesize(SynthConfig(n_frames=60, seed=3, flow_direction="right", width_px=96,
+                                   celerity_m_s=-0.05), tmp_path, fmt="tiff").movie
+    size = movie.stat().st_size
+    calls: list[tuple[int, int]] = []
+    lock = threading.Lock()
+
+    def record(fd, off, n, advice):
+        with lock:
+            calls.append((off, off + n))
+
+    seen: list[tuple] = []
+    original = base.Movie.prefetch_only
+
+    def spy(self, lo, hi):
+        with lock:
+            taken = original(self, lo, hi)
+            calls.append(None)  # what follows was asked for under the restriction
+        seen.append((lo, hi, self.frame_offsets(), taken))
+        return taken
+
+    monkeypatch.setattr(os, "posix_fadvise", record, raising=False)
+    monkeypatch.setattr(_system, "readahead_chunk_bytes", lambda path: 16 * 1024)
+    monkeypatch.setattr(base, "free_memory_bytes", lambda: size / 10)  # window: a fifth of the file
+    monkeypatch.setattr(base.Movie, "prefetch_only", spy)
+    monkeypatch.setattr(_system.ReadAhead, "MIN_SKIP_BYTES", 0)  # the test's frames are small
+    res = analyze(movie)
+    assert res.tube.orientation == "horizontal"
+    (lo, hi, offsets, taken), = seen
+    assert taken
+    frame_bytes = int(offsets[1] - offsets[0])
+    assert hi - lo < frame_bytes / 3  # the band is a small part of the frame
+    after = calls[calls.index(None) + 1:]
+    assert after  # the stream went on under the restriction
+    page = _system.ReadAhead.PAGE
+    lo_p, hi_p = lo // page * page, -(-hi // page) * page
+    for a, b in after:  # nothing but bands (or their part not asked for yet)
+        assert any(off + lo_p <= a < b <= off + hi_p for off in offsets), (a, b)
+
+    monkeypatch.setattr(_system.ReadAhead, "MIN_SKIP_BYTES", 1 << 40)  # never restrict
+    seen.clear()
+    whole = analyze(movie)
+    assert seen[0][3] is False
+    np.testing.assert_array_equal(whole.diagram.values, res.diagram.values)
+    assert whole.summary["celerity_m_s"] == res.summary["celerity_m_s"]
+
+
+def test_readahead_restricts_only_when_it_skips_enough(tmp_path, monkeypatch):
+    import os
+
+    from grainplug._system import ReadAhead
+
+    path = tmp_path / "f.bin"
+    path.write_bytes(b"\0" * 100)
+    monkeypatch.setattr(os, "posix_fadvise", lambda *a: None, raising=False)
+    ra = ReadAhead(path, 10)
+    mib = 1 << 20
+    frames = [k * 4 * mib for k in range(10)]
+    assert not ra.restrict(frames, 0, 3 * mib + 1)  # skips less than 1 MiB
+    assert not ra.restrict(frames, 0, 2 * mib + 1)  # skips less than it keeps
+    assert not ra.restrict(frames[:1], 0, 10)
+    assert not ra.restricted
+    assert ra.restrict(frames, mib, 2 * mib)
+    assert ra.restricted
+    ra.close()
+
+
+def test_restricted_readahead_asks_for_every_band_once(tmp_path, monkeypatch):
+    """Under a restriction the read-ahead asks, in file order, for exactly the band
+    of every frame (page-aligned), within its window, and for nothing else."""
+    import os
+    import threading
+
+    from grainplug import _system
+
+    frame, n = 64 * 1024, 40
+    path = tmp_path / "frames.raw"
+    path.write_bytes(b"\0" * (512 + frame * n))
+    offsets = [512 + k * frame for k in range(n)]
+    calls: list[tuple[int, int]] = []
+    lock = threading.Lock()
+
+    def record(fd, off, size, advice):
+        with lock:
+            calls.append((off, off + size))
+
+    monkeypatch.setattr(os, "posix_fadvise", record, raising=False)
+    monkeypatch.setattr(_system, "readahead_chunk_bytes", lambda p: 8192)
+    monkeypatch.setattr(_system.ReadAhead, "MIN_SKIP_BYTES", 0)
+    ra = _system.ReadAhead(path, 5 * frame, paused=True)
+    assert ra.restrict(offsets, 10_000, 20_000)
+    ra.resume()
+    assert _wait(lambda: ra.requested_to >= offsets[4] + 20_480)
+    assert all(b <= 512 + 5 * frame for _, b in calls)  # within the window
+    ra.advance(path.stat().st_size)
+    assert _wait(lambda: not ra._thread.is_alive())
+    assert calls == [(off + 8192, off + 20_480) for off in offsets]
+
+
 def test_figure_worker_survives_a_dead_helper(result, tmp_path):
     with FigureWorker() as fw:  # dead before the job
         fw._proc.kill()
@@ -492,3 +600,18 @@ def test_readahead_pauses_and_is_adopted_by_the_reader(tmp_path, monkeypatch):
         assert m._readahead is ra  # the reader adopts the command line's read-ahead, and resumes it
         assert _wait(lambda: ra.requested_to == ra.size)
     assert ReadAhead.for_path(movie) is None  # closed with the movie
+
+
+def test_read_file_and_sparse_maps_give_the_file_bytes(tmp_path, rng):
+    from grainplug.errors import MovieError
+    from grainplug.readers.base import map_file, read_file
+
+    data = rng.integers(0, 2**16, 50_000, dtype=np.uint16)
+    path = tmp_path / "x.raw"
+    path.write_bytes(b"hdr" + data.tobytes())
+    np.testing.assert_array_equal(read_file(path, 3 + 2 * 100, (10, 30), np.uint16), data[100:400].reshape(10, 30))
+    for sparse in (False, True):  # offsets off the page grid, shapes of several axes
+        got = map_file(path, 3 + 2 * 5000, (20, 1000), np.uint16, sparse=sparse)
+        np.testing.assert_array_equal(got, data[5000:25000].reshape(20, 1000))
+    with pytest.raises(MovieError, match="truncated"):
+        read_file(path, 3 + 2 * 49_990, (20,), np.uint16)

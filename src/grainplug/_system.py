@@ -5,6 +5,7 @@ from __future__ import annotations
 import collections
 import os
 import threading
+from collections.abc import Sequence
 
 #: share of the free memory that read-ahead may ask for beyond a reader's position
 READAHEAD_MEMORY_SHARE = 0.5
@@ -57,22 +58,30 @@ class ReadAhead:
     program, and without ``posix_fadvise`` it does nothing.
     """
 
-    #: read-ahead chunks queued at the disk at once
+    #: read-ahead chunks queued at the disk at once (in bytes: DEPTH chunks)
     DEPTH = 8
+    #: a frame's bytes left out of the read-ahead must be at least this many
+    #: (and as many as it keeps) for :meth:`restrict` to take effect: skipping
+    #: less would not save a disk's time
+    MIN_SKIP_BYTES = 1 << 20
+    PAGE = 4096
 
     _registry: dict[str, ReadAhead] = {}  # noqa: RUF012 - shared on purpose
     _registry_lock = threading.Lock()
 
-    def __init__(self, path: str | os.PathLike, limit: float, *, start: int = 0) -> None:
+    def __init__(self, path: str | os.PathLike, limit: float, *, start: int = 0, paused: bool = False) -> None:
         self.path = os.path.realpath(os.fspath(path))
         self.size = os.path.getsize(self.path)
         self.limit = float(limit)
         self._to = int(start)  # requested so far
         self._target = int(min(self.size, start + self.limit))
         self._closed = False
-        self._paused = False
+        self._paused = paused  # paused: nothing is asked for until resume()
         self._cond = threading.Condition()
         self._chunk = readahead_chunk_bytes(self.path)
+        self._frames: Sequence[int] | None = None  # restricted: offsets of the frames ...
+        self._span = (0, 0)  # ... and the bytes of each frame to ask for
+        self._next_frame = 0
         self._thread = None
         if hasattr(os, "posix_fadvise") and self.size > 0:
             with ReadAhead._registry_lock:
@@ -94,6 +103,33 @@ class ReadAhead:
             if target > self._target:
                 self._target = target
                 self._cond.notify()
+
+    def restrict(self, frame_offsets: Sequence[int], lo: int, hi: int) -> bool:
+        """From now on ask only for bytes ``[lo, hi)`` of every frame.
+
+        ``frame_offsets[k]`` is the file offset of frame ``k``'s first byte. Taken
+        only where it skips at least :data:`MIN_SKIP_BYTES` of every frame and at
+        least as much as it keeps (a horizontal tube crossing a wide frame, say);
+        otherwise the whole file is still asked for. Returns whether it was taken.
+        """
+        n = len(frame_offsets)
+        if n < 2 or not 0 <= lo < hi:
+            return False
+        stride = min(int(frame_offsets[k + 1]) - int(frame_offsets[k]) for k in range(n - 1))
+        skipped = stride - (hi - lo)
+        if skipped < max(self.MIN_SKIP_BYTES, hi - lo):
+            return False
+        with self._cond:
+            self._frames = frame_offsets
+            self._span = (lo // self.PAGE * self.PAGE, -(-hi // self.PAGE) * self.PAGE)
+            self._next_frame = 0
+            self._cond.notify()
+        return True
+
+    @property
+    def restricted(self) -> bool:
+        """Whether only part of each frame is asked for (:meth:`restrict`)."""
+        return self._frames is not None
 
     def pause(self) -> None:
         """Ask for nothing more until :meth:`resume` (requests already queued complete)."""
@@ -119,29 +155,54 @@ class ReadAhead:
             if ReadAhead._registry.get(self.path) is self:
                 del ReadAhead._registry[self.path]
 
+    def _next_request(self) -> tuple[int, int] | None:
+        """The next byte range to ask for, ``(lo, lo)`` when none is due yet, None when
+        all is asked for (called under the lock)."""
+        if self._frames is None:
+            if self._to >= self.size:
+                return None
+            return self._to, min(self._target, self._to + self._chunk)
+        a, b = self._span
+        n = len(self._frames)
+        while self._next_frame < n and int(self._frames[self._next_frame]) + b <= self._to:
+            self._next_frame += 1  # asked for already, in full or in part
+        if self._next_frame >= n:
+            return None
+        start = int(self._frames[self._next_frame])
+        lo = max(self._to, start + a)
+        return (lo, lo) if lo >= self._target else (lo, min(start + b, self.size))
+
     def _run(self) -> None:
         try:
             fd = os.open(self.path, os.O_RDONLY)
         except OSError:
             return
-        inflight: collections.deque[int] = collections.deque()
+        inflight: collections.deque[tuple[int, int]] = collections.deque()
+        queued = 0
         try:
             while True:
                 with self._cond:
-                    while not self._closed and self._to < self.size and (self._paused or self._to >= self._target):
+                    while True:
+                        if self._closed:
+                            return
+                        req = self._next_request()
+                        if req is None:
+                            return
+                        if not self._paused and req[1] > req[0]:
+                            break
                         self._cond.wait()
-                    if self._closed or self._to >= self.size:
-                        return
-                    lo = self._to
-                    hi = min(self._target, lo + self._chunk)
+                    lo, hi = req
                 try:
                     os.posix_fadvise(fd, lo, hi - lo, os.POSIX_FADV_WILLNEED)
-                    inflight.append(hi)
-                    if len(inflight) > self.DEPTH:
-                        # wait for the oldest request (its last byte): only DEPTH chunks queue
-                        # at the disk, so a pause takes effect and other reads are not stuck
-                        # behind the whole file
-                        os.pread(fd, 1, inflight.popleft() - 1)
+                    inflight.append((hi, hi - lo))
+                    queued += hi - lo
+                    while queued > self.DEPTH * self._chunk:
+                        # wait for the oldest request (its last byte): only DEPTH chunks' worth
+                        # queue at the disk, so a pause takes effect and other reads are not
+                        # stuck behind the whole file
+                        end, nbytes = inflight.popleft()
+                        os.pread(fd, 1, end - 1)
+                        queued -= nbytes
                 except OSError:
                     return
                 with self._cond:

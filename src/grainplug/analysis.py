@@ -229,6 +229,10 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         n_threads = max(1, threads if threads is not None else (os.cpu_count() or 1))
         read_block = movie.block_reader()  # frames straight from the file, where the format allows
         if read_block is not None:
+            lo, hi = sampler.byte_span(read_block(0, 1)[0])
+            if movie.prefetch_only(lo, hi):  # e.g. a horizontal tube: most of each frame is never read
+                log.info("reading %.1f%% of each frame from the disk (the tube's band)",
+                         100.0 * (hi - lo) / (movie.frame_offsets()[1] - movie.frame_offsets()[0]))
             diagram = build_diagram_blocks(read_block, sampler, n_frames=info.n_frames, time_s=times,
                                            mm_per_px=mm_per_px, threads=n_threads, progress=cb)
         else:

@@ -125,6 +125,15 @@ class BandSampler:
         self._w = np.ascontiguousarray(w, dtype=np.float32)
         self._key = (frame.shape, frame.strides, frame.dtype.str)
 
+    def byte_span(self, frame: np.ndarray) -> tuple[int, int]:
+        """Bytes ``[lo, hi)`` of a frame laid out like ``frame`` that :meth:`__call__`
+        reads, counted from the frame's lowest address."""
+        if frame.ndim == 3 and frame.shape[2] == 4:
+            frame = frame[..., :3]
+        if self._key != (frame.shape, frame.strides, frame.dtype.str):
+            self._prepare(frame if all(frame.strides) else np.ascontiguousarray(frame))
+        return int(self._idx.min()) * frame.itemsize, self._span * frame.itemsize
+
     def __call__(self, frame: np.ndarray) -> np.ndarray:
         """Core profile along the axis of one frame (float32).
 

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import abc
+import math
+import mmap
+import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -10,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .._system import READAHEAD_MEMORY_SHARE, ReadAhead, free_memory_bytes
+from ..errors import MovieError
 
 
 @dataclass(frozen=True)
@@ -86,6 +90,48 @@ class MovieInfo:
         }
 
 
+def map_file(path: str | Path, offset: int, shape: tuple[int, ...], dtype: np.dtype | str, *,
+             sparse: bool = False) -> np.ndarray:
+    """Read-only memory map of an array of ``shape`` and ``dtype`` at byte ``offset`` of ``path``.
+
+    ``sparse``: the caller will touch a small part of the map, already asked for
+    (:meth:`Movie.prefetch_only`); the kernel is told so (``MADV_RANDOM``), so that
+    a page it must still read from the disk comes alone, not with the megabytes
+    around it that its read-ahead would otherwise bring in.
+    """
+    if not sparse or not hasattr(mmap, "MADV_RANDOM"):
+        return np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=shape)
+    dt = np.dtype(dtype)
+    count = math.prod(shape)
+    start = offset // mmap.ALLOCATIONGRANULARITY * mmap.ALLOCATIONGRANULARITY
+    with open(path, "rb") as fh:
+        mm = mmap.mmap(fh.fileno(), offset - start + count * dt.itemsize, offset=start, access=mmap.ACCESS_READ)
+    mm.madvise(mmap.MADV_RANDOM)
+    return np.frombuffer(mm, dt, count=count, offset=offset - start).reshape(shape)
+
+
+def read_file(path: str | Path, offset: int, shape: tuple[int, ...], dtype: np.dtype | str) -> np.ndarray:
+    """An array of ``shape`` and ``dtype`` read (copied) from byte ``offset`` of ``path``.
+
+    One ``read``: the kernel fetches these bytes only (a read at a random offset
+    gets no read-ahead), whereas a fault in a memory map of a file on disk brings
+    in the megabytes around it. For sampling frames here and there in a movie.
+    """
+    arr = np.empty(shape, np.dtype(dtype))
+    buf = memoryview(arr.reshape(-1)).cast("B")
+    got = 0
+    with open(path, "rb", buffering=0) as fh:
+        if hasattr(os, "posix_fadvise"):  # these bytes, not the window a read-ahead would add
+            os.posix_fadvise(fh.fileno(), 0, 0, os.POSIX_FADV_RANDOM)
+        fh.seek(offset)
+        while got < len(buf):
+            n = fh.readinto(buf[got:])
+            if not n:
+                raise MovieError(f"{path}: the file ends before the frame at byte {offset} — it is truncated")
+            got += n
+    return arr
+
+
 class Movie(abc.ABC):
     """A movie opened for streaming.
 
@@ -144,6 +190,34 @@ class Movie(abc.ABC):
         ra = getattr(self, "_readahead", None)
         if ra is not None:
             ra.advance(position)
+
+    def prefetch_only(self, lo: int, hi: int) -> bool:
+        """Restrict the read-ahead to bytes ``[lo, hi)`` of every frame.
+
+        Offsets count from the lowest-addressed byte of a frame as
+        :meth:`block_reader` returns it (:meth:`frame_offsets`). The analysis calls
+        it with the bytes its band of the tube touches: where the tube crosses a
+        wide frame (a horizontal tube in a landscape frame) most of the file is
+        then never read. Returns whether the read-ahead took it
+        (:meth:`grainplug._system.ReadAhead.restrict`: only when it skips enough).
+        """
+        ra = getattr(self, "_readahead", None)
+        offsets = self.frame_offsets()
+        if ra is None or offsets is None:
+            return False
+        return ra.restrict(offsets, lo, hi)
+
+    @property
+    def _sparse(self) -> bool:
+        """Whether the read-ahead asks for part of each frame only (:meth:`prefetch_only`):
+        then maps must not pull in the rest (:func:`map_file` with ``sparse``)."""
+        ra = getattr(self, "_readahead", None)
+        return ra is not None and ra.restricted
+
+    def frame_offsets(self) -> np.ndarray | None:
+        """File offset of each frame's first byte, for frames stored uncompressed at
+        known places (those :meth:`block_reader` maps), else None."""
+        return None
 
     def _stop_prefetch(self) -> None:
         ra = getattr(self, "_readahead", None)

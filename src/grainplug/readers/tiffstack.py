@@ -11,7 +11,7 @@ import numpy as np
 import tifffile
 
 from ..errors import MovieError
-from .base import Movie, MovieInfo
+from .base import Movie, MovieInfo, map_file, read_file
 
 log = logging.getLogger(__name__)
 
@@ -95,8 +95,8 @@ class TiffStackMovie(Movie):
 
     def _map(self, start: int, count: int) -> np.ndarray:
         offset, dt = self._contiguous
-        return np.memmap(str(self.path), dtype=dt, mode="r", offset=offset + start * self._frame_bytes,
-                         shape=(count, *self._page_shape))
+        return map_file(self.path, offset + start * self._frame_bytes, (count, *self._page_shape), dt,
+                        sparse=self._sparse)
 
     def _read_block(self, start: int, count: int) -> np.ndarray:
         """Frames ``start .. start+count-1`` as a memory map; moves the read-ahead window
@@ -118,15 +118,19 @@ class TiffStackMovie(Movie):
                 yield frame[..., :3] if mm.ndim == 4 and mm.shape[-1] == 4 else frame
             del mm  # unmapped as soon as the caller drops its last view
 
+    def frame_offsets(self) -> np.ndarray | None:
+        if self._contiguous is None:
+            return None
+        return self._contiguous[0] + np.arange(self.info.n_frames, dtype=np.int64) * self._frame_bytes
+
     def block_reader(self) -> Callable[[int, int], np.ndarray] | None:
         """Blocks of frames as memory maps, for uncompressed contiguous stacks (any thread)."""
         return self._read_block if self._contiguous is not None else None
 
     def _page(self, index: int) -> np.ndarray:
         if self._contiguous is not None:
-            mm = self._map(index, 1)
-            arr = np.array(mm[0])
-            del mm
+            arr = read_file(self.path, self._contiguous[0] + index * self._frame_bytes, self._page_shape,
+                            self._contiguous[1])
         else:
             try:
                 arr = self._tif.pages[index].asarray()

@@ -12,7 +12,7 @@ import av
 import numpy as np
 
 from ..errors import MovieError
-from .base import Movie, MovieInfo
+from .base import Movie, MovieInfo, map_file, read_file
 
 log = logging.getLogger(__name__)
 
@@ -70,6 +70,7 @@ class VideoMovie(Movie):
             self._pts: np.ndarray | None = None
             self._blocks: Callable | bool | None = None
             self._raw_frame: Callable[[int], np.ndarray] | None = None
+            self._offsets: np.ndarray | None = None
             self._time_base = stream.time_base or Fraction(1, 1)
             announced = n_frames
             if announced <= 0 and container.duration and file_fps:
@@ -313,15 +314,15 @@ class VideoMovie(Movie):
         def read_block(start: int, count: int) -> list[np.ndarray]:
             lo, hi = int(pos[start]) + skip, int(pos[start + count - 1]) + skip + frame_bytes
             self._advise_ahead(lo)
-            mm = np.memmap(self.path, np.uint8, "r", offset=lo, shape=(hi - lo,))
+            mm = map_file(self.path, lo, (hi - lo,), np.uint8, sparse=self._sparse)
             return [view(mm, int(pos[k] - pos[start]), flip) for k in range(start, start + count)]
 
         bgr = fmt.startswith("bgr")
 
         def raw_frame(k: int) -> np.ndarray:
             """Frame ``k`` copied from the file in the layout :meth:`read` returns (RGB or grey)."""
-            mm = np.memmap(self.path, np.uint8, "r", offset=int(pos[k]) + skip, shape=(frame_bytes,))
-            frame = np.array(view(mm, 0, flip))
+            frame = np.ascontiguousarray(view(read_file(self.path, int(pos[k]) + skip, (frame_bytes,), np.uint8),
+                                              0, flip))
             if bgr:  # swap two channels in place: several times faster than copying a reversed view
                 red = frame[..., 2].copy()
                 frame[..., 2] = frame[..., 0]
@@ -329,7 +330,13 @@ class VideoMovie(Movie):
             return frame
 
         self._raw_frame = raw_frame
+        self._offsets = pos + skip
         return read_block
+
+    def frame_offsets(self) -> np.ndarray | None:
+        """File offset of each raw frame's first stored byte (its lowest address, also
+        for rows stored bottom-up); None for compressed video."""
+        return self._offsets if self.block_reader() is not None else None
 
     def read(self, index: int) -> np.ndarray:
         """One frame by index: a seek to the key frame before it, then a few frames decoded.
