@@ -565,6 +565,13 @@ def test_bottom_up_avi_written_by_other_means(tmp_path, rng):
         np.testing.assert_array_equal(m.read(7), frames[7])
         idx, sample = m.sample(5)  # copied from the file: RGB, the right way up
         np.testing.assert_array_equal(np.stack(sample), frames[idx])
+        from grainplug.readers.base import read_file
+
+        offsets = m.frame_offsets()  # where each frame's stored bytes begin: its bottom row, BGR
+        assert len(offsets) == 12
+        for k in (0, 11):
+            np.testing.assert_array_equal(read_file(tmp_path / "bu.avi", int(offsets[k]), (30, 3), np.uint8),
+                                          frames[k, -1, :, ::-1])
 
     tif = synthesize(SynthConfig(n_frames=150, seed=8, celerity_m_s=-0.05), tmp_path / "t", fmt="tiff")
     with open_movie(tif.movie) as m:
