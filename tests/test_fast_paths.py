@@ -223,7 +223,8 @@ def test_prefetch_window_follows_the_stream(tmp_path, monkeypatch):
     assert all(calls[i + 1][0] == ends[i] for i in range(len(calls) - 1))  # contiguous, no re-request
 
 
-def test_readahead_asks_only_for_the_band_of_a_horizontal_tube(tmp_path, monkeypatch):
+@pytest.mark.parametrize("fmt", ["tiff", "avi"])
+def test_readahead_asks_only_for_the_band_of_a_horizontal_tube(tmp_path, monkeypatch, fmt):
     """A horizontal tube crosses a landscape frame: once the tube is found, the
     read-ahead asks only for the rows its band touches, for every frame, and the
     analysis is the same as with the whole file read."""
@@ -234,7 +235,7 @@ def test_readahead_asks_only_for_the_band_of_a_horizontal_tube(tmp_path, monkeyp
     from grainplug.readers import base
 
     movie = synthesize(SynthConfig(n_frames=60, seed=3, flow_direction="right", width_px=96,
-                                   celerity_m_s=-0.05), tmp_path, fmt="tiff").movie
+                                   celerity_m_s=-0.05), tmp_path, fmt=fmt).movie
     size = movie.stat().st_size
     calls: list[tuple[int, int]] = []
     lock = threading.Lock()
