@@ -119,3 +119,19 @@ def test_fps_override(tmp_path):
         assert movie.info.fps_source == "file"
     with open_movie(result.movie, fps=1000) as movie:
         assert movie.info.fps == 1000 and movie.info.fps_source == "user"
+
+
+@pytest.mark.parametrize("fmt", ["tiff", "avi", "ffv1", "mjpeg", "h264"])
+def test_sample_frames_are_the_movie_frames(tmp_path, fmt):
+    """Whatever way a reader samples (a read per frame, raw frames from the file, seeking,
+    key frames found when the packets were counted), the sample holds the frames that
+    :meth:`frames` gives at those indices, spread over the movie."""
+    movie = synthesize(SynthConfig(n_frames=60, seed=2), tmp_path, fmt=fmt).movie
+    with open_movie(movie) as m:
+        every = list(m.frames())
+    with open_movie(movie) as m:
+        idx, sample = m.sample(12)
+    assert len(idx) == len(sample) >= 8
+    assert idx[-1] - idx[0] >= (30 if fmt != "h264" else 8)
+    for k, frame in zip(idx, sample, strict=True):
+        np.testing.assert_array_equal(frame, every[k])

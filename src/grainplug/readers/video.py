@@ -68,6 +68,7 @@ class VideoMovie(Movie):
             file_fps = float(rate) if rate else None
             n_frames = int(stream.frames or 0)
             self._pts: np.ndarray | None = None
+            self._keys: list[int] | None = None  # indices of the key frames, once the packets were walked
             self._blocks: Callable | bool | None = None
             self._raw_frame: Callable[[int], np.ndarray] | None = None
             self._offsets: np.ndarray | None = None
@@ -77,7 +78,7 @@ class VideoMovie(Movie):
                 # containers without a frame count (Matroska) still record a duration
                 announced = int(round(container.duration / 1e6 * file_fps))
             if verify or n_frames <= 0:
-                counted, pts = self._demux_count(container)
+                counted, pts, self._keys = self._demux_count(container)
                 if announced > 0 and counted < announced - 1:
                     raise MovieError(
                         f"{path} is truncated: its header announces {announced} frames but it "
@@ -101,21 +102,26 @@ class VideoMovie(Movie):
         super().__init__(path, info)
 
     @staticmethod
-    def _demux_count(container: av.container.InputContainer) -> tuple[int, np.ndarray | None]:
+    def _demux_count(container: av.container.InputContainer) -> tuple[int, np.ndarray | None, list[int]]:
+        """One walk over the packets: how many frames, their presentation times (None
+        unless every packet has one) and which are key frames (in decoding order)."""
         stream = container.streams.video[0]
         pts: list[int] = []
+        keys: list[int] = []
         count = 0
         try:
             for packet in container.demux(stream):
                 if packet.size == 0:
                     continue  # flush packet
+                if packet.is_keyframe:
+                    keys.append(count)
                 count += 1
                 if packet.pts is not None:
                     pts.append(packet.pts)
         except av.error.FFmpegError as exc:
             log.warning("demuxing stopped early: %s", exc)
         arr = np.sort(np.asarray(pts, dtype=np.int64)) if len(pts) == count and pts else None
-        return count, arr
+        return count, arr, keys
 
     @property
     def has_file_timestamps(self) -> bool:
@@ -125,7 +131,7 @@ class VideoMovie(Movie):
         """Presentation time of every frame from the container, first frame at 0."""
         if self._pts is None:
             with av.open(str(self.path)) as container:
-                _, self._pts = self._demux_count(container)
+                _, self._pts, self._keys = self._demux_count(container)
         if self._pts is None or len(self._pts) != self.info.n_frames:
             return super().timestamps_s()
         return (self._pts - self._pts[0]) * float(self._time_base)
@@ -150,9 +156,12 @@ class VideoMovie(Movie):
             if got is not None:
                 return got
         try:
-            with av.open(str(self.path)) as container:
-                keys = [k for k, pkt in enumerate(p for p in container.demux(video=0) if p.size)
-                        if pkt.is_keyframe]
+            keys = self._keys
+            if keys is None:  # the packets were not walked when the movie was opened
+                with av.open(str(self.path)) as container:
+                    keys = [k for k, pkt in enumerate(p for p in container.demux(video=0) if p.size)
+                            if pkt.is_keyframe]
+                self._keys = keys
             if len(keys) >= min(n, 24):
                 pick = sorted({keys[k] for k in np.linspace(0, len(keys) - 1, n).round().astype(int)})
                 frames: list[np.ndarray] = []
