@@ -623,3 +623,15 @@ def test_read_file_and_sparse_maps_give_the_file_bytes(tmp_path, rng):
         np.testing.assert_array_equal(got, data[5000:25000].reshape(20, 1000))
     with pytest.raises(MovieError, match="truncated"):
         read_file(path, 3 + 2 * 49_990, (20,), np.uint16)
+
+
+@pytest.mark.parametrize("length", [2, 3, 4, 5, 6, 7, 8])
+def test_row_closing_equals_binary_closing(rng, length):
+    from grainplug.plugs.segment import close_rows
+
+    for p in (0.2, 0.5, 0.8, 0.95):
+        mask = rng.random((60, 97)) < p
+        expected = ndimage.binary_closing(mask, structure=np.ones((1, length), bool), border_value=0)
+        np.testing.assert_array_equal(close_rows(mask, length), expected)
+    erosion = ndimage.minimum_filter1d(mask.view(np.uint8), 7, axis=1, mode="constant", cval=0).view(bool)
+    np.testing.assert_array_equal(erosion, ndimage.binary_erosion(mask, structure=np.ones((1, 7), bool)))
