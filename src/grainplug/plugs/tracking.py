@@ -50,64 +50,75 @@ class Tracks:
         return self.started_by[tid] == "merge" or self.ended_by[tid] == "split"
 
 
+def _overlapping(frame: np.ndarray, start: np.ndarray, stop: np.ndarray,
+                 step: int) -> tuple[np.ndarray, np.ndarray]:
+    """For every run, the index range ``[lo, hi)`` of the runs of frame ``frame + step``
+    that overlap it (empty when ``hi <= lo``).
+
+    Runs are sorted by frame then start and do not overlap within a frame, so the
+    runs of another frame that overlap a run are contiguous: the first whose stop
+    lies beyond its start up to the first whose start lies at or beyond its stop.
+    """
+    span = int(max(stop.max(initial=0), 1)) + 1
+    key_stop = frame * span + stop  # sorted: stops increase within a frame
+    key_start = frame * span + start
+    base = (frame + step) * span
+    lo = np.searchsorted(key_stop, base + start, side="right")
+    hi = np.searchsorted(key_start, base + stop, side="left")
+    return lo, hi
+
+
 def link(runs: Runs, n_frames: int) -> Tracks:
-    """Link the runs of consecutive frames into tracks."""
+    """Link the runs of consecutive frames into tracks.
+
+    Notes
+    -----
+    Computed for all frames at once: each run's successors (in the next frame) and
+    predecessors (in the previous one) are index ranges found by binary search; a
+    run continues the track of its only predecessor when it is that run's only
+    successor, and tracks are the chains of such links, numbered in the order they
+    start (frame, then position), as a frame-by-frame pass would number them.
+    """
     n = len(runs)
-    track = -np.ones(n, int)
-    first: list[int] = []
-    last: list[int] = []
-    started: list[str] = []
-    ended: list[str] = []
-
-    def new_track(i: int, how: str) -> None:
-        track[i] = len(first)
-        first.append(int(runs.frame[i]))
-        last.append(int(runs.frame[i]))
-        started.append(how)
-        ended.append("end")
-
-    prev = runs.in_frame(0)
-    for i in prev:
-        new_track(i, "start")
-    for k in range(1, n_frames):
-        cur = runs.in_frame(k)
-        if len(prev) == 0:
-            for i in cur:
-                new_track(i, "entered")
-            prev = cur
+    frame = np.asarray(runs.frame, np.int64)
+    start = np.asarray(runs.start, np.int64)
+    stop = np.asarray(runs.stop, np.int64)
+    if n == 0:
+        return Tracks(np.zeros(0, int), np.zeros(0, int), np.zeros(0, int), [], [])
+    s_lo, s_hi = _overlapping(frame, start, stop, +1)
+    p_lo, p_hi = _overlapping(frame, start, stop, -1)
+    n_succ = np.maximum(s_hi - s_lo, 0)
+    n_pred = np.maximum(p_hi - p_lo, 0)
+    pred = np.where(n_pred == 1, p_lo, 0)
+    cont = (n_pred == 1) & (n_succ[np.minimum(pred, n - 1)] == 1) & (frame > 0)
+    # follow each chain back to the run that started it (pointer jumping)
+    root = np.where(cont, pred, np.arange(n))
+    while True:
+        nxt = root[root]
+        if np.array_equal(nxt, root):
+            break
+        root = nxt
+    head = ~cont
+    track_of_head = np.cumsum(head) - 1
+    track = track_of_head[root]
+    heads = np.nonzero(head)[0]
+    first = frame[heads]
+    last = np.zeros(len(heads), np.int64)
+    np.maximum.at(last, track, frame)
+    started = ["start" if frame[h] == 0 else "entered" if n_pred[h] == 0 else
+               "merge" if n_pred[h] > 1 else "split" for h in heads.tolist()]
+    # each track's last run: how it ended
+    succ = np.where(n_succ == 1, s_lo, 0)
+    tail = ~((n_succ == 1) & cont[np.minimum(succ, n - 1)])
+    ended = ["end"] * len(heads)
+    for i in np.nonzero(tail)[0].tolist():
+        t = int(track[i])
+        if frame[i] >= n_frames - 1:
             continue
-        # overlap matrix of the runs of the two frames
-        ps, pe = runs.start[prev], runs.stop[prev]
-        cs, ce = runs.start[cur], runs.stop[cur]
-        ov = (np.minimum(pe[:, None], ce[None, :]) - np.maximum(ps[:, None], cs[None, :])) > 0
-        n_succ = ov.sum(axis=1)
-        n_pred = ov.sum(axis=0)
-        for j, i in enumerate(cur):
-            preds = np.nonzero(ov[:, j])[0]
-            if len(preds) == 1 and n_succ[preds[0]] == 1:
-                t = track[prev[preds[0]]]
-                track[i] = t
-                last[t] = k
-            elif len(preds) == 0:
-                new_track(i, "entered")
-            elif len(preds) > 1:
-                new_track(i, "merge")
-            else:
-                new_track(i, "split")
-        for m, i in enumerate(prev):
-            t = track[i]
-            if last[t] == k:
-                continue
-            if n_succ[m] == 0:
-                ended[t] = "left"
-            elif n_succ[m] > 1:
-                ended[t] = "split"
-            else:
-                j = int(np.nonzero(ov[m])[0][0])
-                ended[t] = "merge" if n_pred[j] > 1 else "split"
-        prev = cur
-    # a track that stopped at the last frame ended with the movie; one cut earlier left the view
-    for t in range(len(first)):
-        if ended[t] == "end" and last[t] < n_frames - 1:
+        if n_succ[i] == 0:
             ended[t] = "left"
-    return Tracks(track, np.asarray(first, int), np.asarray(last, int), started, ended)
+        elif n_succ[i] > 1:
+            ended[t] = "split"
+        else:
+            ended[t] = "merge" if n_pred[succ[i]] > 1 else "split"
+    return Tracks(track.astype(int), first.astype(int), last.astype(int), started, ended)
