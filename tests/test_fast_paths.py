@@ -201,6 +201,7 @@ def test_prefetch_window_follows_the_stream(tmp_path, monkeypatch):
             calls.append((off, n))
 
     monkeypatch.setattr(os, "posix_fadvise", record, raising=False)
+    monkeypatch.setattr(_system, "read_to_cache", lambda fd, null, off, n: record(fd, off, n, None))
     monkeypatch.setattr(_system, "readahead_chunk_bytes", lambda path: 64 * 1024)
     monkeypatch.setattr(base, "free_memory_bytes", lambda: size / 2)  # budget: a quarter of the file
     budget = int(size / 4)
@@ -255,6 +256,7 @@ def test_readahead_asks_only_for_the_band_of_a_horizontal_tube(tmp_path, monkeyp
         return taken
 
     monkeypatch.setattr(os, "posix_fadvise", record, raising=False)
+    monkeypatch.setattr(_system, "read_to_cache", lambda fd, null, off, n: record(fd, off, n, None))
     monkeypatch.setattr(_system, "readahead_chunk_bytes", lambda path: 16 * 1024)
     monkeypatch.setattr(base, "free_memory_bytes", lambda: size / 10)  # window: a fifth of the file
     monkeypatch.setattr(base.Movie, "prefetch_only", spy)
@@ -351,6 +353,7 @@ def test_figure_worker_survives_a_dead_helper(result, tmp_path):
 def test_cli_asks_for_the_movie_before_importing(tmp_path, monkeypatch):
     import os
 
+    from grainplug import _system
     from grainplug.cli import _early_readahead
 
     movie = tmp_path / "run.tif"
@@ -358,6 +361,7 @@ def test_cli_asks_for_the_movie_before_importing(tmp_path, monkeypatch):
     (tmp_path / "out").mkdir()
     calls: list[tuple[int, int]] = []
     monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: calls.append((off, n)), raising=False)
+    monkeypatch.setattr(_system, "read_to_cache", lambda fd, null, off, n: calls.append((off, n)))
     started = _early_readahead(["--debug", "analyze", str(movie), "--out", str(tmp_path / "out"), "--fps", "250"])
     assert len(started) == 1
     assert _wait(lambda: started[0].requested_to == 10_000)
@@ -595,6 +599,7 @@ def test_readahead_pauses_and_is_adopted_by_the_reader(tmp_path, monkeypatch):
     movie = synthesize(SynthConfig(n_frames=32, seed=1), tmp_path, fmt="tiff").movie
     calls: list[int] = []
     monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: calls.append(off), raising=False)
+    monkeypatch.setattr(_system, "read_to_cache", lambda fd, null, off, n: calls.append(off))
     monkeypatch.setattr(_system, "readahead_chunk_bytes", lambda path: 16 * 1024)
     ra = ReadAhead(movie, 1e12)
     ra.pause()
@@ -744,3 +749,44 @@ def test_link_all_frames_at_once_equals_frame_by_frame(rng):
             assert got.ended_by == want.ended_by
             seen |= set(got.started_by) | set(got.ended_by)
     assert seen == {"start", "entered", "merge", "split", "end", "left"}  # every branch taken
+
+
+def test_readahead_reads_whole_files_through_the_kernel_and_falls_back(tmp_path, monkeypatch):
+    """A whole-file read-ahead reads with sendfile to /dev/null (pages cached in large folios,
+    nothing copied out), chunk after chunk to the end; where that fails it asks with
+    POSIX_FADV_WILLNEED instead, from where it stopped."""
+    import os
+    import sys
+
+    from grainplug import _system
+
+    if not (hasattr(os, "sendfile") and sys.platform.startswith("linux")):
+        pytest.skip("sendfile to /dev/null is used on Linux only")
+    path = tmp_path / "movie.raw"
+    path.write_bytes(os.urandom(300_000))
+    monkeypatch.setattr(_system, "readahead_chunk_bytes", lambda p: 64 * 1024)
+    read: list[tuple[int, int]] = []
+    real = _system.read_to_cache
+
+    def spy(fd, null, off, n):
+        real(fd, null, off, n)  # the real call, on a real file
+        read.append((off, n))
+
+    monkeypatch.setattr(_system, "read_to_cache", spy)
+    ra = _system.ReadAhead(path, 1e12)
+    assert _wait(lambda: ra.requested_to == ra.size)
+    assert [off for off, _ in read] == list(range(0, 300_000, 64 * 1024))
+    ra.close()
+
+    asked: list[int] = []
+    monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: asked.append(off), raising=False)
+
+    def fails_once_started(fd, null, off, n):
+        if off >= 128 * 1024:
+            raise OSError("no sendfile here")
+
+    monkeypatch.setattr(_system, "read_to_cache", fails_once_started)
+    ra = _system.ReadAhead(path, 1e12)
+    assert _wait(lambda: ra.requested_to == ra.size)
+    assert asked == list(range(128 * 1024, 300_000, 64 * 1024))
+    ra.close()
