@@ -598,15 +598,24 @@ def test_readahead_pauses_and_is_adopted_by_the_reader(tmp_path, monkeypatch):
 
     movie = synthesize(SynthConfig(n_frames=32, seed=1), tmp_path, fmt="tiff").movie
     calls: list[int] = []
-    monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: calls.append(off), raising=False)
-    monkeypatch.setattr(_system, "read_to_cache", lambda fd, null, off, n: calls.append(off))
+
+    def slow(off):  # a disk that takes 5 ms a chunk: the file cannot be done before the pause
+        time.sleep(0.005)
+        calls.append(off)
+
+    monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: slow(off), raising=False)
+    monkeypatch.setattr(_system, "read_to_cache", lambda fd, null, off, n: slow(off))
     monkeypatch.setattr(_system, "readahead_chunk_bytes", lambda path: 16 * 1024)
+    assert movie.stat().st_size > 100 * 16 * 1024
     ra = ReadAhead(movie, 1e12)
+    assert _wait(lambda: len(calls) >= 2)
     ra.pause()
     time.sleep(0.05)
     n_paused = len(calls)
     time.sleep(0.1)
     assert len(calls) == n_paused and ra.requested_to < ra.size  # nothing more asked while paused
+    monkeypatch.setattr(_system, "read_to_cache", lambda fd, null, off, n: calls.append(off))  # a fast disk now
+    monkeypatch.setattr(os, "posix_fadvise", lambda fd, off, n, adv: calls.append(off), raising=False)
     assert ReadAhead.for_path(str(movie)) is ra
     with open_movie(movie) as m:
         m.prefetch()
@@ -622,7 +631,9 @@ def test_read_file_and_sparse_maps_give_the_file_bytes(tmp_path, rng):
     data = rng.integers(0, 2**16, 50_000, dtype=np.uint16)
     path = tmp_path / "x.raw"
     path.write_bytes(b"hdr" + data.tobytes())
-    np.testing.assert_array_equal(read_file(path, 3 + 2 * 100, (10, 30), np.uint16), data[100:400].reshape(10, 30))
+    for random_access in (False, True):
+        np.testing.assert_array_equal(read_file(path, 3 + 2 * 100, (10, 30), np.uint16, random_access=random_access),
+                                      data[100:400].reshape(10, 30))
     for sparse in (False, True):  # offsets off the page grid, shapes of several axes
         got = map_file(path, 3 + 2 * 5000, (20, 1000), np.uint16, sparse=sparse)
         np.testing.assert_array_equal(got, data[5000:25000].reshape(20, 1000))

@@ -110,18 +110,20 @@ def map_file(path: str | Path, offset: int, shape: tuple[int, ...], dtype: np.dt
     return np.frombuffer(mm, dt, count=count, offset=offset - start).reshape(shape)
 
 
-def read_file(path: str | Path, offset: int, shape: tuple[int, ...], dtype: np.dtype | str) -> np.ndarray:
+def read_file(path: str | Path, offset: int, shape: tuple[int, ...], dtype: np.dtype | str, *,
+              random_access: bool = False) -> np.ndarray:
     """An array of ``shape`` and ``dtype`` read (copied) from byte ``offset`` of ``path``.
 
-    One ``read``: the kernel fetches these bytes only (a read at a random offset
-    gets no read-ahead), whereas a fault in a memory map of a file on disk brings
-    in the megabytes around it. For sampling frames here and there in a movie.
+    ``random_access``: one of a few reads here and there in the file (sampling
+    frames spread over a movie): the kernel is told to fetch these bytes only,
+    without the window its read-ahead would add (``POSIX_FADV_RANDOM`` on this
+    read's own descriptor). Otherwise the usual read-ahead serves reads in order.
     """
     arr = np.empty(shape, np.dtype(dtype))
     buf = memoryview(arr.reshape(-1)).cast("B")
     got = 0
     with open(path, "rb", buffering=0) as fh:
-        if hasattr(os, "posix_fadvise"):  # these bytes, not the window a read-ahead would add
+        if random_access and hasattr(os, "posix_fadvise"):  # these bytes, not a read-ahead window
             os.posix_fadvise(fh.fileno(), 0, 0, os.POSIX_FADV_RANDOM)
         fh.seek(offset)
         while got < len(buf):

@@ -127,10 +127,10 @@ class TiffStackMovie(Movie):
         """Blocks of frames as memory maps, for uncompressed contiguous stacks (any thread)."""
         return self._read_block if self._contiguous is not None else None
 
-    def _page(self, index: int) -> np.ndarray:
+    def _page(self, index: int, *, random_access: bool = False) -> np.ndarray:
         if self._contiguous is not None:
             arr = read_file(self.path, self._contiguous[0] + index * self._frame_bytes, self._page_shape,
-                            self._contiguous[1])
+                            self._contiguous[1], random_access=random_access)
         else:
             try:
                 arr = self._tif.pages[index].asarray()
@@ -148,6 +148,12 @@ class TiffStackMovie(Movie):
         if not 0 <= index < self.info.n_frames:
             raise IndexError(f"frame {index} out of range 0..{self.info.n_frames - 1}")
         return self._page(index)
+
+    def sample(self, n: int) -> tuple[np.ndarray, list[np.ndarray]]:
+        """About ``n`` frames spread over the movie, each read alone (no read-ahead window)."""
+        total = self.info.n_frames
+        idx = np.unique(np.linspace(0, total - 1, min(n, total)).round().astype(int))
+        return idx, [self._page(int(i), random_access=True) for i in idx]
 
     def region(self, index: int, rows: slice, cols: slice) -> np.ndarray:
         """Read only a rectangle of one frame (fast on memory-mapped stacks)."""

@@ -330,8 +330,8 @@ class VideoMovie(Movie):
 
         def raw_frame(k: int) -> np.ndarray:
             """Frame ``k`` copied from the file in the layout :meth:`read` returns (RGB or grey)."""
-            frame = np.ascontiguousarray(view(read_file(self.path, int(pos[k]) + skip, (frame_bytes,), np.uint8),
-                                              0, flip))
+            raw = read_file(self.path, int(pos[k]) + skip, (frame_bytes,), np.uint8, random_access=True)
+            frame = np.ascontiguousarray(view(raw, 0, flip))
             if bgr:  # swap two channels in place: several times faster than copying a reversed view
                 red = frame[..., 2].copy()
                 frame[..., 2] = frame[..., 0]
