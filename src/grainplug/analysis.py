@@ -231,8 +231,8 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         if read_block is not None:
             lo, hi = sampler.byte_span(read_block(0, 1)[0])
             if movie.prefetch_only(lo, hi):  # e.g. a horizontal tube: most of each frame is never read
-                log.info("reading %.1f%% of each frame from the disk (the tube's band)",
-                         100.0 * (hi - lo) / (movie.frame_offsets()[1] - movie.frame_offsets()[0]))
+                stride = np.diff(movie.frame_offsets()[:2])[0]
+                log.info("reading %.1f%% of each frame from the disk (the tube's band)", 100.0 * (hi - lo) / stride)
             diagram = build_diagram_blocks(read_block, sampler, n_frames=info.n_frames, time_s=times,
                                            mm_per_px=mm_per_px, threads=n_threads, progress=cb)
         else:

@@ -125,13 +125,20 @@ class BandSampler:
         self._w = np.ascontiguousarray(w, dtype=np.float32)
         self._key = (frame.shape, frame.strides, frame.dtype.str)
 
-    def byte_span(self, frame: np.ndarray) -> tuple[int, int]:
-        """Bytes ``[lo, hi)`` of a frame laid out like ``frame`` that :meth:`__call__`
-        reads, counted from the frame's lowest address."""
+    def _adopt(self, frame: np.ndarray) -> np.ndarray:
+        """``frame`` without an alpha channel, the offsets prepared for its layout."""
         if frame.ndim == 3 and frame.shape[2] == 4:
             frame = frame[..., :3]
         if self._key != (frame.shape, frame.strides, frame.dtype.str):
-            self._prepare(frame if all(frame.strides) else np.ascontiguousarray(frame))
+            if any(s == 0 for s in frame.strides):  # broadcast axes: no layout to follow
+                frame = np.ascontiguousarray(frame)
+            self._prepare(frame)
+        return frame
+
+    def byte_span(self, frame: np.ndarray) -> tuple[int, int]:
+        """Bytes ``[lo, hi)`` of a frame laid out like ``frame`` that :meth:`__call__`
+        reads, counted from the frame's lowest address."""
+        frame = self._adopt(frame)
         return int(self._idx.min()) * frame.itemsize, self._span * frame.itemsize
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
@@ -142,12 +149,7 @@ class BandSampler:
         video plane is sampled without copying the frame. Channels are averaged
         with equal weights, so their order does not matter.
         """
-        if frame.ndim == 3 and frame.shape[2] == 4:
-            frame = frame[..., :3]
-        if self._key != (frame.shape, frame.strides, frame.dtype.str):
-            if any(s == 0 for s in frame.strides):  # broadcast axes: no layout to follow
-                frame = np.ascontiguousarray(frame)
-            self._prepare(frame)
+        frame = self._adopt(frame)
         if frame.strides[0] < 0 or frame.strides[1] < 0 or (frame.ndim == 3 and frame.strides[2] < 0):
             frame = frame[self._lowest]
         flat = np.lib.stride_tricks.as_strided(frame, shape=(self._span,), strides=(frame.itemsize,))

@@ -268,9 +268,18 @@ class Movie(abc.ABC):
         frames : list of ndarray
             The frames.
         """
+        idx = self._spread(n)
+        return idx, [self._read_sampled(int(i)) for i in idx]
+
+    def _spread(self, n: int) -> np.ndarray:
+        """Indices of about ``n`` frames spread evenly over the movie, first and last included."""
         total = self.info.n_frames
-        idx = np.unique(np.linspace(0, total - 1, min(n, total)).round().astype(int))
-        return idx, [self.read(int(i)) for i in idx]
+        return np.unique(np.linspace(0, total - 1, min(n, total)).round().astype(int))
+
+    def _read_sampled(self, index: int) -> np.ndarray:
+        """One frame of :meth:`sample`; readers that can read it alone, with no read-ahead
+        window around it, do so."""
+        return self.read(index)
 
     def timestamps_s(self) -> np.ndarray:
         """Per-frame time stamps in seconds from the first frame.

@@ -149,11 +149,8 @@ class TiffStackMovie(Movie):
             raise IndexError(f"frame {index} out of range 0..{self.info.n_frames - 1}")
         return self._page(index)
 
-    def sample(self, n: int) -> tuple[np.ndarray, list[np.ndarray]]:
-        """About ``n`` frames spread over the movie, each read alone (no read-ahead window)."""
-        total = self.info.n_frames
-        idx = np.unique(np.linspace(0, total - 1, min(n, total)).round().astype(int))
-        return idx, [self._page(int(i), random_access=True) for i in idx]
+    def _read_sampled(self, index: int) -> np.ndarray:
+        return self._page(index, random_access=True)
 
     def region(self, index: int, rows: slice, cols: slice) -> np.ndarray:
         """Read only a rectangle of one frame (fast on memory-mapped stacks)."""

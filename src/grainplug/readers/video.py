@@ -149,10 +149,10 @@ class VideoMovie(Movie):
         if total <= n:
             return np.arange(total), list(self.frames())
         if self.block_reader() is not None:  # raw video: copied from the file, nothing decoded
-            wanted = np.unique(np.linspace(0, total - 1, n).round().astype(int))
+            wanted = self._spread(n)
             return wanted, [self._raw_frame(int(k)) for k in wanted]
         if self._codec in INTRA_ONLY:
-            got = self._seek_sample(np.unique(np.linspace(0, total - 1, n).round().astype(int)))
+            got = self._seek_sample(self._spread(n))
             if got is not None:
                 return got
         try:
