@@ -82,6 +82,24 @@ def test_fit_without_one_hot_equals_full_design(rng):
         np.testing.assert_allclose(rss, float(np.sum(sw**2 * (y - A @ ref) ** 2)), rtol=1e-9)
 
 
+def test_fit_of_a_rank_deficient_design(rng):
+    """Edges seen only at whole periods: the harmonic columns vanish once the track offsets
+    are projected out, the normal equations are singular, and the fit falls back to lstsq:
+    the same fitted values and drift as the full design, no weight on the dead columns."""
+    n_tracks, f = 4, 5.0
+    t = np.repeat(np.arange(40) / f, 3)
+    tix = np.tile(np.arange(3), 40) + (np.arange(120) >= 60)
+    y = -30 * t + rng.normal(0, 0.3, t.size)
+    coef, rss, res = motion._fit_res(t, y, tix, n_tracks, f, 2)
+    A = motion._design(t, tix, n_tracks, f, 2)
+    ref, *_ = np.linalg.lstsq(A, y, rcond=None)
+    np.testing.assert_allclose(res, y - A @ ref, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(rss, float(np.sum((y - A @ ref) ** 2)), rtol=1e-9)
+    np.testing.assert_allclose(A @ coef, A @ ref, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(coef[0], ref[0], rtol=1e-8)
+    np.testing.assert_allclose(coef[-4:], 0.0, atol=1e-9)
+
+
 def _runs_by_loop(z, mask, pos):
     """One row at a time, one run at a time."""
     zs = ndimage.gaussian_filter1d(z.astype(np.float32), 0.7, axis=1, mode="nearest")

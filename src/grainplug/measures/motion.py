@@ -106,9 +106,8 @@ def _design(t: np.ndarray, track_idx: np.ndarray, n_tracks: int, f: float | None
     return np.hstack([B[:, :1], onehot, B[:, 1:]])
 
 
-def _fit_res(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
-             n_harm: int, weights: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
-    """(Weighted) least squares of ``_design``: coefficients, residual sum of squares, residuals.
+class _TrackFit:
+    """(Weighted) least squares of ``_design`` on fixed edges, for any frequency.
 
     Solved without forming the one-hot block: the track offsets are projected out
     by weighted within-track centring (Frisch-Waugh-Lovell), which leaves a small
@@ -116,26 +115,69 @@ def _fit_res(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: fl
     weighted track means of what the rest leaves. Same solution as the full
     design, at a cost linear in the number of edges (a track whose weights are all
     zero gets offset 0, as the minimum-norm solution of the full design would).
+
+    What does not depend on the frequency (the centred drift column and data, the
+    track sums) is computed once, so a scan over frequencies pays only for the
+    harmonics, which are evaluated once per distinct time (edges of the same frame
+    share it) by powers of ``exp(2 pi i f t)``.
     """
-    w = np.ones_like(y) if weights is None else weights
-    B = _drift_and_harmonics(t, f, n_harm)
-    wsum = np.bincount(tix, weights=w, minlength=n_tracks)
-    inv = np.divide(1.0, wsum, out=np.zeros(n_tracks), where=wsum > 0)
 
-    def centred(x: np.ndarray) -> np.ndarray:
-        if x.ndim == 1:
-            return x - (np.bincount(tix, weights=w * x, minlength=n_tracks) * inv)[tix]
-        means = np.stack([np.bincount(tix, weights=w * x[:, j], minlength=n_tracks) for j in range(x.shape[1])],
-                         axis=1) * inv[:, None]
-        return x - means[tix]
+    def __init__(self, t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int,
+                 weights: np.ndarray | None = None) -> None:
+        self.t, self.y, self.tix, self.n_tracks = t, y, tix, n_tracks
+        self.w = np.ones_like(y) if weights is None else weights
+        wsum = np.bincount(tix, weights=self.w, minlength=n_tracks)
+        self.inv = np.divide(1.0, wsum, out=np.zeros(n_tracks), where=wsum > 0)
+        self.sw = np.sqrt(self.w)
+        self.times, self.at_time = np.unique(t, return_inverse=True)
+        tc, yc = self._centred(np.stack([t, y], axis=1)).T
+        self.tc_w, self.yc_w = tc * self.sw, yc * self.sw
 
-    sw = np.sqrt(w)
-    beta, *_ = np.linalg.lstsq(centred(B) * sw[:, None], centred(y) * sw, rcond=None)
-    rest = y - B @ beta
-    offsets = np.bincount(tix, weights=w * rest, minlength=n_tracks) * inv
-    res = rest - offsets[tix]
-    coef = np.concatenate(([beta[0]], offsets, beta[1:]))
-    return coef, float(w @ (res * res)), res
+    def _centred(self, x: np.ndarray) -> np.ndarray:
+        """``x`` (edges x k) minus its weighted mean over each track, all columns at once."""
+        k = x.shape[1]
+        cell = (self.tix[:, None] * k + np.arange(k)).ravel()
+        sums = np.bincount(cell, weights=(self.w[:, None] * x).ravel(), minlength=self.n_tracks * k)
+        return x - (sums.reshape(self.n_tracks, k) * self.inv[:, None])[self.tix]
+
+    def harmonics(self, f: float, n_harm: int) -> np.ndarray:
+        """Columns ``cos(2 pi h f t), sin(2 pi h f t)``, ``h = 1 .. n_harm``, of every edge."""
+        z = np.exp(2j * np.pi * f * self.times)
+        zh = np.cumprod(np.broadcast_to(z[:, None], (len(z), n_harm)), axis=1)
+        cols = np.stack([zh.real, zh.imag], axis=2).reshape(len(z), 2 * n_harm)
+        return cols[self.at_time]
+
+    def solve(self, f: float | None, n_harm: int) -> tuple[np.ndarray, float, np.ndarray]:
+        """Coefficients (drift, track offsets, harmonics), residual sum of squares, residuals."""
+        if f and n_harm > 0:
+            h = self.harmonics(f, n_harm)
+            a = np.column_stack([self.tc_w, self._centred(h) * self.sw[:, None]])
+            beta = _least_squares(a, self.yc_w)
+            rest = self.y - beta[0] * self.t - h @ beta[1:]
+        else:
+            beta, *_ = np.linalg.lstsq(self.tc_w[:, None], self.yc_w, rcond=None)
+            rest = self.y - beta[0] * self.t
+        offsets = np.bincount(self.tix, weights=self.w * rest, minlength=self.n_tracks) * self.inv
+        res = rest - offsets[self.tix]
+        coef = np.concatenate(([beta[0]], offsets, beta[1:]))
+        return coef, float(self.w @ (res * res)), res
+
+
+def _least_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``argmin |a x - b|`` for a tall, thin ``a``: by the normal equations when they are
+    well conditioned (drift and harmonic columns are: a few times faster than an SVD
+    of ``a``), else by ``lstsq`` (minimum-norm, for a rank-deficient design)."""
+    g = a.T @ a
+    if np.linalg.cond(g) < 1e8:
+        return np.linalg.solve(g, a.T @ b)
+    return np.linalg.lstsq(a, b, rcond=None)[0]
+
+
+def _fit_res(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
+             n_harm: int, weights: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+    """(Weighted) least squares of ``_design``: coefficients, residual sum of squares, residuals
+    (see :class:`_TrackFit`)."""
+    return _TrackFit(t, y, tix, n_tracks, weights).solve(f, n_harm)
 
 
 def _fit(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
@@ -245,6 +287,7 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
         # best frequency near f_peak / m for m = 1, 2, 3; a sub-harmonic is kept only
         # when it explains clearly more (the peak was a harmonic of the true fundamental)
         best = None
+        fitter = _TrackFit(t, y, tix, n_tr, weights)  # the same edges and weights at every frequency
         for m in (1, 2, 3):
             f0 = f_peak / m
             if f0 < f_lo:
@@ -253,7 +296,7 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
 
             def scan(grid: np.ndarray, cand: tuple | None, m: int = m, nh: int = nh) -> tuple:
                 for f in grid:
-                    c_f, rss = _fit(t, y, tix, n_tr, float(f), nh, weights)
+                    c_f, rss, _ = fitter.solve(float(f), nh)
                     if cand is None or rss < cand[2]:
                         cand = (float(f), c_f, rss, m, nh)
                 return cand
