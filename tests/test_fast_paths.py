@@ -8,6 +8,7 @@ pairs for the falling grains, in-process drawing for the figure helper.
 
 from __future__ import annotations
 
+import os
 import pickle
 
 import numpy as np
@@ -186,6 +187,47 @@ def test_figure_worker_draws_in_a_helper_and_falls_back(result, tmp_path, monkey
         names = {p.name for p in fw.draw(result, fallback)}
         assert not fw.running
     assert names == {"diagram.png", "frame.png", "spectrum.png"}
+
+
+def test_figures_drawn_side_by_side_match_and_report_a_failure(result, tmp_path):
+    """The helper draws the figures in forked children (a process of its own: pytest's
+    may hold threads). Same files as drawn one by one; a child's failure is raised."""
+    import subprocess
+    import sys
+
+    job = tmp_path / "job.pkl"
+    job.write_bytes(pickle.dumps(figure_payload(result)))
+    serial, forked = tmp_path / "serial", tmp_path / "forked"
+    serial.mkdir()
+    forked.mkdir()
+    draw_figures(pickle.loads(job.read_bytes()), serial)
+    code = (
+        "import pickle, sys\n"
+        "import grainplug.plotting.figures as figures\n"
+        "from grainplug.outputs import draw_figures\n"
+        f"res = pickle.loads(open({str(job)!r}, 'rb').read())\n"
+        "if sys.argv[2] == 'fail':\n"
+        "    def boom(res):\n"
+        "        raise ValueError('no frame')\n"
+        "    figures.plot_annotated_frame = boom\n"
+        "    import grainplug.plotting as plotting\n"
+        "    plotting.plot_annotated_frame = boom\n"
+        "try:\n"
+        "    print(sorted(p.name for p in draw_figures(res, sys.argv[1], fork=True)))\n"
+        "except RuntimeError as exc:\n"
+        "    print('failed:', exc)\n"
+    )
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    ok = subprocess.run([sys.executable, "-c", code, str(forked), "ok"], capture_output=True, text=True,
+                        env=env, check=True)
+    assert ok.stdout.strip() == "['diagram.png', 'frame.png', 'spectrum.png']"
+    for name in ("diagram.png", "frame.png", "spectrum.png"):
+        assert (forked / name).read_bytes() == (serial / name).read_bytes()
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    bad = subprocess.run([sys.executable, "-c", code, str(broken), "fail"], capture_output=True, text=True,
+                         env=env, check=True)
+    assert bad.stdout.strip() == "failed: drawing frame.png failed"
 
 
 def _wait(cond, timeout=5.0):

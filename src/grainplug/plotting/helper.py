@@ -30,18 +30,26 @@ def _yield_to_the_analysis() -> None:
 
 
 def warm_up() -> None:
-    """Import what drawing needs and render a small figure with text once."""
+    """Import what drawing needs and draw once what the figures draw (an image, markers,
+    lines, a legend, text at their sizes), so that the caches are filled before the job."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import numpy as np
 
     from .. import analysis, outputs  # noqa: F401 - unpickling the job needs them
+    from . import figures  # noqa: F401 - what draws the job
 
-    fig, ax = plt.subplots(figsize=(1, 1))
-    ax.set_title("grainplug")
-    ax.plot([0, 1], [0, 1], "s")
-    fig.savefig(io.BytesIO(), format="png", dpi=20)
+    fig, ax = plt.subplots(figsize=(2, 2))
+    ax.imshow(np.linspace(0, 1, 64, dtype=np.float32).reshape(8, 8), cmap="gray", interpolation="nearest",
+              aspect="auto")
+    ax.plot([0, 1], [0, 1], "s", ms=2.2, mfc="none", mec="orange", label="a")
+    ax.plot([0, 1], [1, 0], "--", color="tab:red", label="b")
+    ax.legend(loc="upper right", fontsize=7)
+    ax.set_title("grainplug", fontsize=10)
+    ax.set_xlabel("time (s)")
+    fig.savefig(io.BytesIO(), format="png", dpi=20, pil_kwargs={"compress_level": 1})
     plt.close(fig)
 
 
@@ -55,7 +63,8 @@ def main() -> int:
         res, folder = pickle.load(sys.stdin.buffer)
         from ..outputs import draw_figures
 
-        reply: tuple[str, object] = ("ok", [str(p) for p in draw_figures(res, folder)])
+        # side by side: the analysis is over, its cores are free
+        reply: tuple[str, object] = ("ok", [str(p) for p in draw_figures(res, folder, fork=True)])
     except EOFError:  # the parent went away or needs no figures
         return 0
     except Exception as exc:  # reported to the parent, which draws the figures itself
