@@ -342,6 +342,53 @@ def test_readahead_asks_only_for_the_band_of_a_horizontal_tube(tmp_path, monkeyp
     assert whole.summary["celerity_m_s"] == res.summary["celerity_m_s"]
 
 
+@pytest.mark.parametrize("direction", ["down", "right"])
+def test_coarse_stage_band_holds_the_tube(direction):
+    """The band the tube search's first stage hands out holds the whole bore the second
+    stage measures, over every row, tilted or not."""
+    from grainplug.calibration import find_tube
+    from grainplug.synthetic.render import Renderer
+
+    cfg = SynthConfig(n_frames=16, seed=4, flow_direction=direction, width_px=600, height_px=760, tilt_deg=2.0)
+    r = Renderer(cfg)
+    frames = [r.frame(k) for k in range(0, 16, 2)]
+    seen = []
+    tube = find_tube(frames, on_coarse=lambda *a: seen.append(a))
+    (orientation, lo, hi), = seen
+    assert orientation == tube.orientation == ("vertical" if direction == "down" else "horizontal")
+    axis = tube.axis_x(np.array([0.0, tube.canonical_shape[0] - 1.0]))
+    half = 0.5 * tube.inner_diameter_px / np.cos(np.radians(tube.tilt_deg))
+    assert lo <= axis.min() - half and axis.max() + half <= hi
+    assert hi - lo < 0.5 * tube.canonical_shape[1]  # and it is a band, not the frame
+
+
+def test_readahead_narrows_at_the_coarse_stage_then_to_the_band(tmp_path, monkeypatch):
+    """Large landscape frames with a horizontal tube: the read-ahead is restricted as
+    soon as the first stage of the tube search knows where the tube lies (not after
+    the fine stage), then narrowed to the band the analysis reads, which lies within."""
+    from grainplug import _system
+    from grainplug.readers import base
+
+    movie = synthesize(SynthConfig(n_frames=24, seed=5, flow_direction="right", width_px=400, height_px=800,
+                                   celerity_m_s=-0.05), tmp_path, fmt="tiff").movie
+    seen: list[tuple] = []
+    original = base.Movie.prefetch_only
+
+    def spy(self, lo, hi):
+        taken = original(self, lo, hi)
+        seen.append((lo, hi, taken))
+        return taken
+
+    monkeypatch.setattr(base.Movie, "prefetch_only", spy)
+    monkeypatch.setattr(_system.ReadAhead, "MIN_SKIP_BYTES", 0)  # the test's frames are small
+    res = analyze(movie)
+    assert res.tube.orientation == "horizontal"
+    (lo1, hi1, taken1), (lo2, hi2, taken2) = seen
+    assert taken1 and taken2
+    assert lo1 <= lo2 < hi2 <= hi1
+    assert hi1 - lo1 < 0.5 * 800 * 400 * 3  # the first restriction already skips most of a frame
+
+
 def test_readahead_restricts_only_when_it_skips_enough(tmp_path, monkeypatch):
     import os
 

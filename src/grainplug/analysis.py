@@ -19,6 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+try:
+    from numpy.lib.array_utils import byte_bounds
+except ImportError:  # numpy < 2
+    from numpy import byte_bounds
+
 from ._system import ReadAhead
 from ._version import __version__
 from .calibration import TubeGeometry, find_tube
@@ -27,7 +32,7 @@ from .errors import ParameterError
 from .measures import Lengths, Motion, measure_lengths, measure_motion
 from .measures.grains import falling_grains
 from .plugs import Runs, Tracks, find_runs, link, plug_mask
-from .readers import MovieInfo, open_movie
+from .readers import Movie, MovieInfo, open_movie
 
 log = logging.getLogger(__name__)
 
@@ -155,6 +160,26 @@ def _flow_angle_deg(tube: TubeGeometry, reverse: bool) -> float:
     return float(np.degrees(np.arctan2(ey, ex)))
 
 
+def _early_restriction(movie: Movie, read_block: Callable[[int, int], np.ndarray] | None
+                       ) -> Callable[[str, int, int], None] | None:
+    """What to do when the tube search's first stage knows where the tube lies: ask the
+    read-ahead for those bytes of every frame only (a horizontal tube across wide frames),
+    so that the file is not read whole meanwhile (:meth:`Movie.prefetch_only`); the band
+    the analysis reads lies within, and narrows it once the tube is measured."""
+    if read_block is None or movie.frame_offsets() is None:
+        return None
+
+    def restrict(orientation: str, lo: int, hi: int) -> None:
+        frame = read_block(0, 1)[0]
+        part = frame[lo:hi] if orientation == "horizontal" else frame[:, lo:hi]
+        if part.size:
+            base = byte_bounds(frame)[0]
+            a, b = byte_bounds(part)
+            movie.prefetch_only(a - base, b - base)
+
+    return restrict
+
+
 def analyze(path: str | Path, params: AnalysisParams | None = None, *,
             progress: Callable[[int, int], None] | None = None, threads: int | None = None) -> AnalysisResult:
     """Analyse one movie of plug flow.
@@ -203,8 +228,10 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         lap("open_s")
         sample_idx, sample = movie.sample(params.sample_frames)
         movie.prefetch()  # the rest of the file is read while the tube is found
+        read_block = movie.block_reader()  # frames straight from the file, where the format allows
         lap("sample_s")
-        tube = find_tube(sample, orientation=orientation)
+        coarse_band = _early_restriction(movie, read_block)
+        tube = find_tube(sample, orientation=orientation, on_coarse=coarse_band)
         lap("tube_s")
         # keep a few of the sampled frames for the annotated figure, not all of them
         keep = np.unique(np.linspace(0, len(sample) - 1, min(len(sample), 6)).round().astype(int))
@@ -227,7 +254,6 @@ def analyze(path: str | Path, params: AnalysisParams | None = None, *,
         cb = (lambda k: progress(k, info.n_frames)) if progress else None
         lap("setup_s")
         n_threads = max(1, threads if threads is not None else (os.cpu_count() or 1))
-        read_block = movie.block_reader()  # frames straight from the file, where the format allows
         if read_block is not None:
             lo, hi = sampler.byte_span(read_block(0, 1)[0])
             if movie.prefetch_only(lo, hi):  # e.g. a horizontal tube: most of each frame is never read
