@@ -908,3 +908,24 @@ def test_readahead_reads_whole_files_through_the_kernel_and_falls_back(tmp_path,
     assert _wait(lambda: ra.requested_to == ra.size)
     assert asked == list(range(128 * 1024, 300_000, 64 * 1024))
     ra.close()
+
+
+def test_analysis_modules_import_scipy_filters_only_when_used():
+    """The figure helper imports grainplug.analysis to unpickle a result: that must not
+    pay for scipy.ndimage (~0.2 s); the first filter imports it."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "import grainplug.analysis, grainplug.outputs, grainplug.plotting.helper\n"
+        "print(sorted(m for m in ('scipy.ndimage', 'scipy.special', 'skimage.filters') if m in sys.modules))\n"
+        "from grainplug._lazy import ndimage\n"
+        "import numpy as np\n"
+        "out = ndimage.gaussian_filter1d(np.arange(5.0), 1.0)\n"
+        "real = sys.modules['scipy.ndimage']\n"
+        "print('scipy.ndimage' in sys.modules, ndimage.gaussian_filter1d is real.gaussian_filter1d)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split("\n")
+    assert out[0] == "[]"
+    assert out[1] == "True True"

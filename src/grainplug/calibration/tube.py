@@ -52,8 +52,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
+from .._lazy import ndimage
 from ..errors import MovieError
 
 log = logging.getLogger(__name__)

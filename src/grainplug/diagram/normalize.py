@@ -36,8 +36,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
-from skimage.filters import threshold_otsu
+
+from .._lazy import ndimage, skimage_filters
 
 MIN_SEPARATION_ETA = 0.8
 MIN_CLASS_FRACTION = 0.02
@@ -83,7 +83,7 @@ def _otsu(values: np.ndarray) -> tuple[float, float]:
     v = values[np.isfinite(values)]
     if v.size < 4 or np.ptp(v) == 0:
         return float(np.median(v)) if v.size else 0.0, 0.0
-    thr = float(threshold_otsu(v, nbins=512))
+    thr = float(skimage_filters.threshold_otsu(v, nbins=512))
     hi = v > thr
     w1 = hi.mean()
     if w1 in (0.0, 1.0):

@@ -18,7 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
+
+from .._lazy import ndimage
 
 #: frame pairs correlated at once
 PAIRS_PER_BLOCK = 64

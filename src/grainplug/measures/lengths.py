@@ -21,8 +21,8 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import stdtrit
 
+from .._lazy import special
 from ..plugs import Runs, Tracks
 
 
@@ -46,7 +46,7 @@ def _mean_ci(values: np.ndarray, scale_rel_sd: float) -> tuple[float, tuple[floa
         return m, None, None
     sd = float(np.std(values, ddof=1))
     se = np.hypot(sd / np.sqrt(len(values)), m * scale_rel_sd)
-    tq = float(stdtrit(len(values) - 1, 0.975))
+    tq = float(special.stdtrit(len(values) - 1, 0.975))
     return m, (m - tq * se, m + tq * se), sd
 
 

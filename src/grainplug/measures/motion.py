@@ -40,7 +40,8 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import stdtrit
+
+from .._lazy import special
 
 log = logging.getLogger(__name__)
 
@@ -336,7 +337,7 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     rho = float(np.clip(np.nan_to_num(rho), 0.0, 0.98))
     se_c = se * np.sqrt((1 + rho) / (1 - rho)) / 1000.0
     se_c = float(np.hypot(se_c, abs(celerity) * scale_rel_sd))
-    tq = float(stdtrit(max(len(tt) - 2, 1), 0.975))
+    tq = float(special.stdtrit(max(len(tt) - 2, 1), 0.975))
     ci = (celerity - tq * se_c, celerity + tq * se_c)
     return Motion(
         celerity_m_s=celerity, celerity_ci95_m_s=ci, regime=regime,
