@@ -13,7 +13,8 @@ flow, then measures in one run on the same file:
   (interpreter start, imports, tube detection, diagram, plugs, measures, files,
   figures, report; decode-only is timed inside its loop, without any start-up);
 - baseline: `baseline_paper_port` below on a subset of frames (every whole frame
-  converted to grey, binarised, labelled with scikit-image);
+  converted to grey, binarised, labelled with scikit-image), from memory, timed right
+  after each analysis so that each ratio compares timings seconds apart;
 - peak memory (max RSS) of `analyze`, also on a long movie (--long-frames);
 - from the disk, the share of the file the analysis read (``tiff-h``, a horizontal
   tube across landscape frames, needs only its band's rows);
@@ -163,23 +164,26 @@ def run_analyze(path: Path, out: Path) -> tuple[float, int, dict]:
     return seconds, info["rss"], json.loads(proc.stdout)
 
 
+def _baseline_now(path: Path, n_frames: int) -> float:
+    """The baseline's speed (fps) now, from memory: its frames read once first (timed from
+    the disk it once ran at 26 fps instead of ~47, flattering the ratios)."""
+    baseline_paper_port(path, n_frames)
+    n, seconds = baseline_paper_port(path, n_frames)
+    return n / seconds
+
+
 def measure(path: Path, label: str, out: Path, can_drop: bool, baseline_frames: int,
             repeat: int = 1) -> list[dict]:
     """Decode-only, analyze end to end and the baseline on one file, cold and warm.
 
-    Each (decode, analyze) pair is taken ``repeat`` times in a row; the row reports
-    the medians and the range of the ratio (a virtual machine's disk varies).
+    Each (decode, analyze, baseline) triple is taken ``repeat`` times in a row, the
+    baseline right after the analysis, so that each ratio compares timings taken within
+    seconds of each other (this machine's speed drifts by tens of percent within minutes);
+    the row reports the median ratios and the range of the ratio to decoding.
     """
-    # the baseline is a comparison of compute: its frames are read once first, then timed from
-    # memory (timed from the disk it once ran at 26 fps instead of ~47, flattering the ratios),
-    # three times: the median (a single timing once caught a slow spell of the machine at 30 fps)
-    baseline_paper_port(path, baseline_frames)
-    timed = sorted(baseline_paper_port(path, baseline_frames)[1] for _ in range(3))
-    bn, base_s = baseline_frames, timed[1]
-    fps_base = bn / base_s
     rows = []
     for cache in (("cold", "warm") if can_drop else ("warm",)):
-        pairs = []
+        runs = []
         for _ in range(repeat):
             if cache == "cold":
                 evict(path)
@@ -199,29 +203,39 @@ def measure(path: Path, label: str, out: Path, can_drop: bool, baseline_frames: 
             if cache == "cold":  # what the analysis brought into memory is what it read
                 got = resident_bytes(path)
                 summary["read_fraction"] = None if got is None else got / path.stat().st_size
-            pairs.append((dec_s, dec_cpu, an_s, rss, summary))
-        ratios = [p[0] / p[2] for p in pairs]
-        dec_s, dec_cpu, an_s, rss, summary = sorted(pairs, key=lambda p: p[0] / p[2])[len(pairs) // 2]
+            fps_base = _baseline_now(path, baseline_frames)
+            runs.append({"dec_s": dec_s, "dec_cpu": dec_cpu, "an_s": an_s, "rss": rss, "summary": summary,
+                         "fps_base": fps_base, "over_decode": dec_s / an_s,
+                         "over_baseline": n / an_s / fps_base})
+        ratios = [r["over_decode"] for r in runs]
+        mid = sorted(runs, key=lambda r: r["over_decode"])[len(runs) // 2]
+        dec_s, dec_cpu, an_s, summary = mid["dec_s"], mid["dec_cpu"], mid["an_s"], mid["summary"]
         tm = summary["timings_s"]
         fps_dec, fps_an = n / dec_s, n / an_s
+        by_base = sorted(r["over_baseline"] for r in runs)
+        fps_base = sorted(r["fps_base"] for r in runs)[len(runs) // 2]
         rows.append({"movie": label, "cache": cache, "frames": n, "gb": path.stat().st_size / 1e9,
                      "repeats": repeat, "ratio_min": min(ratios), "ratio_max": max(ratios),
                      "decode_s": dec_s, "analyze_s": an_s,
                      "decode_fps": fps_dec, "analyze_fps": fps_an, "stream_fps": tm["stream_fps"],
-                     "baseline_fps": fps_base, "analyze_over_decode": fps_an / fps_dec,
+                     "baseline_fps": fps_base, "baseline_fps_range": [min(r["fps_base"] for r in runs),
+                                                                      max(r["fps_base"] for r in runs)],
+                     "analyze_over_decode": fps_an / fps_dec,
                      "stream_over_decode": tm["stream_fps"] / fps_dec,
-                     "analyze_over_baseline": fps_an / fps_base,
-                     "stream_over_baseline": tm["stream_fps"] / fps_base,
-                     "peak_rss_mb": max(p[3] for p in pairs) / 1e6,
+                     "analyze_over_baseline": by_base[len(by_base) // 2],
+                     "baseline_ratio_min": by_base[0], "baseline_ratio_max": by_base[-1],
+                     "stream_over_baseline": tm["stream_fps"] / mid["fps_base"],
+                     "peak_rss_mb": max(r["rss"] for r in runs) / 1e6,
                      "decode_cpu_over_wall": dec_cpu / dec_s, "timings_s": tm,
                      "celerity_m_s": summary["celerity_m_s"],
                      "read_fraction": summary.get("read_fraction")})
         r = rows[-1]
         fixed = an_s - tm["stream_s"]
         spread = f" (range {r['ratio_min']:.2f}-{r['ratio_max']:.2f} over {repeat})" if repeat > 1 else ""
+        bspread = f" (range {by_base[0]:.1f}-{by_base[-1]:.1f})" if repeat > 1 else ""
         print(f"{label} {cache}: {n} frames, {_size(r['gb'])} | decode-only {fps_dec:7.1f} fps "
               f"(cpu/wall {r['decode_cpu_over_wall']:.2f}) | analyze end to end {fps_an:6.1f} fps = "
-              f"{r['analyze_over_decode']:.2f} x decode{spread}, {r['analyze_over_baseline']:.1f} x baseline "
+              f"{r['analyze_over_decode']:.2f} x decode{spread}, {r['analyze_over_baseline']:.1f} x baseline{bspread} "
               f"| streaming pass {tm['stream_fps']:7.1f} fps = {r['stream_over_decode']:.2f} x decode, "
               f"{r['stream_over_baseline']:.0f} x baseline | rest of the run {fixed:.2f} s | baseline "
               f"{fps_base:.1f} fps | peak RSS {r['peak_rss_mb']:.0f} MB{_read(r)}", flush=True)
@@ -243,14 +257,19 @@ def _range(r: dict) -> str:
     return f" ({r['ratio_min']:.2f}-{r['ratio_max']:.2f})" if r.get("repeats", 1) > 1 else ""
 
 
+def _brange(r: dict) -> str:
+    return f" ({r['baseline_ratio_min']:.0f}-{r['baseline_ratio_max']:.0f})" if r.get("repeats", 1) > 1 else ""
+
+
 def markdown(rows: list[dict]) -> str:
     """The table of docs/performance.md."""
     head = ("| movie | cache | decode only (fps) | analyze end to end (fps) | ratio (range) | streaming pass (fps) "
-            "| ratio | vs baseline: end to end / streaming | peak RSS | file read |\n" + "| --- " * 10 + "|\n")
+            "| ratio | vs baseline: end to end (range) / streaming | peak RSS | file read |\n" + "| --- " * 10 + "|\n")
     return head + "".join(
         f"| {r['movie']}, {r['frames']} fr., {_size(r['gb'])} | {r['cache']} | {r['decode_fps']:.0f} "
         f"| {r['analyze_fps']:.0f} | {r['analyze_over_decode']:.2f}{_range(r)} | {r['stream_fps']:.0f} "
-        f"| {r['stream_over_decode']:.2f} | {r['analyze_over_baseline']:.1f}x / {r['stream_over_baseline']:.0f}x "
+        f"| {r['stream_over_decode']:.2f} | {r['analyze_over_baseline']:.1f}x{_brange(r)} "
+        f"/ {r['stream_over_baseline']:.0f}x "
         f"| {r['peak_rss_mb']:.0f} MB | {_read(r, short=True)} |\n" for r in rows)
 
 

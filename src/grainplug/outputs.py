@@ -113,13 +113,14 @@ def _draw_one(res: AnalysisResult, folder: str | Path, key: str) -> Path:
 def draw_figures(res: AnalysisResult, folder: str | Path, *, fork: bool = False) -> list[Path]:
     """Draw the figures of ``res`` as PNG files in ``folder``.
 
-    With ``fork`` (the figure helper, a process without threads, on POSIX) every
+    With ``fork`` (the figure helper, a process without threads, on Linux) every
     figure but the first is drawn in a forked child, so that they are drawn side
     by side on the idle cores; the call returns when all are written and raises
     if a child failed. Otherwise they are drawn one after the other, in this process.
     """
     keys = _figures_of(res)
-    if not (fork and hasattr(os, "fork") and len(keys) > 1):
+    # Linux only: on macOS system frameworks are not safe to use in a forked child
+    if not (fork and sys.platform.startswith("linux") and len(keys) > 1):
         return [_draw_one(res, folder, key) for key in keys]
     children = []
     for key in keys[1:]:
