@@ -17,7 +17,6 @@ bound them and averaged the same way.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,6 +49,24 @@ def _mean_ci(values: np.ndarray, scale_rel_sd: float) -> tuple[float, tuple[floa
     return m, (m - tq * se, m + tq * se), sd
 
 
+def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int) -> np.ndarray:
+    """Median gap between each pair of tracks seen one after the other in a frame
+    (the bubble between them), for pairs seen in at least ``min_frames`` frames."""
+    u = np.nonzero(runs.frame[1:] == runs.frame[:-1])[0]  # runs sorted by frame, then position
+    d = u + 1
+    ok = np.isfinite(runs.bottom_mm[u]) & np.isfinite(runs.top_mm[d])
+    u, d = u[ok], d[ok]
+    if not u.size:
+        return np.zeros(0)
+    gap = runs.top_mm[d] - runs.bottom_mm[u]
+    ku, kd = tracks.run_track[u], tracks.run_track[d]
+    order = np.lexsort((kd, ku))
+    ku, kd, gap = ku[order], kd[order], gap[order]
+    starts = np.flatnonzero(np.r_[True, (ku[1:] != ku[:-1]) | (kd[1:] != kd[:-1])])
+    groups = np.split(gap, starts[1:])
+    return np.asarray([np.median(g) for g in groups if len(g) >= min_frames])
+
+
 def measure_lengths(runs: Runs, tracks: Tracks, *, scale_rel_sd: float = 0.0,
                     min_frames: int = 3) -> Lengths:
     """Mean plug and bubble lengths (see module notes)."""
@@ -66,15 +83,7 @@ def measure_lengths(runs: Runs, tracks: Tracks, *, scale_rel_sd: float = 0.0,
         plug, plug_ci, plug_sd = _mean_ci(vals, scale_rel_sd)
     else:
         plug, plug_ci, plug_sd = None, None, None
-    gaps: dict[tuple[int, int], list[float]] = {}
-    frames = runs.frame
-    for k in np.unique(frames):
-        idx = runs.in_frame(int(k))
-        for u, d in itertools.pairwise(idx):
-            if np.isfinite(runs.bottom_mm[u]) and np.isfinite(runs.top_mm[d]):
-                key = (int(tracks.run_track[u]), int(tracks.run_track[d]))
-                gaps.setdefault(key, []).append(float(runs.top_mm[d] - runs.bottom_mm[u]))
-    bub_vals = np.asarray([np.median(v) for v in gaps.values() if len(v) >= min_frames])
+    bub_vals = _bubble_medians(runs, tracks, min_frames)
     if bub_vals.size:
         bub, bub_ci, _ = _mean_ci(bub_vals, scale_rel_sd)
     else:

@@ -79,7 +79,7 @@ def close_rows(mask: np.ndarray, length: int) -> np.ndarray:
 def plug_mask(z: np.ndarray, *, mm_per_sample: float, min_plug_mm: float = 3.0,
               min_gap_mm: float = 0.6) -> np.ndarray:
     """Boolean plug mask of the diagram (frames x positions)."""
-    zs = ndimage.gaussian_filter(z.astype(np.float32), (0.7, 0.7), mode="nearest")
+    zs = ndimage.gaussian_filter(np.asarray(z, np.float32), (0.7, 0.7), mode="nearest")
     mask = zs > 0.5
     gap = max(1, int(round(min_gap_mm / mm_per_sample)))
     mask = close_rows(mask, gap + 1) | mask
@@ -107,7 +107,7 @@ def _crossings(zs: np.ndarray, rows: np.ndarray, i_out: np.ndarray, i_in: np.nda
 
 def find_runs(z: np.ndarray, mask: np.ndarray, position_mm: np.ndarray) -> Runs:
     """Runs of the mask with sub-pixel edges measured on ``z``."""
-    zs = ndimage.gaussian_filter1d(z.astype(np.float32), 0.7, axis=1, mode="nearest")
+    zs = ndimage.gaussian_filter1d(np.asarray(z, np.float32), 0.7, axis=1, mode="nearest")
     n_s = z.shape[1]
     ds = float(position_mm[1] - position_mm[0]) if n_s > 1 else 1.0
     s0 = float(position_mm[0])
