@@ -166,7 +166,7 @@ def _early_restriction(movie: Movie, read_block: Callable[[int, int], np.ndarray
     read-ahead for those bytes of every frame only (a horizontal tube across wide frames),
     so that the file is not read whole meanwhile (:meth:`Movie.prefetch_only`); the band
     the analysis reads lies within, and narrows it once the tube is measured."""
-    if read_block is None or movie.frame_offsets() is None:
+    if read_block is None:
         return None
 
     def restrict(orientation: str, lo: int, hi: int) -> None:

@@ -273,8 +273,8 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
     try:
         summary = res.summary
         summary.update(extra or {})
-        summary["outputs"] = {k: v for k, v in FILES.items()
-                              if k != "fig_spectrum" or (res.motion and res.motion.oscillation_frequency_hz)}
+        figures_of = _figures_of(res)
+        summary["outputs"] = {k: v for k, v in FILES.items() if not k.startswith("fig_") or k in figures_of}
         if figures:  # drawn meanwhile in the helper process, if any
             figures_done = (figure_worker.submit(res, tmp) if figure_worker is not None
                             else lambda: draw_figures(res, tmp))

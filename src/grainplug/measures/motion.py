@@ -181,12 +181,6 @@ def _fit_res(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: fl
     return _TrackFit(t, y, tix, n_tracks, weights).solve(f, n_harm)
 
 
-def _fit(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
-         n_harm: int, weights: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    coef, rss, _ = _fit_res(t, y, tix, n_tracks, f, n_harm, weights)
-    return coef, rss
-
-
 def _robust_weights(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int,
                     n_iter: int = 6) -> np.ndarray:
     """Tukey biweights of the drift fit: edges that do not follow the common motion
@@ -261,7 +255,8 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     if np.ptp(t) <= 0:
         return None
     weights = _robust_weights(t, y, tix, n_tr)
-    coef, _ = _fit(t, y, tix, n_tr, None, 0, weights)
+    fitter = _TrackFit(t, y, tix, n_tr, weights)  # the drift, then the same edges at every frequency
+    coef, _, _ = fitter.solve(None, 0)
     # the train's displacement about the drift: mean residual per frame (outliers left out)
     res = y - (coef[0] * t + coef[1 + tix])
     keep = weights > 0
@@ -288,7 +283,6 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
         # best frequency near f_peak / m for m = 1, 2, 3; a sub-harmonic is kept only
         # when it explains clearly more (the peak was a harmonic of the true fundamental)
         best = None
-        fitter = _TrackFit(t, y, tix, n_tr, weights)  # the same edges and weights at every frequency
         for m in (1, 2, 3):
             f0 = f_peak / m
             if f0 < f_lo:
