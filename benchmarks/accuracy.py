@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from grainplug.analysis import AnalysisParams, analyze
+from grainplug import AnalysisParams, analyze
 from grainplug.synthetic import synthesize
 from grainplug.synthetic.cases import (
     CASES,

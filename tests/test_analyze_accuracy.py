@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import pytest
 
-from grainplug.analysis import AnalysisParams, analyze
+from grainplug import AnalysisParams, analyze
 from grainplug.synthetic import synthesize
 from grainplug.synthetic.cases import (
     CASES,

@@ -13,7 +13,7 @@ import pytest
 import tifffile
 from scipy import ndimage
 
-from grainplug.analysis import AnalysisParams, analyze
+from grainplug import AnalysisParams, analyze
 
 
 def render(path, *, rng, n_frames=300, fps=250.0, h=720, w=160, mm_per_px=0.15, tube_px=20.0,

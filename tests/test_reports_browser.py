@@ -6,7 +6,7 @@ import shutil
 
 import pytest
 
-from grainplug.analysis import AnalysisParams, analyze
+from grainplug import AnalysisParams, analyze
 from grainplug.campaigns.paper import reproduce
 from grainplug.campaigns.paper_outputs import write_paper
 from grainplug.outputs import write_outputs

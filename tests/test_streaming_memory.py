@@ -6,7 +6,7 @@ import tracemalloc
 
 import pytest
 
-from grainplug.analysis import AnalysisParams, analyze
+from grainplug import AnalysisParams, analyze
 from grainplug.synthetic import SynthConfig, synthesize
 
 

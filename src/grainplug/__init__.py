@@ -1,1 +1,83 @@
-"""grainplug."""
+"""grainplug: density waves (granular plugs) in grain flows through narrow pipes.
+
+>>> import grainplug as gp
+>>> res = gp.analyze(gp.datasets.sample_movie())
+>>> res.summary["regime"]
+'propagative'
+
+The public API, imported on first use so that ``import grainplug`` stays fast:
+
+- :func:`analyze` (a path, an open :class:`Movie` or frames in memory) returning an
+  :class:`AnalysisResult`, tuned by :class:`AnalysisParams`; :func:`load_result`
+  reads a saved one back;
+- :func:`open_movie` for every supported format, :class:`Movie` and :class:`MovieInfo`;
+- :func:`synthesize` and :class:`SynthConfig`: synthetic movies with known truth;
+- :func:`analyze_stability`, :func:`sweep`, :class:`ModelParams`: the paper's linear
+  stability analysis (:mod:`grainplug.stability`);
+- :func:`run_campaign`: many movies from a manifest, optionally on Dask;
+- :mod:`datasets`: the sample movie and the paper's tables.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+from ._version import __version__
+
+#: public name -> module that defines it
+_EXPORTS = {
+    "analyze": "grainplug.pipeline",
+    "AnalysisParams": "grainplug.params",
+    "FLOW_DIRECTIONS": "grainplug.params",
+    "AnalysisResult": "grainplug.result",
+    "load_result": "grainplug.store",
+    "open_movie": "grainplug.readers",
+    "Movie": "grainplug.readers",
+    "MovieInfo": "grainplug.readers",
+    "synthesize": "grainplug.synthetic",
+    "SynthConfig": "grainplug.synthetic",
+    "analyze_stability": "grainplug.stability",
+    "sweep": "grainplug.stability",
+    "ModelParams": "grainplug.stability",
+    "run_campaign": "grainplug.campaigns.batch",
+    "GrainplugError": "grainplug.errors",
+    "MovieError": "grainplug.errors",
+    "ParameterError": "grainplug.errors",
+}
+_SUBMODULES = ("datasets", "stability", "synthetic", "readers", "plotting")
+
+__all__ = [
+    "FLOW_DIRECTIONS", "AnalysisParams", "AnalysisResult", "GrainplugError", "ModelParams", "Movie", "MovieError",
+    "MovieInfo", "ParameterError", "SynthConfig", "__version__", "analyze", "analyze_stability", "datasets",
+    "load_result", "open_movie", "plotting", "readers", "run_campaign", "stability", "sweep", "synthesize",
+    "synthetic",
+]
+
+
+def __getattr__(name: str) -> object:
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    elif name in _SUBMODULES:
+        value = importlib.import_module(f"grainplug.{name}")
+    else:
+        raise AttributeError(f"module 'grainplug' has no attribute {name!r}")
+    globals()[name] = value  # found directly from now on
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:  # for type checkers and IDEs: the names as if imported eagerly
+    from . import datasets, plotting, readers, stability, synthetic
+    from .campaigns.batch import run_campaign
+    from .errors import GrainplugError, MovieError, ParameterError
+    from .params import FLOW_DIRECTIONS, AnalysisParams
+    from .pipeline import analyze
+    from .readers import Movie, MovieInfo, open_movie
+    from .result import AnalysisResult
+    from .stability import ModelParams, analyze_stability, sweep
+    from .store import load_result
+    from .synthetic import SynthConfig, synthesize

@@ -73,11 +73,10 @@ class ReadAhead:
     size, hence the chunks), at most ``DEPTH`` queued at a time. A restricted
     read-ahead (:meth:`restrict`) asks for its many small ranges with
     ``WILLNEED``, all queued at once. The calls release the GIL, so the reads
-    overlap whatever the program does. :meth:`pause` lets the program's own small reads
-    (file headers, an index, sampled frames) have the disk first. One instance per
-    file at a time (:meth:`for_path`), so the command line can start it before its
-    imports and the reader adopt it. Only a hint: nothing is read into the
-    program, and without ``posix_fadvise`` it does nothing.
+    overlap whatever the program does. It is owned by the movie that started it
+    (:meth:`grainplug.readers.Movie.prefetch`) and stopped by :meth:`close` when that
+    movie is closed. Only a hint: nothing is read into the program, and without
+    ``posix_fadvise`` it does nothing.
     """
 
     #: read-ahead chunks queued at the disk at once (in bytes: DEPTH chunks)
@@ -88,17 +87,13 @@ class ReadAhead:
     MIN_SKIP_BYTES = 1 << 20
     PAGE = 4096
 
-    _registry: dict[str, ReadAhead] = {}  # noqa: RUF012 - shared on purpose
-    _registry_lock = threading.Lock()
-
-    def __init__(self, path: str | os.PathLike, limit: float, *, start: int = 0, paused: bool = False) -> None:
+    def __init__(self, path: str | os.PathLike, limit: float, *, start: int = 0) -> None:
         self.path = os.path.realpath(os.fspath(path))
         self.size = os.path.getsize(self.path)
         self.limit = float(limit)
         self._to = int(start)  # requested so far
         self._target = int(min(self.size, start + self.limit))
         self._closed = False
-        self._paused = paused  # paused: nothing is asked for until resume()
         self._cond = threading.Condition()
         self._chunk = readahead_chunk_bytes(self.path)
         self._frames: Sequence[int] | None = None  # restricted: offsets of the frames ...
@@ -106,17 +101,8 @@ class ReadAhead:
         self._next_frame = 0
         self._thread = None
         if hasattr(os, "posix_fadvise") and self.size > 0:
-            with ReadAhead._registry_lock:
-                ReadAhead._registry[self.path] = self
-            self._thread = threading.Thread(target=self._run, name="grainplug-readahead", daemon=True)
+            self._thread = threading.Thread(target=self._run, name="grainplug-readahead")
             self._thread.start()
-
-    @classmethod
-    def for_path(cls, path: str | os.PathLike) -> ReadAhead | None:
-        """The running read-ahead of ``path``, if any."""
-        with cls._registry_lock:
-            ra = cls._registry.get(os.path.realpath(os.fspath(path)))
-        return ra if ra is not None and not ra._closed else None
 
     def advance(self, position: int) -> None:
         """The reader is at byte ``position``: keep ``limit`` bytes beyond it requested."""
@@ -153,16 +139,6 @@ class ReadAhead:
         """Whether only part of each frame is asked for (:meth:`restrict`)."""
         return self._frames is not None
 
-    def pause(self) -> None:
-        """Ask for nothing more until :meth:`resume` (requests already queued complete)."""
-        with self._cond:
-            self._paused = True
-
-    def resume(self) -> None:
-        with self._cond:
-            self._paused = False
-            self._cond.notify()
-
     @property
     def requested_to(self) -> int:
         """Bytes requested from the start of the file (or the given start) so far."""
@@ -173,9 +149,11 @@ class ReadAhead:
         with self._cond:
             self._closed = True
             self._cond.notify()
-        with ReadAhead._registry_lock:
-            if ReadAhead._registry.get(self.path) is self:
-                del ReadAhead._registry[self.path]
+
+    def join(self, timeout: float | None = None) -> None:
+        """Wait for the background thread to end (after :meth:`close`)."""
+        if self._thread is not None:
+            self._thread.join(timeout)
 
     def _next_request(self) -> tuple[int, int] | None:
         """The next byte range to ask for, ``(lo, lo)`` when none is due yet, None when
@@ -216,7 +194,7 @@ class ReadAhead:
                         req = self._next_request()
                         if req is None:
                             return
-                        if not self._paused and req[1] > req[0]:
+                        if req[1] > req[0]:
                             break
                         self._cond.wait()
                     lo, hi = req
@@ -236,7 +214,7 @@ class ReadAhead:
                     queued += hi - lo
                     while queued > self.DEPTH * self._chunk:
                         # wait for the oldest request (its last byte): only DEPTH chunks' worth
-                        # queue at the disk, so a pause takes effect and other reads are not
+                        # queue at the disk, so that a close takes effect and other reads are not
                         # stuck behind the whole file
                         end, nbytes = inflight.popleft()
                         os.pread(fd, 1, end - 1)

@@ -2,8 +2,9 @@
 
 Every problem the user can fix (a missing file, a corrupt movie, a nonsense
 parameter) is raised as a :class:`GrainplugError` whose message is one line that
-names the problem and the fix. The CLI prints that line and exits non-zero; any
-other exception is a bug and is reported as such.
+names the problem and the fix, in terms of the data and of the library's own
+parameter names. The CLI prints that line (naming its flags where a parameter is
+at fault) and exits non-zero; any other exception is a bug and is reported as such.
 """
 
 from __future__ import annotations
@@ -18,4 +19,18 @@ class MovieError(GrainplugError):
 
 
 class ParameterError(GrainplugError, ValueError):
-    """A parameter is out of its meaningful range."""
+    """A parameter is out of its meaningful range.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong and how to fix it.
+    param : str, optional
+        The parameter at fault (a field of :class:`grainplug.AnalysisParams` or a
+        keyword argument), so that a front end can name its own spelling of it.
+    """
+
+    def __init__(self, message: str, *, param: str | None = None) -> None:
+        self.message = message
+        self.param = param
+        super().__init__(f"{param}: {message}" if param else message)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -25,8 +24,9 @@ def dumps(data: object) -> str:
     return json.dumps(data, indent=2, default=default) + "\n"
 
 
-def write_json(path: Path, data: object) -> None:
-    """Write JSON atomically (temporary name, then rename)."""
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(dumps(data))
-    os.replace(tmp, path)
+def write_json(path: str | Path, data: object) -> None:
+    """Write JSON atomically (:func:`grainplug._atomic.atomic_file`)."""
+    from ._atomic import atomic_file
+
+    with atomic_file(path) as tmp:
+        tmp.write_text(dumps(data))

@@ -48,12 +48,11 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import logging
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
-from .._lazy import ndimage
 from ..errors import MovieError
 
 log = logging.getLogger(__name__)
@@ -500,8 +499,7 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
                         method, (h, w))
 
 
-def find_tube(frames: list[np.ndarray], *, orientation: str | None = None,
-              on_coarse: Callable[[str, int, int], None] | None = None) -> TubeGeometry:
+def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> TubeGeometry:
     """Locate the tube from a sample of frames.
 
     Large frames are searched in two stages: the whole frame binned 2x2 (or
@@ -514,11 +512,6 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None,
         Frames spread over the movie (grey or RGB).
     orientation : {"vertical", "horizontal"}, optional
         Restrict the search (known from the flow direction).
-    on_coarse : callable, optional
-        Called as ``on_coarse(orientation, lo, hi)`` once the first stage has
-        found the tube of large frames: the tube lies within columns ``[lo, hi)``
-        of the frame turned upright (rows of the image for a horizontal tube).
-        The caller may start reading only those (not called for small frames).
 
     Returns
     -------
@@ -550,8 +543,6 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None,
     xs = x0 + (np.array([0.0, ch]) + 0.5) * tan_b
     lo = int(max(0, np.floor(xs.min() - reach)))
     hi = int(min(cw, np.ceil(xs.max() + reach) + 1))
-    if on_coarse is not None:
-        on_coarse(coarse.orientation, lo, hi)
     cm, cs, _ = mean_and_variation(frames, transpose=transpose, cols=slice(lo, hi))
     fine = _locate(cm, cs, "vertical", tilt_hint=coarse.tilt_deg)
     log.debug("coarse tube at binning %d: %s", b, coarse)

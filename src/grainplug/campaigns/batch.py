@@ -18,9 +18,6 @@ import dataclasses
 import hashlib
 import json
 import logging
-import os
-import shutil
-import tempfile
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -29,10 +26,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._atomic import atomic_directory
 from .._version import __version__
-from ..analysis import analyze, fingerprint
 from ..errors import GrainplugError
 from ..jsonio import dumps
+from ..outputs import write_outputs
+from ..pipeline import analyze, fingerprint
 from .fits import fit_line, summarize_lengths
 from .manifest import RunSpec, read_manifest
 
@@ -63,7 +62,7 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True,
                 threads: int | None = None) -> dict[str, object]:
     """Analyse one run into ``out_dir/runs/<run>`` (or reuse it); a record for the table.
 
-    ``threads``: reading threads of the analysis (see :func:`grainplug.analysis.analyze`);
+    ``threads``: reading threads of the analysis (see :func:`grainplug.analyze`);
     1 where runs already go in parallel.
     """
     run_dir = Path(out_dir) / "runs" / _safe_name(spec.run)
@@ -84,8 +83,6 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True,
         if old.get("batch", {}).get("run_key") == key:
             return {**record, "status": "cached", **_flat(old)}
     try:
-        from ..outputs import write_outputs
-
         res = analyze(spec.movie, spec.params, threads=threads)
         write_outputs(res, run_dir, figures=figures, report=figures,
                       extra={"batch": {"run": spec.run, "run_key": key, "meta": spec.meta}})
@@ -209,8 +206,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
 
 
 def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Path, figures: bool) -> None:
-    tmp = Path(tempfile.mkdtemp(prefix=".grainplug-", dir=out))
-    try:
+    with atomic_directory(out) as tmp:
         table.to_csv(tmp / "campaign.csv", index=False)
         pq = table.copy()
         for col in pq.columns:  # parquet needs one type per column
@@ -226,10 +222,6 @@ def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Pat
             from .report import campaign_report
 
             (tmp / "report.html").write_text(campaign_report(table, fits, tmp, names, meta))
-        for f in sorted(tmp.iterdir()):
-            os.replace(f, out / f.name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _campaign_figures(table: pd.DataFrame, folder: Path) -> list[str]:

@@ -26,8 +26,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..analysis import AnalysisParams
 from ..errors import ParameterError
+from ..params import AnalysisParams
 
 ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "flow_direction": str,
                  "glob": str, "min_plug_mm": float}

@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import html
 import json
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 from .. import datasets
+from .._atomic import atomic_directory
 from .._version import __version__
 from ..jsonio import dumps
 from .paper import D_MM, PaperReproduction, reproduction_text
@@ -64,10 +62,8 @@ def write_paper(rep: PaperReproduction, out_dir: str | Path, *, figures: bool = 
     """Write ``paper.json``, ``reproduction.md``, the figures and ``report.html`` into ``out_dir``."""
     from ..reports import images, page, provenance, table
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".grainplug-", dir=out))
-    try:
+    written: dict[str, Path] = {}
+    with atomic_directory(out_dir, written) as tmp:
         data = {"grainplug_version": __version__, **rep.as_dict()}
         (tmp / "paper.json").write_text(dumps(data))
         text = reproduction_text(rep)
@@ -86,10 +82,4 @@ def write_paper(rep: PaperReproduction, out_dir: str | Path, *, figures: bool = 
                 + provenance({"grainplug_version": __version__, "source": rep.source}))
         if figures:
             (tmp / "report.html").write_text(page("grainplug: reproduction of the paper", body))
-        written = {}
-        for f in sorted(tmp.iterdir()):
-            os.replace(f, out / f.name)
-            written[f.name] = out / f.name
-        return written
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    return written

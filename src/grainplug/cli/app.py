@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import logging
 from pathlib import Path
 
@@ -11,6 +10,7 @@ from rich.console import Console
 
 from .._version import __version__
 from ..errors import GrainplugError, ParameterError
+from ..params import FLOW_DIRECTIONS
 
 err_console = Console(stderr=True)
 
@@ -144,7 +144,7 @@ def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwar
 @click.option("--mm-per-px", type=float, default=None, help="Scale; by default measured from the tube's inner width.")
 @click.option("--tube-diameter-mm", type=float, default=None,
               help="Inner diameter of the tube, for the scale measured from the tube [default: 3].")
-@click.option("--flow-direction", type=click.Choice(["down", "up", "left", "right"]), default=None,
+@click.option("--flow-direction", type=click.Choice(FLOW_DIRECTIONS), default=None,
               help="Direction of the grain flow in the image [default: down for a vertical tube].")
 @click.option("--min-plug-mm", type=float, default=3.0, show_default=True,
               help="Shortest grain region counted as a plug.")
@@ -159,30 +159,25 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from ..analysis import AnalysisParams
-    from ..analysis import analyze as run_analysis
-    from ..outputs import FigureWorker, write_outputs
+    from ..params import AnalysisParams
+    from ..pipeline import analyze as run_analysis
 
     if mm_per_px is not None and tube_diameter_mm is not None:
         raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
                              "not both")
-    if threads is not None and threads < 1:
-        raise ParameterError(f"--threads {threads}: give at least 1 (or leave it out for one per core)")
     diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_)
-    # the figures' helper process starts now: it imports matplotlib while the frames stream
-    with FigureWorker() if not no_figures else contextlib.nullcontext() as figure_worker:
-        with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
-                      TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
-                      console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
-            task = bar.add_task(f"analysing {movie.name}", total=None)
+    with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
+                  TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
+                  console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
+        task = bar.add_task(f"analysing {movie.name}", total=None)
 
-            def progress(done: int, total: int) -> None:
-                bar.update(task, completed=done, total=total)
+        def progress(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
 
-            result = run_analysis(movie, params, progress=progress, threads=threads)
-        write_outputs(result, out, figures=not no_figures, report=not no_figures, figure_worker=figure_worker)
+        result = run_analysis(movie, params, progress=progress, threads=threads)
+    result.save(out, figures=not no_figures, report=not no_figures)
     s = result.summary
     if as_json:
         _echo_json(s)
@@ -333,13 +328,11 @@ def _stability_sweep(p, spec: str, *, k_min: float, k_max: float, n_k: int, as_j
 
 
 def _save_figure(fig, path: Path) -> None:
-    """Save a figure atomically (temporary name, then rename)."""
-    import os
+    """Save a figure atomically."""
+    from .._atomic import atomic_file
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".part")
-    fig.savefig(tmp, dpi=120, format=path.suffix.lstrip(".") or "png")
-    os.replace(tmp, path)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=120, format=path.suffix.lstrip(".") or "png")
 
 
 @cli.command()

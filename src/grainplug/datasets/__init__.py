@@ -1,4 +1,8 @@
-"""Data shipped with grainplug: the paper's Tables 1 and 2.
+"""Data shipped with grainplug: a sample movie with its truth, and the paper's Tables 1 and 2.
+
+:func:`sample_movie` is a short synthetic movie of propagative plug flow (H.264,
+400 frames at 250 fps, 0.185 mm/px), rendered with known truth (:func:`sample_truth`):
+what the README and the tutorial analyse.
 
 Source: C. A. Alvarez, E. M. Franklin, *Intermittent gravity-driven flow of
 grains through narrow pipes*, Physica A 465 (2017) 725-741,
@@ -14,6 +18,7 @@ from __future__ import annotations
 import json
 from functools import cache
 from importlib import resources
+from pathlib import Path
 
 import pandas as pd
 
@@ -24,6 +29,16 @@ _PKG = "grainplug.data"
 def source() -> dict:
     """Citation, DOI, captions and conditions of the shipped tables."""
     return json.loads(resources.files(_PKG).joinpath("alvarez_franklin_2017.json").read_text())
+
+
+def sample_movie() -> Path:
+    """Path of the bundled sample movie (``plugflow_sample.mp4``)."""
+    return Path(str(resources.files(_PKG).joinpath("sample").joinpath("plugflow_sample.mp4")))
+
+
+def sample_truth() -> dict:
+    """What the sample movie holds (celerity, plug and bubble lengths, scale...), as rendered."""
+    return json.loads(resources.files(_PKG).joinpath("sample").joinpath("plugflow_sample_truth.json").read_text())
 
 
 def _read(name: str) -> pd.DataFrame:
@@ -59,4 +74,4 @@ def paper_runs() -> pd.DataFrame:
     return pd.concat([table1()[cols], table2()[cols]], ignore_index=True)
 
 
-__all__ = ["paper_runs", "source", "table1", "table2"]
+__all__ = ["paper_runs", "sample_movie", "sample_truth", "source", "table1", "table2"]

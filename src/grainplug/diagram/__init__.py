@@ -1,6 +1,6 @@
-"""The spatiotemporal diagram: built from the movie, normalised from its own data."""
+"""The spatiotemporal diagram: the band it is made from, normalised from its own data."""
 
-from .extract import BandSampler, Diagram, build_diagram, build_diagram_blocks
+from .extract import Diagram, band_along_tube, display_stride
 from .normalize import Normalized, normalize
 
-__all__ = ["BandSampler", "Diagram", "Normalized", "build_diagram", "build_diagram_blocks", "normalize"]
+__all__ = ["Diagram", "Normalized", "band_along_tube", "display_stride", "normalize"]

@@ -36,8 +36,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from .._lazy import ndimage, skimage_filters
+from scipy import ndimage
+from skimage import filters as skimage_filters
 
 MIN_SEPARATION_ETA = 0.8
 MIN_CLASS_FRACTION = 0.02

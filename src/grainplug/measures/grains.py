@@ -18,8 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from .._lazy import ndimage
+from scipy import ndimage
 
 #: frame pairs correlated at once
 PAIRS_PER_BLOCK = 64

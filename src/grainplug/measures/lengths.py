@@ -17,11 +17,11 @@ bound them and averaged the same way.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import special
 
-from .._lazy import special
 from ..plugs import Runs, Tracks
 
 
@@ -37,6 +37,10 @@ class Lengths:
     bubble_length_mm: float | None
     bubble_length_ci95_mm: tuple[float, float] | None
     n_bubbles_measured: int
+    #: track ids (upstream, downstream) of the plugs either side of each bubble measured
+    bubble_tracks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    #: median length of each of those bubbles
+    per_bubble_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def _mean_ci(values: np.ndarray, scale_rel_sd: float) -> tuple[float, tuple[float, float] | None, float | None]:
@@ -49,22 +53,26 @@ def _mean_ci(values: np.ndarray, scale_rel_sd: float) -> tuple[float, tuple[floa
     return m, (m - tq * se, m + tq * se), sd
 
 
-def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int) -> np.ndarray:
+def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int) -> tuple[np.ndarray, np.ndarray]:
     """Median gap between each pair of tracks seen one after the other in a frame
-    (the bubble between them), for pairs seen in at least ``min_frames`` frames."""
+    (the bubble between them), for pairs seen in at least ``min_frames`` frames,
+    and the pairs ``(upstream track, downstream track)``."""
     u = np.nonzero(runs.frame[1:] == runs.frame[:-1])[0]  # runs sorted by frame, then position
     d = u + 1
     ok = np.isfinite(runs.bottom_mm[u]) & np.isfinite(runs.top_mm[d])
     u, d = u[ok], d[ok]
     if not u.size:
-        return np.zeros(0)
+        return np.zeros(0), np.zeros((0, 2), np.int64)
     gap = runs.top_mm[d] - runs.bottom_mm[u]
     ku, kd = tracks.run_track[u], tracks.run_track[d]
     order = np.lexsort((kd, ku))
     ku, kd, gap = ku[order], kd[order], gap[order]
     starts = np.flatnonzero(np.r_[True, (ku[1:] != ku[:-1]) | (kd[1:] != kd[:-1])])
     groups = np.split(gap, starts[1:])
-    return np.asarray([np.median(g) for g in groups if len(g) >= min_frames])
+    kept = np.asarray([len(g) >= min_frames for g in groups], bool)
+    medians = np.asarray([np.median(g) for g in groups], float).reshape(-1)
+    pairs = np.stack([ku[starts], kd[starts]], axis=1).astype(np.int64)
+    return medians[kept], pairs[kept]
 
 
 def measure_lengths(runs: Runs, tracks: Tracks, *, scale_rel_sd: float = 0.0,
@@ -83,9 +91,10 @@ def measure_lengths(runs: Runs, tracks: Tracks, *, scale_rel_sd: float = 0.0,
         plug, plug_ci, plug_sd = _mean_ci(vals, scale_rel_sd)
     else:
         plug, plug_ci, plug_sd = None, None, None
-    bub_vals = _bubble_medians(runs, tracks, min_frames)
+    bub_vals, bub_pairs = _bubble_medians(runs, tracks, min_frames)
     if bub_vals.size:
         bub, bub_ci, _ = _mean_ci(bub_vals, scale_rel_sd)
     else:
         bub, bub_ci = None, None
-    return Lengths(plug, plug_ci, plug_sd, per_track, len(per_track), bub, bub_ci, int(bub_vals.size))
+    return Lengths(plug, plug_ci, plug_sd, per_track, len(per_track), bub, bub_ci, int(bub_vals.size),
+                   bub_pairs, bub_vals)

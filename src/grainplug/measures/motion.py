@@ -40,8 +40,7 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-
-from .._lazy import special
+from scipy import special
 
 log = logging.getLogger(__name__)
 

@@ -4,14 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-import matplotlib
-
-matplotlib.use("Agg", force=False)
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
 from ..campaigns.fits import LinearFit
+from ._figure import new_figure
 
 MARKERS = ("o", "^", "D", "v", "s", "P", "X")
 LINES = ("-", "--", "-.", ":")
@@ -34,7 +31,7 @@ def plot_vs_mass_flow(groups: Mapping[str, tuple[np.ndarray, np.ndarray]],
     hline : float, optional
         A reference level (e.g. 10 D).
     """
-    fig, ax = plt.subplots(figsize=(6.4, 4.6), constrained_layout=True)
+    fig, ax = new_figure(figsize=(6.4, 4.6), constrained_layout=True)
     for i, (name, (x, y)) in enumerate(groups.items()):
         x = np.asarray(x, float)
         y = np.asarray(y, float)

@@ -5,27 +5,33 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import matplotlib
-
-matplotlib.use("Agg", force=False)
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
 from ..diagram.extract import display_stride
+from ..params import runs_backwards
+from ._figure import new_figure
 
 if TYPE_CHECKING:
-    from ..analysis import AnalysisResult
+    from matplotlib.axes import Axes
+
+    from ..result import AnalysisResult
 
 
-def plot_diagram(res: AnalysisResult, *, max_markers: int = 4000) -> Figure:
+def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: int = 4000) -> Figure:
     """Spatiotemporal diagram with the detected upper (orange squares) and lower (blue
     circles) plug edges and the mean-celerity line (dashed), as in the paper's Figs 5-8
-    (which draw the upper edges black, invisible here over dark plugs)."""
+    (which draw the upper edges black, invisible here over dark plugs).
+
+    Drawn into ``ax`` when given (its figure is returned), else into a new figure.
+    """
     d = res.diagram
-    # fixed margins (this layout never changes): a layout engine would double the drawing time
-    fig, ax = plt.subplots(figsize=(9, 5.5))
-    fig.subplots_adjust(left=0.075, right=0.985, bottom=0.09, top=0.94)
+    if ax is None:
+        # fixed margins (this layout never changes): a layout engine would double the drawing time
+        fig, ax = new_figure(figsize=(9, 5.5))
+        fig.subplots_adjust(left=0.075, right=0.985, bottom=0.09, top=0.94)
+    else:
+        fig = ax.figure
     t, s = d.time_s, d.position_mm
     # at most ~1200 samples a side (a no-op when the values were already thinned for display)
     step_t, step_s = display_stride(d.values.shape)
@@ -70,7 +76,7 @@ def plot_diagram(res: AnalysisResult, *, max_markers: int = 4000) -> Figure:
 def plot_spectrum(res: AnalysisResult) -> Figure:
     """Displacement of the plug train about its drift, and its amplitude spectrum."""
     m = res.motion
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5.5), constrained_layout=True)
+    fig, (a1, a2) = new_figure(2, 1, figsize=(8, 5.5), constrained_layout=True)
     x = m.displacement_mm - m.celerity_m_s * 1000 * m.time_s
     a1.plot(m.time_s, x - np.nanmean(x), "k-", lw=0.8)
     a1.set_xlabel("time (s)")
@@ -104,7 +110,7 @@ def plot_annotated_frame(res: AnalysisResult) -> Figure:
         img = img / max(float(img.max()), 1.0)
     extent = (lo - 0.5, lo + crop.shape[1] - 0.5, crop.shape[0] - 0.5, -0.5) if vertical else (
         -0.5, crop.shape[1] - 0.5, lo + crop.shape[0] - 0.5, lo - 0.5)
-    fig, ax = plt.subplots(figsize=(4.5, 8) if vertical else (9, 4.5))
+    fig, ax = new_figure(figsize=(4.5, 8) if vertical else (9, 4.5))
     fig.subplots_adjust(left=0.02, right=0.98, bottom=0.01, top=0.93 if vertical else 0.88)
     ax.imshow(img, cmap="gray", interpolation="nearest", extent=extent)
     rows = np.arange(h, dtype=float)
@@ -123,7 +129,7 @@ def plot_annotated_frame(res: AnalysisResult) -> Figure:
     runs = res.runs
     sel = runs.frame == res.sample_frame_index
     cos_t = np.cos(np.radians(tube.tilt_deg))
-    reverse = res.flow_direction in ("up", "left")
+    reverse = runs_backwards(res.flow_direction)
     for top, bot in zip(runs.top_mm[sel], runs.bottom_mm[sel], strict=True):
         for pos, color in ((top, "red"), (bot, "deepskyblue")):
             if not np.isfinite(pos):

@@ -4,12 +4,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import matplotlib
-
-matplotlib.use("Agg", force=False)
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
+
+from ._figure import new_figure
 
 if TYPE_CHECKING:
     from ..stability import StabilityResult
@@ -21,7 +19,7 @@ def plot_growth_rates(res: StabilityResult, *, zoom_k_max: float = 0.8) -> Figur
     """(a) the three growth rates over the whole range, (b) over ``0 <= k* <= zoom_k_max``."""
     from ..stability import analyze_stability
 
-    fig, axes = plt.subplots(2, 1, figsize=(7, 7.5), constrained_layout=True)
+    fig, axes = new_figure(2, 1, figsize=(7, 7.5), constrained_layout=True)
     zoom = analyze_stability(res.params, np.linspace(max(res.k[0], 1e-4), zoom_k_max, 1600))
     for ax, r, label in ((axes[0], res, "(a)"), (axes[1], zoom, "(b)")):
         for j in range(3):

@@ -17,8 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from .._lazy import ndimage
+from scipy import ndimage
 
 
 @dataclass(frozen=True)

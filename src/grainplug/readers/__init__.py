@@ -1,12 +1,17 @@
-"""Movie readers: one entry point, :func:`open_movie`, for every format.
+"""All movie I/O: one protocol (:class:`Movie`), one entry point (:func:`open_movie`).
 
-Frames are streamed one at a time as numpy arrays, so memory use does not
-depend on the movie's length.
+Every format is a :class:`Movie`: it describes itself (:class:`MovieInfo`), hands
+out frames as numpy arrays, and serves the analysis's one streaming call,
+:meth:`Movie.read_band`, the fastest way the format allows. Frames already in
+memory (numpy or dask arrays) are a movie too (:class:`ArrayMovie`). To add a
+format: subclass :class:`Movie` (``_iter`` at least; ``_block_reader`` for frames
+that can be memory-mapped), and add it to :func:`open_movie`.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 from pathlib import Path
 
 from ..errors import MovieError, ParameterError
@@ -19,15 +24,16 @@ TIFF_SUFFIXES = (".tif", ".tiff")
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov", ".m4v", ".webm", ".mj2", ".nut")
 
 
-def open_movie(path: str | Path, *, glob: str | None = None, fps: float | None = None,
+def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float | None = None,
                verify: bool = False) -> Movie:
     """Open a movie of any supported kind for streaming.
 
     Parameters
     ----------
-    path : str or Path
+    path : str or Path or array
         A video file (AVI, MP4, MKV, MOV...), a multi-page TIFF, a folder of
-        numbered images, a Phantom ``.cine`` or a Photron ``.mraw``/``.cih``.
+        numbered images, a Phantom ``.cine`` or a Photron ``.mraw``/``.cih``;
+        or frames in memory, ``T x H x W`` or ``T x H x W x 3`` (numpy, dask).
     glob : str, optional
         For folders: only images matching this pattern (e.g. ``"cam1_*.png"``).
     fps : float, optional
@@ -46,9 +52,16 @@ def open_movie(path: str | Path, *, glob: str | None = None, fps: float | None =
     MovieError
         With a one-line message when the path is missing, empty, corrupt or not a movie.
     """
-    p = Path(path).expanduser()
     if fps is not None and not (fps > 0):
-        raise ParameterError(f"fps must be positive, got {fps} — pass the camera's frame rate")
+        raise ParameterError(f"must be positive, got {fps} — give the camera's frame rate", param="fps")
+    if not isinstance(path, (str, os.PathLike)):
+        if hasattr(path, "shape") or isinstance(path, (list, tuple)):
+            from .array import ArrayMovie
+
+            return ArrayMovie(path, fps=fps)
+        raise MovieError(f"cannot open a {type(path).__name__} as a movie — pass a path, a Movie or an array "
+                         "of frames")
+    p = Path(path).expanduser()
     if not p.exists():
         raise MovieError(f"no such file or folder: {p} — check the path")
     if p.is_dir():
@@ -77,4 +90,20 @@ def open_movie(path: str | Path, *, glob: str | None = None, fps: float | None =
     return VideoMovie(p, fps=fps, verify=verify)
 
 
-__all__ = ["Movie", "MovieError", "MovieInfo", "list_images", "natural_key", "open_movie"]
+def as_movie(source: object, *, fps: float | None = None, glob: str | None = None) -> Movie:
+    """``source`` as a :class:`Movie`: a Movie as it is, anything else through :func:`open_movie`."""
+    if isinstance(source, Movie):
+        return source
+    return open_movie(source, fps=fps, glob=glob)
+
+
+def __getattr__(name: str) -> object:
+    if name == "ArrayMovie":
+        from .array import ArrayMovie
+
+        return ArrayMovie
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["ArrayMovie", "Movie", "MovieError", "MovieInfo", "as_movie", "list_images", "natural_key",
+           "open_movie"]

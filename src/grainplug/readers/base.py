@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import abc
+import logging
 import math
 import mmap
 import os
@@ -13,7 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from .._system import READAHEAD_MEMORY_SHARE, ReadAhead, free_memory_bytes
+from ..band import Band
 from ..errors import MovieError
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -95,7 +99,7 @@ def map_file(path: str | Path, offset: int, shape: tuple[int, ...], dtype: np.dt
     """Read-only memory map of an array of ``shape`` and ``dtype`` at byte ``offset`` of ``path``.
 
     ``sparse``: the caller will touch a small part of the map, already asked for
-    (:meth:`Movie.prefetch_only`); the kernel is told so (``MADV_RANDOM``), so that
+    (:meth:`Movie._prefetch_only`); the kernel is told so (``MADV_RANDOM``), so that
     a page it must still read from the disk comes alone, not with the megabytes
     around it that its read-ahead would otherwise bring in.
     """
@@ -168,24 +172,19 @@ class Movie(abc.ABC):
         return self._iter(start, stop, step)
 
     def prefetch(self) -> None:
-        """Ask the operating system to start reading the movie into its cache.
+        """Hint that the whole movie will be read soon: start reading it into the cache.
 
-        Returns at once; a background thread asks the kernel for the file chunk by
-        chunk (:class:`grainplug._system.ReadAhead`), so the reads overlap whatever
-        the caller does next (finding the tube) and the streaming pass finds the
-        data in memory. At most half of the free memory is asked for: a movie
-        larger than that is read ahead in a window that :meth:`_advise_ahead` moves
-        along with the stream, so the read-ahead never evicts frames before they
-        are used. Stopped when the movie is closed; a no-op for folders.
+        Returns at once; a background thread owned by this movie asks the kernel
+        for the file chunk by chunk (:class:`grainplug._system.ReadAhead`), so the
+        reads overlap whatever the caller does next (finding the tube) and
+        :meth:`read_band` then finds the data in memory. At most half of the free
+        memory is asked for: a larger movie is read ahead in a window that moves
+        with the stream. Stopped when the movie is closed; a no-op for folders
+        and in-memory arrays.
         """
         if getattr(self, "_readahead", None) is not None or not self.path.is_file():
             return
-        running = ReadAhead.for_path(self.path)  # started by the command line: adopt it
-        if running is not None:
-            running.resume()
-            self._readahead = running
-        else:
-            self._readahead = ReadAhead(self.path, free_memory_bytes() * READAHEAD_MEMORY_SHARE)
+        self._readahead = ReadAhead(self.path, free_memory_bytes() * READAHEAD_MEMORY_SHARE)
 
     def _advise_ahead(self, position: int) -> None:
         """The stream is at byte ``position`` of the file: move the read-ahead window."""
@@ -193,41 +192,42 @@ class Movie(abc.ABC):
         if ra is not None:
             ra.advance(position)
 
-    def prefetch_only(self, lo: int, hi: int) -> bool:
+    def _prefetch_only(self, lo: int, hi: int) -> bool:
         """Restrict the read-ahead to bytes ``[lo, hi)`` of every frame.
 
         Offsets count from the lowest-addressed byte of a frame as
-        :meth:`block_reader` returns it (:meth:`frame_offsets`). The analysis calls
-        it with the bytes its band of the tube touches: where the tube crosses a
+        :meth:`_block_reader` returns it (:meth:`_frame_offsets`). :meth:`read_band`
+        calls it with the bytes its band touches: where the tube crosses a
         wide frame (a horizontal tube in a landscape frame) most of the file is
         then never read. Returns whether the read-ahead took it
         (:meth:`grainplug._system.ReadAhead.restrict`: only when it skips enough).
         """
         ra = getattr(self, "_readahead", None)
-        offsets = self.frame_offsets()
+        offsets = self._frame_offsets()
         if ra is None or offsets is None:
             return False
         return ra.restrict(offsets, lo, hi)
 
     @property
     def _sparse(self) -> bool:
-        """Whether the read-ahead asks for part of each frame only (:meth:`prefetch_only`):
+        """Whether the read-ahead asks for part of each frame only (:meth:`_prefetch_only`):
         then maps must not pull in the rest (:func:`map_file` with ``sparse``)."""
         ra = getattr(self, "_readahead", None)
         return ra is not None and ra.restricted
 
-    def frame_offsets(self) -> np.ndarray | None:
+    def _frame_offsets(self) -> np.ndarray | None:
         """File offset of each frame's first byte, for frames stored uncompressed at
-        known places (those :meth:`block_reader` maps), else None."""
+        known places (those :meth:`_block_reader` maps), else None."""
         return None
 
     def _stop_prefetch(self) -> None:
         ra = getattr(self, "_readahead", None)
         if ra is not None:
             ra.close()
+            ra.join()
             self._readahead = None
 
-    def block_reader(self) -> Callable[[int, int], np.ndarray] | None:
+    def _block_reader(self) -> Callable[[int, int], np.ndarray] | None:
         """A function ``(start, count) -> frames`` that any thread may call, or None.
 
         Readers whose frames can be reached independently (memory-mapped
@@ -237,7 +237,7 @@ class Movie(abc.ABC):
         """
         return None
 
-    def analysis_frames(self) -> Iterator[np.ndarray]:
+    def _analysis_frames(self) -> Iterator[np.ndarray]:
         """All frames, in order, in whatever layout is cheapest to read.
 
         For grey-level analysis only: colour channels may come in any order (or
@@ -245,6 +245,50 @@ class Movie(abc.ABC):
         valid until the next one is produced.
         """
         return self.frames()
+
+    def read_band(self, band: Band, *, threads: int | None = None,
+                  progress: Callable[[int], None] | None = None) -> np.ndarray:
+        """The band's profile of every frame: the one streaming call the analysis makes.
+
+        Parameters
+        ----------
+        band : Band
+            Which pixels to average at each position along the tube.
+        threads : int, optional
+            Threads reading frames where the format allows it (memory-mapped
+            uncompressed frames); default one per core. Results do not depend on it.
+        progress : callable, optional
+            Called with the number of frames done, now and then.
+
+        Returns
+        -------
+        ndarray, shape (n_frames, band.n_positions), float32
+            Fewer rows if the stream ended early.
+
+        Notes
+        -----
+        Each reader serves it the fastest way it can: uncompressed frames at
+        known places are memory-mapped in blocks read by several threads, and the
+        read-ahead (:meth:`prefetch`) is restricted to the bytes the band
+        touches where that skips most of each frame; other formats are decoded
+        once, in order, in their native layout. All give the numbers of
+        :meth:`grainplug.band.Band.profile`.
+        """
+        from .band import BandGather, profiles_from_blocks, profiles_from_frames
+
+        n = self.info.n_frames
+        if band.frame_shape != (self.info.height, self.info.width):
+            raise ValueError(f"the band was made for {band.frame_shape} frames, not "
+                             f"{(self.info.height, self.info.width)}")
+        read_block = self._block_reader()
+        if read_block is None:
+            return profiles_from_frames(self._analysis_frames(), band, n_frames=n, progress=progress)
+        lo, hi = BandGather(band).byte_span(read_block(0, 1)[0])
+        if self._prefetch_only(lo, hi):  # e.g. a horizontal tube: most of each frame is never read
+            stride = int(np.diff(self._frame_offsets()[:2])[0])
+            log.info("reading %.1f%% of each frame from the disk (the tube's band)", 100.0 * (hi - lo) / stride)
+        n_threads = max(1, threads if threads is not None else (os.cpu_count() or 1))
+        return profiles_from_blocks(read_block, band, n_frames=n, threads=n_threads, progress=progress)
 
     def __iter__(self) -> Iterator[np.ndarray]:
         return self.frames()

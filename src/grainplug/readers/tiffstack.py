@@ -105,7 +105,7 @@ class TiffStackMovie(Movie):
         self._advise_ahead(self._contiguous[0] + start * self._frame_bytes)
         return self._map(start, count)
 
-    def analysis_frames(self) -> Iterator[np.ndarray]:
+    def _analysis_frames(self) -> Iterator[np.ndarray]:
         """Frames as views into memory maps of a few frames at a time (uncompressed stacks):
         only the bytes the caller touches are read, and each map is released after use."""
         if self._contiguous is None:
@@ -118,12 +118,12 @@ class TiffStackMovie(Movie):
                 yield frame[..., :3] if mm.ndim == 4 and mm.shape[-1] == 4 else frame
             del mm  # unmapped as soon as the caller drops its last view
 
-    def frame_offsets(self) -> np.ndarray | None:
+    def _frame_offsets(self) -> np.ndarray | None:
         if self._contiguous is None:
             return None
         return self._contiguous[0] + np.arange(self.info.n_frames, dtype=np.int64) * self._frame_bytes
 
-    def block_reader(self) -> Callable[[int, int], np.ndarray] | None:
+    def _block_reader(self) -> Callable[[int, int], np.ndarray] | None:
         """Blocks of frames as memory maps, for uncompressed contiguous stacks (any thread)."""
         return self._read_block if self._contiguous is not None else None
 

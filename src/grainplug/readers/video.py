@@ -139,7 +139,7 @@ class VideoMovie(Movie):
     def sample(self, n: int) -> tuple[np.ndarray, list[np.ndarray]]:
         """About ``n`` frames spread over the movie, decoding only key frames.
 
-        Raw video whose layout :meth:`block_reader` has proven is copied straight
+        Raw video whose layout :meth:`_block_reader` has proven is copied straight
         from the file (no decoding, no decoder buffers). Intra-only codecs (MJPEG,
         ...) have every frame a key frame, so the sample spans the whole movie;
         inter-coded video (H.264) with too few key frames falls back to every k-th
@@ -148,7 +148,7 @@ class VideoMovie(Movie):
         total = self.info.n_frames
         if total <= n:
             return np.arange(total), list(self.frames())
-        if self.block_reader() is not None:  # raw video: copied from the file, nothing decoded
+        if self._block_reader() is not None:  # raw video: copied from the file, nothing decoded
             wanted = self._spread(n)
             return wanted, [self._raw_frame(int(k)) for k in wanted]
         if self._codec in INTRA_ONLY:
@@ -254,7 +254,7 @@ class VideoMovie(Movie):
     #: packed uncompressed layouts that can be read straight from the file: channels per pixel
     _PACKED: ClassVar[dict[str, int]] = {"gray": 1, "rgb24": 3, "bgr24": 3, "rgba": 4, "bgra": 4, "rgb0": 4, "bgr0": 4}
 
-    def block_reader(self) -> Callable[[int, int], list[np.ndarray]] | None:
+    def _block_reader(self) -> Callable[[int, int], list[np.ndarray]] | None:
         """Frames of uncompressed video read straight from the file (memory maps), or None.
 
         For raw video whose container indexes every frame (AVI, MOV...): the byte
@@ -342,10 +342,10 @@ class VideoMovie(Movie):
         self._offsets = pos + skip
         return read_block
 
-    def frame_offsets(self) -> np.ndarray | None:
+    def _frame_offsets(self) -> np.ndarray | None:
         """File offset of each raw frame's first stored byte (its lowest address, also
         for rows stored bottom-up); None for compressed video."""
-        return self._offsets if self.block_reader() is not None else None
+        return self._offsets if self._block_reader() is not None else None
 
     def read(self, index: int) -> np.ndarray:
         """One frame by index: a seek to the key frame before it, then a few frames decoded.
@@ -393,7 +393,7 @@ class VideoMovie(Movie):
             return None
         return None
 
-    def analysis_frames(self) -> Iterator[np.ndarray]:
+    def _analysis_frames(self) -> Iterator[np.ndarray]:
         """Decoded frames in their native layout: packed RGB/BGR as they are, luma only for
         YUV and the first plane for planar RGB, 16-bit through a conversion. No colour
         conversion is done, so analysis runs at the speed of decoding."""

@@ -10,9 +10,9 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import ParameterError
+from ..params import FLOW_DIRECTIONS
 from .kinematics import REGIMES, PlugTrain, build_train, displacement_mm
 
-FLOW_DIRECTIONS = ("down", "up", "left", "right")
 MERGE_FREQUENCY_HZ = 1.0
 
 

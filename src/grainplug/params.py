@@ -1,0 +1,95 @@
+"""What the analysis can be told: :class:`AnalysisParams`, and the flow-direction convention.
+
+Flow directions are defined here and nowhere else: the analysis
+(:mod:`grainplug.pipeline`), the synthetic movies and the command line all take
+them from :data:`FLOW_DIRECTIONS`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from .errors import ParameterError
+
+#: directions of the grain flow in the image
+FLOW_DIRECTIONS = ("down", "up", "left", "right")
+
+
+def tube_orientation(direction: str) -> str:
+    """``"vertical"`` for a flow up or down the image, ``"horizontal"`` for left or right."""
+    return "vertical" if direction in ("down", "up") else "horizontal"
+
+
+def runs_backwards(direction: str) -> bool:
+    """Whether a flow runs towards decreasing image rows (up) or columns (left)."""
+    return direction in ("up", "left")
+
+
+def opposite(direction: str) -> str:
+    """The other way along the same tube."""
+    return {"down": "up", "up": "down", "left": "right", "right": "left"}[direction]
+
+
+@dataclass(frozen=True)
+class AnalysisParams:
+    """Every tunable of :func:`grainplug.analyze` (all optional).
+
+    Attributes
+    ----------
+    fps : float, optional
+        Frame rate overriding the file's (required for image folders and arrays).
+    mm_per_px : float, optional
+        Scale; without it the scale comes from the tube's inner width.
+    tube_diameter_mm : float
+        Inner diameter of the tube (3 mm in the paper).
+    flow_direction : {"down", "up", "left", "right"}, optional
+        Direction of the grain flow in the image. By default it is read from
+        the grains falling through the bubbles; when none are seen, down for a
+        vertical tube and right for a horizontal one (the summary says which).
+    min_plug_mm : float
+        Shortest grain region counted as a plug (the paper's 3 mm).
+    min_gap_mm : float
+        Shortest gap between grains counted as a bubble.
+    sample_frames : int
+        Frames sampled over the movie to find the tube.
+    glob : str, optional
+        For image folders: only files matching this pattern.
+
+    Examples
+    --------
+    >>> AnalysisParams(fps=1000, mm_per_px=0.1875).replace(min_plug_mm=4.0).min_plug_mm
+    4.0
+    """
+
+    fps: float | None = None
+    mm_per_px: float | None = None
+    tube_diameter_mm: float = 3.0
+    flow_direction: str | None = None
+    min_plug_mm: float = 3.0
+    min_gap_mm: float = 0.6
+    sample_frames: int = 32
+    glob: str | None = None
+
+    def __post_init__(self) -> None:
+        def check(ok: bool, param: str, message: str) -> None:
+            if not ok:
+                raise ParameterError(message, param=param)
+
+        check(self.fps is None or self.fps > 0, "fps", f"must be positive, got {self.fps}")
+        check(self.mm_per_px is None or self.mm_per_px > 0, "mm_per_px", f"must be positive, got {self.mm_per_px}")
+        check(self.tube_diameter_mm > 0, "tube_diameter_mm", f"must be positive, got {self.tube_diameter_mm}")
+        check(self.flow_direction is None or self.flow_direction in FLOW_DIRECTIONS, "flow_direction",
+              f"must be one of {', '.join(FLOW_DIRECTIONS)}, got {self.flow_direction!r}")
+        check(self.min_plug_mm > 0, "min_plug_mm", f"must be positive, got {self.min_plug_mm}")
+        check(self.min_gap_mm >= 0, "min_gap_mm", f"must be non-negative, got {self.min_gap_mm}")
+        check(self.sample_frames >= 4, "sample_frames", f"must be at least 4, got {self.sample_frames}")
+
+    def replace(self, **changes: object) -> AnalysisParams:
+        """A copy with some fields changed (checked like the original)."""
+        unknown = set(changes) - {f.name for f in dataclasses.fields(self)}
+        if unknown:
+            names = ", ".join(f.name for f in dataclasses.fields(self))
+            raise ParameterError(f"unknown parameter {', '.join(sorted(unknown))}; the parameters are {names}",
+                                 param=sorted(unknown)[0])
+        return dataclasses.replace(self, **changes)

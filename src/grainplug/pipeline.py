@@ -1,0 +1,314 @@
+"""The analysis, top to bottom: movie -> tube -> band -> diagram -> plugs -> tracks -> measures.
+
+:func:`analyze` is the whole pipeline; read it first. Each stage is a function of
+arrays and frozen dataclasses from the science packages (:mod:`grainplug.calibration`,
+:mod:`grainplug.diagram`, :mod:`grainplug.plugs`, :mod:`grainplug.measures`); the
+movie is touched in three places only, all through the
+:class:`~grainplug.readers.Movie` protocol: a sample of frames, the band of the
+tube for every frame (:meth:`~grainplug.readers.Movie.read_band`), and the frame
+times. Nothing here draws, prints or writes a file (see :mod:`grainplug.outputs`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import logging
+import os
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .calibration import TubeGeometry, find_tube
+from .diagram import Diagram, Normalized, band_along_tube, normalize
+from .errors import ParameterError
+from .measures import Lengths, Motion, measure_lengths, measure_motion
+from .measures.grains import GrainMotion, falling_grains
+from .params import AnalysisParams, opposite, runs_backwards, tube_orientation
+from .plugs import Runs, Tracks, find_runs, link, plug_mask
+from .readers import Movie, as_movie
+from .result import AnalysisResult
+
+log = logging.getLogger(__name__)
+
+#: assumed standard uncertainty of the tube's measured inner width, in px
+TUBE_WIDTH_SD_PX = 0.25
+#: the annotated figure's frame is chosen among this many of the sampled frames
+KEPT_SAMPLE_FRAMES = 6
+
+
+def analyze(source: object, params: AnalysisParams | None = None, *,
+            progress: Callable[[int, int], None] | None = None, threads: int | None = None,
+            **overrides: object) -> AnalysisResult:
+    """Analyse one movie of plug flow.
+
+    Parameters
+    ----------
+    source : path, Movie or array
+        A movie file or image folder (anything :func:`grainplug.open_movie` reads),
+        a movie already open (it is left open), or frames in memory: a numpy or
+        dask array ``T x H x W`` or ``T x H x W x 3`` (pass ``fps=``).
+    params : AnalysisParams, optional
+        Tunables; the defaults need no hand tuning.
+    progress : callable, optional
+        ``progress(done, total)`` called while frames are streamed.
+    threads : int, optional
+        Threads that read uncompressed frames (memory-mapped); default one per
+        core. Results do not depend on it.
+    **overrides
+        Fields of :class:`AnalysisParams` to set, e.g. ``fps=1000, mm_per_px=0.1875``.
+
+    Returns
+    -------
+    AnalysisResult
+
+    Examples
+    --------
+    >>> import grainplug as gp
+    >>> frames = gp.datasets.sample_frames()          # doctest: +SKIP
+    >>> res = gp.analyze(frames, fps=1000, mm_per_px=0.1875)  # doctest: +SKIP
+    """
+    params = (params or AnalysisParams()).replace(**overrides) if overrides else (params or AnalysisParams())
+    if threads is not None and threads < 1:
+        raise ParameterError(f"give at least 1 (or None for one per core), got {threads}", param="threads")
+    laps = _Laps()
+    with _opened(source, params) as movie:
+        info = movie.info
+        _check_movie(movie)
+        laps("open_s")
+        sample_idx, sample = movie.sample(params.sample_frames)
+        movie.prefetch()  # the rest of the movie is read while the tube is found
+        laps("sample_s")
+        wanted = tube_orientation(params.flow_direction) if params.flow_direction else None
+        tube = find_tube(sample, orientation=wanted)
+        laps("tube_s")
+        band, axis_px = band_along_tube(tube)
+        mm_per_px, scale_source, scale_rel_sd = _scale(tube, params)
+        laps("setup_s")
+        values = movie.read_band(band, threads=threads,
+                                 progress=(lambda k: progress(k, info.n_frames)) if progress else None)
+        laps("stream_s")
+        time_s = _frame_times(movie, len(values))
+        identity = _identity(source, movie)
+        laps("fingerprint_s")
+    diagram = Diagram(values, time_s, axis_px * mm_per_px, mm_per_px)
+    norm = normalize(diagram.values, background_level=tube.background_level)
+    laps("normalize_s")
+    grains = _falling(norm, diagram, info.fps)
+    flow = _resolve_flow(params.flow_direction, tube, grains)
+    diagram, norm, grains = _orient(diagram, norm, grains, tube, flow.direction)
+    runs, links = _plugs(norm, diagram, params)
+    laps("plugs_s")
+    motion, lengths, statement = _measures(norm, diagram, runs, links, tube, fps=info.fps, mm_per_px=mm_per_px,
+                                           scale_rel_sd=scale_rel_sd)
+    laps("measures_s")
+    keep = np.unique(np.linspace(0, len(sample) - 1, min(len(sample), KEPT_SAMPLE_FRAMES)).round().astype(int))
+    best = _most_edges(runs, np.asarray(sample_idx)[keep])
+    timings = dict(laps.timings, stream_fps=round(diagram.n_frames / max(laps.timings["stream_s"], 1e-9), 1))
+    return AnalysisResult(
+        params=params, input=identity, info=info, tube=tube, mm_per_px=mm_per_px, scale_source=scale_source,
+        flow_direction=flow.direction, flow_direction_source=flow.source, diagram=diagram, normalized=norm,
+        runs=runs, links=links, motion=motion, lengths=lengths, has_plugs=bool(norm.two_phase and len(runs) > 0),
+        statement=statement,
+        sample_frame=sample[keep[best]], sample_frame_index=int(sample_idx[keep[best]]), timings=timings,
+        falling_grain_speed_m_s=None if grains is None else grains.speed_m_s, warnings=list(flow.warnings),
+    )
+
+
+# -- the stages ----------------------------------------------------------------------
+class _Laps:
+    """Seconds spent in each stage, in the order they ran."""
+
+    def __init__(self) -> None:
+        self.timings: dict[str, float] = {}
+        self._t = time.perf_counter()
+
+    def __call__(self, name: str) -> None:
+        now = time.perf_counter()
+        self.timings[name] = round(now - self._t, 4)
+        self._t = now
+
+
+@contextlib.contextmanager
+def _opened(source: object, params: AnalysisParams) -> Iterator[Movie]:
+    """The source as a movie; closed at the end if opened here (a Movie passed in is left open)."""
+    if isinstance(source, Movie):
+        if params.fps and source.info.fps != params.fps:
+            source.info = dataclasses.replace(source.info, fps=float(params.fps), fps_source="user")
+        yield source
+        return
+    with as_movie(source, fps=params.fps, glob=params.glob) as movie:
+        yield movie
+
+
+def _check_movie(movie: Movie) -> None:
+    info = movie.info
+    if not info.fps:
+        raise ParameterError(f"{info.path}: the frame rate is unknown (image folders, arrays and some TIFFs "
+                             "hold none) — give the camera's frame rate", param="fps")
+    if info.n_frames < 8:
+        raise ParameterError(f"{info.path} holds {info.n_frames} frames; at least 8 are needed", param="source")
+
+
+def _scale(tube: TubeGeometry, params: AnalysisParams) -> tuple[float, str, float]:
+    """``(mm_per_px, where it came from, its relative standard uncertainty)``."""
+    if params.mm_per_px:
+        return float(params.mm_per_px), "user", 0.0
+    mm_per_px = params.tube_diameter_mm / tube.inner_diameter_px
+    source = f"tube inner width ({params.tube_diameter_mm:g} mm = {tube.inner_diameter_px:.3f} px)"
+    return mm_per_px, source, TUBE_WIDTH_SD_PX / tube.inner_diameter_px
+
+
+def _frame_times(movie: Movie, n: int) -> np.ndarray:
+    """Time of each frame: the file's presentation times where it has them, else index / fps."""
+    info = movie.info
+    if movie.has_file_timestamps and info.fps_source == "file":
+        stamps = movie.timestamps_s()  # recorded while streaming, for video
+        if len(stamps) == n:
+            return np.asarray(stamps, float)
+    return np.arange(n) / info.fps
+
+
+def _falling(norm: Normalized, diagram: Diagram, fps: float) -> GrainMotion | None:
+    if not norm.two_phase:
+        return None
+    ds = float(diagram.position_mm[1] - diagram.position_mm[0])
+    return falling_grains(norm.z, mm_per_sample=ds, fps=fps)
+
+
+@dataclass(frozen=True)
+class _Flow:
+    direction: str
+    source: str
+    warnings: tuple[str, ...] = ()
+
+
+def _resolve_flow(given: str | None, tube: TubeGeometry, grains: GrainMotion | None) -> _Flow:
+    """The direction of the flow in the image, decided here and only here.
+
+    The diagram is always streamed top to bottom (left to right); the flow runs the
+    way the user said, else the way the grains fall through the bubbles, else down
+    a vertical tube (gravity) and, with a warning, right along a horizontal one.
+    """
+    speed = None if grains is None else grains.speed_m_s  # positive: falling top to bottom / left to right
+    forward = "down" if tube.orientation == "vertical" else "right"
+    if given:
+        warnings = ()
+        if speed is not None and (speed < 0) != runs_backwards(given):
+            warnings = (f"the grains falling through the bubbles move against the given flow direction ({given}; "
+                        f"{abs(speed):.2f} m/s the other way): check the flow direction "
+                        "(--flow-direction, or flow_direction= in Python)",)
+            log.warning(warnings[0])
+        return _Flow(given, "user", warnings)
+    if speed is not None:
+        direction = opposite(forward) if speed < 0 else forward
+        return _Flow(direction, f"inferred from the grains falling through the bubbles ({abs(speed):.2f} m/s)")
+    if tube.orientation == "vertical":
+        return _Flow(forward, "assumed (gravity down)")
+    return _Flow(forward, "assumed", (f"no grains seen falling through the bubbles: the flow is assumed to run "
+                                      f"{forward}; if it does not, give the flow direction "
+                                      "(--flow-direction, or flow_direction= in Python)",))
+
+
+def _orient(diagram: Diagram, norm: Normalized, grains: GrainMotion | None, tube: TubeGeometry,
+            direction: str) -> tuple[Diagram, Normalized, GrainMotion | None]:
+    """Turn the diagram so that positions increase with the flow (a no-op for a flow down or right).
+
+    Notes
+    -----
+    Streamed top to bottom, position :math:`s_i = (r_i + 1/2) / \\cos\\theta` for canonical
+    row :math:`r_i`. Reversed, the distance from the bottom edge of an :math:`h`-row view is
+    :math:`(h - 1 - r_i + 1/2)/\\cos\\theta = h/\\cos\\theta - s_i`, read in reverse order.
+    """
+    if not runs_backwards(direction):
+        return diagram, norm, grains
+    view_px = tube.canonical_shape[0] / np.cos(np.radians(tube.tilt_deg))
+    d = dataclasses.replace(diagram, values=diagram.values[:, ::-1],
+                            position_mm=view_px * diagram.mm_per_px - diagram.position_mm[::-1])
+    n = dataclasses.replace(norm, z=norm.z[:, ::-1], position_gain=norm.position_gain[::-1])
+    g = None if grains is None else dataclasses.replace(
+        grains, speed_m_s=None if grains.speed_m_s is None else -grains.speed_m_s)
+    return d, n, g
+
+
+def _plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams) -> tuple[Runs, Tracks]:
+    """Plugs in every frame (runs of grains along the tube), linked into tracks over time."""
+    ds = float(diagram.position_mm[1] - diagram.position_mm[0])
+    mask = plug_mask(norm.z, mm_per_sample=ds, min_plug_mm=params.min_plug_mm, min_gap_mm=params.min_gap_mm)
+    if not norm.two_phase:  # one material only: no plug to find
+        mask[:] = False
+    runs = find_runs(norm.z, mask, diagram.position_mm)
+    return runs, link(runs, diagram.n_frames)
+
+
+def _measures(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, tube: TubeGeometry, *, fps: float,
+              mm_per_px: float, scale_rel_sd: float) -> tuple[Motion | None, Lengths | None, str]:
+    """Celerity and oscillation of the plug train, plug and bubble lengths; or why there are none."""
+    if not (norm.two_phase and len(runs) > 0):
+        return None, None, (f"no plugs: the tube holds a single phase over the whole record "
+                            f"({_single_phase(norm, tube.background_level)}); "
+                            "no celerity, length or frequency is measured")
+    motion = measure_motion(diagram.time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
+                            mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
+    lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd)
+    statement = "" if motion is not None else "plugs were seen but no plug edge could be followed over time"
+    return motion, lengths, statement
+
+
+def _single_phase(norm: Normalized, background: float) -> str:
+    level = float(np.median([norm.plug_level, norm.bubble_level]))
+    if background <= 0:
+        return "compact flow or empty tube"
+    if 0.75 <= level / background <= 1.35:
+        return "empty tube or dilute flow"
+    return "compact flow: grains fill the tube"
+
+
+def _most_edges(runs: Runs, frames: np.ndarray) -> int:
+    """Which of ``frames`` shows the most plugs (for the annotated figure)."""
+    if not len(runs):
+        return 0
+    return int(np.argmax([np.count_nonzero(runs.frame == int(k)) for k in frames]))
+
+
+# -- provenance ------------------------------------------------------------------------
+def fingerprint(path: str | Path) -> dict[str, object]:
+    """Identity of an input: path, size, modification time and a SHA-256 of its ends.
+
+    The hash covers the first and last MiB of a file (of every file, for a
+    folder, with their names), which identifies a movie without reading gigabytes.
+    """
+    p = Path(path)
+    h = hashlib.sha256()
+    files = sorted(q for q in p.iterdir() if q.is_file()) if p.is_dir() else [p]
+    size = 0
+    mtime = 0.0
+    for f in files:
+        st = f.stat()
+        size += st.st_size
+        mtime = max(mtime, st.st_mtime)
+        h.update(f.name.encode())
+        with open(f, "rb") as fh:
+            h.update(fh.read(1 << 20))
+            if st.st_size > 2 << 20:
+                fh.seek(-(1 << 20), os.SEEK_END)
+                h.update(fh.read(1 << 20))
+    return {"path": str(p.resolve()), "bytes": size, "files": len(files), "mtime": mtime,
+            "sha256_ends": h.hexdigest()}
+
+
+def _identity(source: object, movie: Movie) -> dict[str, object]:
+    """Provenance of the input: a file's :func:`fingerprint`, or an array's shape and the hash
+    of its first and last frames."""
+    if movie.path.exists() and not movie.info.format.startswith("array"):
+        return fingerprint(movie.path)
+    n = movie.info.n_frames
+    h = hashlib.sha256()
+    for k in sorted({0, n - 1}):
+        h.update(np.ascontiguousarray(movie.read(k)).tobytes())
+    return {"path": None, "kind": "array", "shape": [n, *movie.info.frame_shape], "dtype": movie.info.dtype,
+            "sha256_first_last_frames": h.hexdigest()}

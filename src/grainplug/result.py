@@ -1,0 +1,385 @@
+"""What an analysis found: :class:`AnalysisResult`, with tables, a plot and a summary.
+
+The result is a frozen dataclass of the pipeline's stage outputs (arrays and
+frozen dataclasses). On top of them it offers what a researcher looks at in a
+notebook:
+
+- tables as pandas DataFrames: :attr:`~AnalysisResult.edges` (plug edges per
+  frame), :attr:`~AnalysisResult.tracks` (one row per plug track),
+  :attr:`~AnalysisResult.plugs` and :attr:`~AnalysisResult.bubbles` (the lengths
+  that enter the means);
+- the diagram as an ``xarray.DataArray`` (:meth:`~AnalysisResult.to_xarray`);
+- :attr:`~AnalysisResult.summary`, the figures of ``summary.json``;
+- a short ``repr``, an HTML view for Jupyter, :meth:`~AnalysisResult.plot` and
+  :meth:`~AnalysisResult.save` (read back with :func:`grainplug.load_result`).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+from dataclasses import asdict, dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ._version import __version__
+from .calibration.tube import TubeGeometry
+from .diagram import Diagram, Normalized
+from .measures import Lengths, Motion
+from .params import AnalysisParams, runs_backwards
+from .plugs import Runs, Tracks
+from .readers.base import MovieInfo
+
+if TYPE_CHECKING:
+    import pandas as pd
+    import xarray as xr
+    from matplotlib.axes import Axes
+
+CONVENTIONS = ("positions in mm along the tube from the upstream end of the view, increasing "
+               "with the flow; celerity in m/s, positive downstream (negative: plugs climb)")
+
+
+@dataclass(frozen=True)
+class AnalysisResult:
+    """Everything :func:`grainplug.analyze` found in one movie.
+
+    Attributes
+    ----------
+    params : AnalysisParams
+        The parameters of the run.
+    input : dict
+        Identity of the input (path, size, hash of its ends; or shape and hash of an array).
+    info : MovieInfo
+        What the movie says about itself.
+    tube : TubeGeometry
+        Where the tube is in the frames.
+    mm_per_px : float
+        Scale, and ``scale_source``: where it came from.
+    flow_direction : str
+        Direction of the flow in the image, and ``flow_direction_source``: how it was decided.
+    diagram : Diagram
+        Spatiotemporal diagram (grey level, time x position); see :meth:`to_xarray`.
+    normalized : Normalized
+        The diagram's contrast (0 bubble, 1 plug) and illumination model.
+    runs : Runs
+        Plugs seen in each frame (one row per plug per frame).
+    links : Tracks
+        Plug tracks: which runs belong to one plug over time.
+    motion, lengths : Motion, Lengths or None
+        Celerity and oscillation; plug and bubble lengths (None without plugs).
+    has_plugs : bool
+        Whether plugs were found; ``statement`` says why not.
+    sample_frame : ndarray
+        One frame of the movie (the annotated figure's), index ``sample_frame_index``.
+    timings : dict
+        Seconds spent in each stage.
+    falling_grain_speed_m_s : float or None
+        Speed of the grains falling through the bubbles.
+    warnings : list of str
+        Anything doubtful about this run, with what to do about it.
+    """
+
+    params: AnalysisParams
+    input: dict[str, object]
+    info: MovieInfo
+    tube: TubeGeometry
+    mm_per_px: float
+    scale_source: str
+    flow_direction: str
+    flow_direction_source: str
+    diagram: Diagram
+    normalized: Normalized
+    runs: Runs
+    links: Tracks
+    motion: Motion | None
+    lengths: Lengths | None
+    has_plugs: bool
+    statement: str
+    sample_frame: np.ndarray = field(repr=False)
+    sample_frame_index: int = 0
+    timings: dict[str, float] = field(default_factory=dict)
+    falling_grain_speed_m_s: float | None = None
+    warnings: list[str] = field(default_factory=list)
+
+    # -- figures --------------------------------------------------------------
+    @property
+    def summary(self) -> dict[str, object]:
+        """The figures of ``summary.json`` (JSON-ready, with provenance)."""
+        return build_summary(self)
+
+    @property
+    def celerity_m_s(self) -> float | None:
+        """Mean celerity of the plugs, positive downstream (None without plugs)."""
+        return None if self.motion is None else self.motion.celerity_m_s
+
+    @property
+    def plug_length_mm(self) -> float | None:
+        """Mean plug length (None without measured plugs)."""
+        return None if self.lengths is None else self.lengths.plug_length_mm
+
+    # -- tables -----------------------------------------------------------------
+    @cached_property
+    def edges(self) -> pd.DataFrame:
+        """Plug edges in every frame: ``frame, time_s, plug_id, top_mm, bottom_mm``.
+
+        One row per plug per frame; ``top_mm``/``bottom_mm`` are NaN where the plug
+        is cut by the end of the view. ``plug_id`` is the track (see :attr:`tracks`).
+        """
+        import pandas as pd
+
+        r = self.runs
+        return pd.DataFrame({"frame": r.frame.astype(np.int64), "time_s": self.diagram.time_s[r.frame],
+                             "plug_id": self.links.run_track.astype(np.int64), "top_mm": r.top_mm,
+                             "bottom_mm": r.bottom_mm})
+
+    @cached_property
+    def tracks(self) -> pd.DataFrame:
+        """One row per plug track: when it was seen, its celerity and length, how it began and ended."""
+        import pandas as pd
+
+        r, tr, t = self.runs, self.links, self.diagram.time_s
+        rows = []
+        for tid in range(len(tr)):
+            sel = tr.run_track == tid
+            frames = r.frame[sel]
+            top, bot = r.top_mm[sel], r.bottom_mm[sel]
+            whole = np.isfinite(top) & np.isfinite(bot)
+            edge = top if np.isfinite(top).sum() >= 2 else bot
+            ok = np.isfinite(edge)
+            cel = np.nan
+            if ok.sum() >= 2 and np.ptp(t[frames[ok]]) > 0:
+                cel = float(np.polyfit(t[frames[ok]], edge[ok], 1)[0] / 1000)
+            lengths = (bot - top)[whole]
+            rows.append({
+                "plug_id": tid, "first_frame": int(tr.first_frame[tid]), "last_frame": int(tr.last_frame[tid]),
+                "first_time_s": float(t[tr.first_frame[tid]]), "last_time_s": float(t[tr.last_frame[tid]]),
+                "n_frames": int(sel.sum()), "n_frames_whole": int(whole.sum()), "celerity_m_s": cel,
+                "mean_length_mm": float(lengths.mean()) if lengths.size else np.nan,
+                "median_length_mm": float(np.median(lengths)) if lengths.size else np.nan,
+                "started_by": tr.started_by[tid], "ended_by": tr.ended_by[tid], "composite": bool(tr.composite(tid)),
+            })
+        columns = ["plug_id", "first_frame", "last_frame", "first_time_s", "last_time_s", "n_frames",
+                   "n_frames_whole", "celerity_m_s", "mean_length_mm", "median_length_mm", "started_by",
+                   "ended_by", "composite"]
+        return pd.DataFrame(rows, columns=columns)
+
+    @cached_property
+    def plugs(self) -> pd.DataFrame:
+        """The plug lengths that enter the mean: ``plug_id, length_mm`` (median over the
+        frames a whole plug was seen in; composite tracks left out)."""
+        import pandas as pd
+
+        per = self.lengths.per_track_mm if self.lengths else {}
+        return pd.DataFrame({"plug_id": np.asarray(list(per), np.int64),
+                             "length_mm": np.asarray(list(per.values()), float)})
+
+    @cached_property
+    def bubbles(self) -> pd.DataFrame:
+        """The bubble lengths that enter the mean: ``upstream_plug_id, downstream_plug_id, length_mm``."""
+        import pandas as pd
+
+        ln = self.lengths
+        pairs = ln.bubble_tracks if ln is not None else np.zeros((0, 2), np.int64)
+        vals = ln.per_bubble_mm if ln is not None else np.zeros(0)
+        return pd.DataFrame({"upstream_plug_id": pairs[:, 0].astype(np.int64),
+                             "downstream_plug_id": pairs[:, 1].astype(np.int64), "length_mm": vals})
+
+    def to_xarray(self, *, contrast: bool = False) -> xr.DataArray:
+        """The spatiotemporal diagram as an ``xarray.DataArray`` (``time_s`` x ``position_mm``).
+
+        Parameters
+        ----------
+        contrast : bool
+            The normalised contrast (0 bubble level, 1 plug level) instead of the grey level.
+        """
+        import xarray as xr
+
+        d = self.diagram
+        values = self.normalized.z if contrast else d.values
+        return xr.DataArray(
+            values, dims=("time_s", "position_mm"), coords={"time_s": d.time_s, "position_mm": d.position_mm},
+            name="contrast" if contrast else "grey_level",
+            attrs={"mm_per_px": self.mm_per_px, "scale_source": self.scale_source,
+                   "flow_direction": self.flow_direction, "movie": self.info.path,
+                   "conventions": CONVENTIONS, "grainplug_version": __version__},
+        )
+
+    # -- display ----------------------------------------------------------------
+    def _headline(self) -> list[str]:
+        name = Path(self.info.path).name or self.info.path
+        lines = [f"grainplug analysis of {name}: {self.diagram.n_frames} frames at {self.info.fps:g} fps, "
+                 f"{self.mm_per_px:.4g} mm/px ({self.scale_source})"]
+        if not self.has_plugs:
+            lines.append(self.statement)
+            return lines
+        m, ln = self.motion, self.lengths
+        if m is not None:
+            lo, hi = m.celerity_ci95_m_s
+            lines.append(f"{m.regime}: celerity {m.celerity_m_s:+.4f} m/s (95% CI {lo:+.4f} to {hi:+.4f})"
+                         + (f", oscillation {m.oscillation_frequency_hz:.2f} Hz" if m.oscillation_frequency_hz
+                            else ""))
+        if ln is not None and ln.plug_length_mm is not None:
+            b = f", bubbles {ln.bubble_length_mm:.2f} mm" if ln.bubble_length_mm is not None else ""
+            lines.append(f"plugs {ln.plug_length_mm:.2f} mm = {ln.plug_length_mm / self.params.tube_diameter_mm:.2f} D"
+                         f" ({ln.n_plugs_measured} plugs){b}; {len(self.links)} tracks")
+        if self.statement:
+            lines.append(self.statement)
+        return lines
+
+    def __repr__(self) -> str:
+        lines = self._headline()
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "<AnalysisResult " + "\n  ".join(lines) + ">"
+
+    def _thumbnail_png(self, size: tuple[int, int] = (360, 120)) -> bytes:
+        """A small grey image of the diagram (time across, position down), as PNG bytes."""
+        from PIL import Image
+
+        v = np.asarray(self.diagram.values, np.float32)
+        st = max(1, v.shape[0] // (2 * size[0]))
+        ss = max(1, v.shape[1] // (2 * size[1]))
+        v = v[::st, ::ss].T
+        lo, hi = np.nanpercentile(v, [1, 99]) if v.size else (0.0, 1.0)
+        img = np.clip((v - lo) / max(hi - lo, 1e-9) * 255, 0, 255).astype(np.uint8)
+        buf = io.BytesIO()
+        Image.fromarray(img).resize(size, Image.BILINEAR).save(buf, format="PNG")
+        return buf.getvalue()
+
+    def _repr_html_(self) -> str:
+        """Key numbers with their confidence intervals, warnings and a thumbnail, for Jupyter."""
+        s = self.summary
+
+        def num(v: object, nd: int) -> str:
+            return "—" if v is None else f"{v:.{nd}f}"
+
+        def ci(v: object, nd: int) -> str:
+            return "" if not v else f" (95% CI {num(v[0], nd)} to {num(v[1], nd)})"
+
+        rows = [
+            ("regime", s["regime"]),
+            ("celerity", f"{num(s['celerity_m_s'], 4)} m/s{ci(s['celerity_ci95_m_s'], 4)}"),
+            ("plug length", f"{num(s['plug_length_mm'], 2)} mm{ci(s['plug_length_ci95_mm'], 2)}, "
+                            f"{num(s['plug_length_over_diameter'], 2)} D, {s['n_plugs']} plugs"),
+            ("bubble length", f"{num(s['bubble_length_mm'], 2)} mm{ci(s['bubble_length_ci95_mm'], 2)}"),
+            ("oscillation", f"{num(s['oscillation_frequency_hz'], 2)} Hz"),
+            ("frames", f"{s['n_frames']} at {s['fps']:g} fps ({s['duration_s']:.3f} s)"),
+            ("scale", f"{s['mm_per_px']:.5g} mm/px — {s['scale_source']}"),
+            ("flow", f"{s['flow_direction']} — {s['flow_direction_source']}"),
+        ]
+        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+                       f"<td style='text-align:left'>{html.escape(str(v))}</td></tr>" for k, v in rows)
+        warn = "".join(f"<li>{html.escape(w)}</li>" for w in self.warnings)
+        statement = f"<p>{html.escape(self.statement)}</p>" if self.statement else ""
+        thumb = base64.b64encode(self._thumbnail_png()).decode()
+        return (f"<div><b>grainplug analysis</b> of <code>{html.escape(self.info.path)}</code>{statement}"
+                f"<table>{body}</table>"
+                + (f"<p style='color:#a40'>warnings:</p><ul style='color:#a40'>{warn}</ul>" if warn else "")
+                + f"<img alt='spatiotemporal diagram' src='data:image/png;base64,{thumb}'/></div>")
+
+    def plot(self, *, ax: Axes | None = None) -> Axes:
+        """Draw the spatiotemporal diagram with the plug edges and the mean-celerity line.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            Where to draw; by default a new pyplot figure (shown inline in a notebook).
+
+        Returns
+        -------
+        matplotlib Axes
+        """
+        from .plotting import plot_diagram
+
+        if ax is None:
+            import matplotlib.pyplot as plt
+
+            _, ax = plt.subplots(figsize=(9, 5.5), layout="constrained")
+        plot_diagram(self, ax=ax)
+        return ax
+
+    def save(self, out_dir: str | Path, *, figures: bool = True, report: bool = True) -> dict[str, Path]:
+        """Write every output into ``out_dir`` (atomically); read back with :func:`grainplug.load_result`.
+
+        Writes ``summary.json``, ``plug_edges.csv``, ``tracks.csv``, ``diagram.npz``,
+        ``result.npz`` (everything :func:`~grainplug.load_result` needs) and, unless
+        switched off, the PNG figures and ``report.html``. Returns the paths written.
+        """
+        from .outputs import write_outputs
+
+        return write_outputs(self, out_dir, figures=figures, report=report)
+
+
+def _r(x: float | None, nd: int = 6) -> float | None:
+    return None if x is None or not np.isfinite(x) else round(float(x), nd)
+
+
+def flow_angle_deg(tube: TubeGeometry, direction: str) -> float:
+    """Direction of the flow in the image, degrees from +x towards +y (y down)."""
+    a = np.radians(tube.tilt_deg)
+    ex, ey = np.sin(a), np.cos(a)
+    if runs_backwards(direction):
+        ex, ey = -ex, -ey
+    if tube.orientation == "horizontal":
+        ex, ey = ey, ex
+    return float(np.degrees(np.arctan2(ey, ex)))
+
+
+def build_summary(res: AnalysisResult) -> dict[str, Any]:
+    """JSON-ready summary with provenance (see ``summary.json`` in the docs)."""
+    m, ln, tube = res.motion, res.lengths, res.tube
+    D = res.params.tube_diameter_mm
+    plug_len = ln.plug_length_mm if ln else None
+    return {
+        "grainplug_version": __version__,
+        "input": res.input,
+        "movie": res.info.as_dict(),
+        "parameters": asdict(res.params),
+        "has_plugs": res.has_plugs,
+        "statement": res.statement or None,
+        "celerity_m_s": _r(m.celerity_m_s) if m else None,
+        "celerity_ci95_m_s": [_r(x) for x in m.celerity_ci95_m_s] if m else None,
+        "plug_length_mm": _r(plug_len, 4),
+        "plug_length_ci95_mm": [_r(x, 4) for x in ln.plug_length_ci95_mm] if ln and ln.plug_length_ci95_mm else None,
+        "plug_length_sd_mm": _r(ln.plug_length_sd_mm, 4) if ln else None,
+        "plug_length_over_diameter": _r(plug_len / D, 4) if plug_len else None,
+        "bubble_length_mm": _r(ln.bubble_length_mm, 4) if ln else None,
+        "bubble_length_ci95_mm": (
+            [_r(x, 4) for x in ln.bubble_length_ci95_mm] if ln and ln.bubble_length_ci95_mm else None
+        ),
+        "oscillation_frequency_hz": _r(m.oscillation_frequency_hz, 4) if m and m.oscillation_frequency_hz else None,
+        "oscillation_amplitude_mm": _r(m.oscillation_amplitude_mm, 4) if m else None,
+        "oscillation_explained_fraction": _r(m.explained_fraction, 4) if m else None,
+        "regime": m.regime if m else "none",
+        "n_plugs": int(ln.n_plugs_measured) if ln else 0,
+        "n_tracks": len(res.links),
+        "n_bubbles": int(ln.n_bubbles_measured) if ln else 0,
+        "n_edges_used": m.n_edges if m else 0,
+        "n_frames": int(res.diagram.n_frames),
+        "fps": res.info.fps,
+        "duration_s": _r(res.diagram.n_frames / res.info.fps, 6),
+        "mm_per_px": _r(res.mm_per_px, 6),
+        "scale_source": res.scale_source,
+        "tube_diameter_mm": D,
+        "tube_diameter_px": _r(tube.inner_diameter_px, 4),
+        "tube_axis_angle_deg": _r(flow_angle_deg(tube, res.flow_direction), 4),
+        "tube_tilt_deg": _r(tube.tilt_deg, 4),
+        "tube_orientation": tube.orientation,
+        "tube_detection": tube.method,
+        "flow_direction": res.flow_direction,
+        "flow_direction_source": res.flow_direction_source,
+        "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
+        "warnings": list(res.warnings),
+        "view_length_mm": _r(float(res.diagram.position_mm[-1] + 0.5 * res.mm_per_px), 4),
+        "illumination": {
+            "plugs_darker_than_bubbles": res.normalized.plugs_darker,
+            "plug_bubble_separation_eta": _r(res.normalized.separation_eta, 4),
+            "flicker_sd": _r(float(np.std(res.normalized.frame_gain)), 5),
+            "gradient_along_view": _r(float(res.normalized.position_gain[-1] / res.normalized.position_gain[0] - 1), 4),
+        },
+        "timings_s": dict(res.timings),
+        "conventions": CONVENTIONS,
+    }

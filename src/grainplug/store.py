@@ -1,0 +1,133 @@
+"""A whole :class:`~grainplug.result.AnalysisResult` in one file, and back.
+
+``result.npz`` holds every array of the result under its path in the result
+(``"diagram.values"``, ``"runs.top_mm"``...) and, under ``"__tree__"``, a JSON
+description of everything else: scalars, strings, lists, and which dataclass
+each part is. Nothing is pickled (the file is read with ``allow_pickle=False``),
+so a result file cannot run code and stays readable with numpy alone.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import GrainplugError
+
+#: version of the layout of ``result.npz``
+FORMAT_VERSION = 1
+RESULT_FILE = "result.npz"
+
+
+def _types() -> dict[str, type]:
+    from .calibration.tube import TubeGeometry
+    from .diagram import Diagram, Normalized
+    from .measures import Lengths, Motion
+    from .params import AnalysisParams
+    from .plugs import Runs, Tracks
+    from .readers.base import MovieInfo
+    from .result import AnalysisResult
+
+    return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Diagram,
+                                    Normalized, Runs, Tracks, Motion, Lengths)}
+
+
+def _encode(obj: Any, path: str, arrays: dict[str, np.ndarray]) -> Any:
+    if isinstance(obj, np.ndarray):
+        arrays[path] = obj
+        return {"__array__": path}
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        out = {"__type__": type(obj).__name__}
+        for f in dataclasses.fields(obj):
+            out[f.name] = _encode(getattr(obj, f.name), f"{path}.{f.name}" if path else f.name, arrays)
+        return out
+    if isinstance(obj, tuple):
+        return {"__tuple__": [_encode(v, f"{path}.{k}", arrays) for k, v in enumerate(obj)]}
+    if isinstance(obj, dict):
+        if all(isinstance(k, str) for k in obj):
+            return {k: _encode(v, f"{path}.{k}", arrays) for k, v in obj.items()}
+        return {"__items__": [[_encode(k, f"{path}.k{i}", arrays), _encode(v, f"{path}.v{i}", arrays)]
+                              for i, (k, v) in enumerate(obj.items())]}
+    if isinstance(obj, list):
+        return [_encode(v, f"{path}.{k}", arrays) for k, v in enumerate(obj)]
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if obj is None or isinstance(obj, (bool, int, float, str)):
+        return obj
+    raise TypeError(f"cannot store {type(obj).__name__} at {path!r}")
+
+
+def _decode(obj: Any, arrays: Any, types: dict[str, type]) -> Any:
+    if isinstance(obj, list):
+        return [_decode(v, arrays, types) for v in obj]
+    if not isinstance(obj, dict):
+        return obj
+    if "__array__" in obj:
+        return arrays[obj["__array__"]]
+    if "__tuple__" in obj:
+        return tuple(_decode(v, arrays, types) for v in obj["__tuple__"])
+    if "__items__" in obj:
+        return {_decode(k, arrays, types): _decode(v, arrays, types) for k, v in obj["__items__"]}
+    if "__type__" in obj:
+        cls = types[obj["__type__"]]
+        kwargs = {k: _decode(v, arrays, types) for k, v in obj.items() if k != "__type__"}
+        return cls(**kwargs)
+    return {k: _decode(v, arrays, types) for k, v in obj.items()}
+
+
+def write_result(res: Any, path: str | Path) -> None:
+    """Write ``res`` (an AnalysisResult) to ``path`` (an ``.npz`` file; not atomic by itself:
+    :meth:`AnalysisResult.save` writes it inside an atomic folder)."""
+    arrays: dict[str, np.ndarray] = {}
+    tree = _encode(res, "", arrays)
+    meta = {"format": "grainplug-result", "format_version": FORMAT_VERSION, "tree": tree}
+    with open(path, "wb") as fh:
+        np.savez(fh, __tree__=np.array(json.dumps(meta)), **arrays)
+
+
+def read_result(path: str | Path) -> Any:
+    """Read an AnalysisResult written by :func:`write_result`."""
+    p = Path(path)
+    try:
+        with np.load(p, allow_pickle=False) as data:
+            meta = json.loads(str(data["__tree__"]))
+            arrays = {k: data[k] for k in data.files if k != "__tree__"}
+    except (OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
+        raise GrainplugError(f"{p} is not a grainplug result ({exc}) — pass a folder written by "
+                             "result.save() or `grainplug analyze`") from None
+    if meta.get("format") != "grainplug-result" or meta.get("format_version", 0) > FORMAT_VERSION:
+        raise GrainplugError(f"{p} was written by a newer grainplug (format {meta.get('format_version')}) "
+                             "— upgrade grainplug to read it")
+    return _decode(meta["tree"], arrays, _types())
+
+
+def load_result(folder: str | Path) -> Any:
+    """Read back an analysis saved by :meth:`AnalysisResult.save` or ``grainplug analyze``.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The output folder (or its ``result.npz``).
+
+    Returns
+    -------
+    AnalysisResult
+        Equal, field by field, to the result that was saved.
+
+    Examples
+    --------
+    >>> res = gp.load_result("out/run1")   # doctest: +SKIP
+    >>> res.tracks.head()                  # doctest: +SKIP
+    """
+    p = Path(folder).expanduser()
+    f = p / RESULT_FILE if p.is_dir() else p
+    if not f.exists():
+        hint = (" (it was written by an older grainplug: analyse the movie again)"
+                if (p / "summary.json").exists() else "")
+        raise GrainplugError(f"no {RESULT_FILE} in {p}{hint} — pass a folder written by result.save() "
+                             "or `grainplug analyze`")
+    return read_result(f)
