@@ -265,7 +265,8 @@ class AnalysisResult:
             ("plug length", f"{num(s['plug_length_mm'], 2)} mm{ci(s['plug_length_ci95_mm'], 2)}, "
                             f"{num(s['plug_length_over_diameter'], 2)} D, {s['n_plugs']} plugs"),
             ("bubble length", f"{num(s['bubble_length_mm'], 2)} mm{ci(s['bubble_length_ci95_mm'], 2)}"),
-            ("oscillation", f"{num(s['oscillation_frequency_hz'], 2)} Hz"),
+            ("oscillation", "none" if not s["oscillation_frequency_hz"] else
+             f"{num(s['oscillation_frequency_hz'], 2)} Hz, amplitude {num(s['oscillation_amplitude_mm'], 2)} mm"),
             ("frames", f"{s['n_frames']} at {s['fps']:g} fps ({s['duration_s']:.3f} s)"),
             ("scale", f"{s['mm_per_px']:.5g} mm/px — {s['scale_source']}"),
             ("flow", f"{s['flow_direction']} — {s['flow_direction_source']}"),

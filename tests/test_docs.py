@@ -1,0 +1,37 @@
+"""The README's Python examples, run as they are written, in order, in one namespace."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def python_blocks(path: Path) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", path.read_text(), flags=re.S)
+
+
+def test_readme_has_python_examples():
+    assert len(python_blocks(ROOT / "README.md")) >= 3
+
+
+def test_readme_python_examples_run(tmp_path, monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")  # the test's choice, as a notebook's would be its own
+    import matplotlib.pyplot as plt
+
+    monkeypatch.chdir(tmp_path)
+    namespace: dict[str, object] = {}
+    for k, block in enumerate(python_blocks(ROOT / "README.md")):
+        try:
+            exec(compile(block, f"README.md python block {k + 1}", "exec"), namespace)
+        except Exception as exc:  # name the block that broke
+            pytest.fail(f"README python block {k + 1} failed: {type(exc).__name__}: {exc}\n{block}")
+    plt.close("all")
+    assert (tmp_path / "out" / "sample" / "result.npz").exists()
+    res = namespace["res"]
+    assert res.info.format.startswith("array") and res.has_plugs
