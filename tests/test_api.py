@@ -151,7 +151,7 @@ def test_save_and_load_round_trip(result, tmp_path):
 
 
 def test_load_result_says_what_is_wrong(tmp_path):
-    with pytest.raises(gp.GrainplugError, match="result.save"):
+    with pytest.raises(gp.GrainplugError, match=r"result\.save"):
         gp.load_result(tmp_path)
     (tmp_path / "result.npz").write_bytes(b"not a zip")
     with pytest.raises(gp.GrainplugError, match="not a grainplug result"):

@@ -12,6 +12,7 @@ import json
 import logging
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,6 +20,9 @@ from . import jsonio
 from ._atomic import atomic_directory
 from .result import AnalysisResult
 from .store import RESULT_FILE, write_result
+
+if TYPE_CHECKING:
+    from .plotting.worker import FigureWorker
 
 log = logging.getLogger(__name__)
 
@@ -103,10 +107,13 @@ def draw_figures(res: AnalysisResult, folder: str | Path) -> list[Path]:
 
 
 def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = True,
-                  report: bool = True, extra: dict | None = None) -> dict[str, Path]:
+                  report: bool = True, extra: dict | None = None,
+                  figure_worker: FigureWorker | None = None) -> dict[str, Path]:
     """Write every output of ``res`` into ``out_dir``, atomically; returns the paths written.
 
     ``extra`` is merged into ``summary.json`` (e.g. the campaign's run key).
+    ``figure_worker`` draws the figures in a helper process meanwhile
+    (:class:`grainplug.plotting.worker.FigureWorker`); by default they are drawn here.
     """
     t_write = time.perf_counter()
     written: dict[str, Path] = {}
@@ -115,6 +122,9 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
         summary.update(extra or {})
         drawn = figures_of(res) if figures else []
         summary["outputs"] = {k: v for k, v in FILES.items() if not k.startswith("fig_") or k in drawn}
+        pending = None
+        if figures and figure_worker is not None:  # drawn while the tables are written
+            pending = figure_worker.submit(res, tmp)
         (tmp / FILES["edges"]).write_text(edges_table(res))
         (tmp / FILES["tracks"]).write_text(tracks_table(res))
         with open(tmp / FILES["diagram"], "wb") as fh:
@@ -126,7 +136,9 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
                                       default=jsonio.default),
             )
         write_result(res, tmp / FILES["result"])
-        if figures:
+        if pending is not None:
+            pending()
+        elif figures:
             draw_figures(res, tmp)
         if report:
             from .reports import run_report

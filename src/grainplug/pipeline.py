@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .calibration import TubeGeometry, find_tube
 from .diagram import Diagram, Normalized, band_along_tube, normalize
@@ -103,8 +104,10 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     diagram, norm, grains = _orient(diagram, norm, grains, tube, flow.direction)
     runs, links = _plugs(norm, diagram, params)
     laps("plugs_s")
-    motion, lengths, statement = _measures(norm, diagram, runs, links, tube, fps=info.fps, mm_per_px=mm_per_px,
-                                           scale_rel_sd=scale_rel_sd)
+    # small least-squares problems: a BLAS thread pool would only add wake-up latency
+    with threadpool_limits(limits=1, user_api="blas"):
+        motion, lengths, statement = _measures(norm, diagram, runs, links, tube, fps=info.fps,
+                                               mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
     laps("measures_s")
     keep = np.unique(np.linspace(0, len(sample) - 1, min(len(sample), KEPT_SAMPLE_FRAMES)).round().astype(int))
     best = _most_edges(runs, np.asarray(sample_idx)[keep])

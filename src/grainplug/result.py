@@ -39,6 +39,8 @@ if TYPE_CHECKING:
     import xarray as xr
     from matplotlib.axes import Axes
 
+    from .plotting.worker import FigureWorker
+
 CONVENTIONS = ("positions in mm along the tube from the upstream end of the view, increasing "
                "with the flow; celerity in m/s, positive downstream (negative: plugs climb)")
 
@@ -302,16 +304,19 @@ class AnalysisResult:
         plot_diagram(self, ax=ax)
         return ax
 
-    def save(self, out_dir: str | Path, *, figures: bool = True, report: bool = True) -> dict[str, Path]:
+    def save(self, out_dir: str | Path, *, figures: bool = True, report: bool = True,
+             figure_worker: FigureWorker | None = None) -> dict[str, Path]:
         """Write every output into ``out_dir`` (atomically); read back with :func:`grainplug.load_result`.
 
         Writes ``summary.json``, ``plug_edges.csv``, ``tracks.csv``, ``diagram.npz``,
         ``result.npz`` (everything :func:`~grainplug.load_result` needs) and, unless
         switched off, the PNG figures and ``report.html``. Returns the paths written.
+        ``figure_worker`` (:class:`grainplug.plotting.worker.FigureWorker`, started
+        before the analysis) draws the figures in another process meanwhile.
         """
         from .outputs import write_outputs
 
-        return write_outputs(self, out_dir, figures=figures, report=report)
+        return write_outputs(self, out_dir, figures=figures, report=report, figure_worker=figure_worker)
 
 
 def _r(x: float | None, nd: int = 6) -> float | None:

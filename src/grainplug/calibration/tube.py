@@ -51,7 +51,6 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from ..errors import MovieError
 
@@ -277,6 +276,7 @@ def _coarse_tilt(feature: np.ndarray, *, centre: float = 0.0, span: float = MAX_
 
     Searched in ``centre +- span`` on successively finer grids.
     """
+    from scipy import ndimage
     small = _downsample(feature, 80_000)
     h, w = small.shape
     pad = h * np.tan(np.radians(MAX_TILT_DEG + 1))
@@ -364,6 +364,7 @@ def _local_edge(grid: np.ndarray, sm: np.ndarray, approx: int, inward: int) -> f
 
 def _bore_in_profile(grid: np.ndarray, prof: np.ndarray) -> _Bore | None:
     """Edges of the variation plateau in a profile sampled on ``grid``."""
+    from scipy import ndimage
     ok = np.isfinite(prof)
     if ok.sum() < 10:
         return None
@@ -393,6 +394,7 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     ``coarse``: orientation, tilt, axis and an approximate width only (no block
     refinement, a 0.25 px profile grid), for the first look at a binned frame.
     """
+    from scipy import ndimage
     # relative variation of the contents: sensor noise removed (the background's
     # variance), divided by the local mean so that any local loss of light (the
     # dark bands of refraction at the walls, vignetting) cancels out

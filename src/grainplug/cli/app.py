@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from pathlib import Path
 
@@ -15,7 +16,24 @@ from ..params import FLOW_DIRECTIONS
 err_console = Console(stderr=True)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+class LazyGroup(click.Group):
+    """Commands whose options need heavy imports are loaded when named (click's lazy-loading
+    pattern), so that every other command starts without them."""
+
+    LAZY = {"synth": "grainplug.cli.synth"}  # noqa: RUF012 - a constant
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted([*super().list_commands(ctx), *self.LAZY])
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name in self.LAZY:
+            import importlib
+
+            return getattr(importlib.import_module(self.LAZY[name]), name)
+        return super().get_command(ctx, name)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="grainplug")
 @click.option("--debug", is_flag=True, help="Show full tracebacks and debug logging.")
 @click.option("-v", "--verbose", is_flag=True, help="Log what the library does.")
@@ -68,74 +86,6 @@ def info(movie: Path, glob_: str | None, fps: float | None, as_json: bool) -> No
 
 
 # ---------------------------------------------------------------------------
-def _synth_options(f):
-    from ..synthetic import FLOW_DIRECTIONS, FORMATS, REGIMES
-
-    opts = [
-        click.option("--out", "out", type=click.Path(path_type=Path), required=True,
-                     help="Folder to write the movie and its truth into."),
-        click.option("--format", "fmt", type=click.Choice(list(FORMATS)), default="tiff", show_default=True),
-        click.option("--seed", type=int, default=0, show_default=True),
-        click.option("--frames", "n_frames", type=int, default=300, show_default=True),
-        click.option("--fps", type=float, default=250.0, show_default=True),
-        click.option("--width", "width_px", type=int, default=128, show_default=True,
-                     help="Frame width across the tube (canonical vertical view)."),
-        click.option("--height", "height_px", type=int, default=640, show_default=True,
-                     help="Frame height along the tube (canonical vertical view)."),
-        click.option("--mm-per-px", type=float, default=0.185, show_default=True),
-        click.option("--tube-diameter-mm", type=float, default=3.0, show_default=True),
-        click.option("--wall-mm", type=float, default=1.0, show_default=True),
-        click.option("--tube-offset-px", type=float, default=0.0, show_default=True),
-        click.option("--tilt-deg", type=float, default=0.0, show_default=True),
-        click.option("--flow-direction", type=click.Choice(FLOW_DIRECTIONS), default="down", show_default=True),
-        click.option("--polarity", type=click.Choice(["dark", "bright"]), default="dark", show_default=True,
-                     help="dark plugs on a bright field, or bright plugs on a dark field"),
-        click.option("--grey", "grey", is_flag=True, help="Write grey frames instead of RGB."),
-        click.option("--bit-depth", type=click.Choice(["8", "16"]), default="8", show_default=True),
-        click.option("--regime", type=click.Choice(REGIMES), default="propagative", show_default=True),
-        click.option("--no-plug-fill", type=click.Choice(["empty", "compact"]), default="empty", show_default=True),
-        click.option("--celerity-m-s", type=float, default=-0.05, show_default=True),
-        click.option("--frequency-hz", type=float, default=7.0, show_default=True),
-        click.option("--amplitude-mm", type=float, default=1.5, show_default=True),
-        click.option("--stick-fraction", type=float, default=0.5, show_default=True),
-        click.option("--plug-length-mm", type=float, default=30.0, show_default=True),
-        click.option("--plug-length-sd-mm", type=float, default=2.0, show_default=True),
-        click.option("--bubble-length-mm", type=float, default=25.0, show_default=True),
-        click.option("--bubble-length-sd-mm", type=float, default=4.0, show_default=True),
-        click.option("--merge-split", is_flag=True, help="Let some plugs merge and split again."),
-        click.option("--falling-grains-per-mm", type=float, default=0.4, show_default=True),
-        click.option("--noise-sigma", type=float, default=3.0, show_default=True),
-        click.option("--flicker", type=float, default=0.0, show_default=True),
-        click.option("--gradient", type=float, default=0.0, show_default=True),
-    ]
-    for opt in reversed(opts):
-        f = opt(f)
-    return f
-
-
-@cli.command()
-@_synth_options
-@click.option("--json", "as_json", is_flag=True, help="Print the truth as JSON.")
-def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwargs: object) -> None:
-    """Render a synthetic plug-flow movie with its ground truth (truth.json)."""
-    from ..synthetic import SynthConfig, synthesize
-
-    try:
-        cfg = SynthConfig(rgb=not grey, bit_depth=int(bit_depth), **kwargs)
-    except TypeError as exc:  # pragma: no cover - option/field mismatch is a bug
-        raise ParameterError(str(exc)) from None
-    if fmt in ("mraw", "cine") and cfg.rgb:
-        cfg = SynthConfig(**{**cfg.as_dict(), "rgb": False, "tint": cfg.tint})
-        err_console.print(f"note: {fmt} is written grey")
-    with err_console.status(f"rendering {cfg.n_frames} frames"):
-        result = synthesize(cfg, out, fmt=fmt)
-    if as_json:
-        _echo_json(result.truth)
-    else:
-        click.echo(f"wrote {result.movie} and {result.truth_json.name}")
-
-
-# ---------------------------------------------------------------------------
 @cli.command()
 @click.argument("movie", type=click.Path(path_type=Path))
 @click.option("--out", "out", type=click.Path(path_type=Path), required=True,
@@ -161,6 +111,7 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
 
     from ..params import AnalysisParams
     from ..pipeline import analyze as run_analysis
+    from ..plotting.worker import FigureWorker
 
     if mm_per_px is not None and tube_diameter_mm is not None:
         raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
@@ -168,16 +119,18 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
     diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_)
-    with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
-                  TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
-                  console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
-        task = bar.add_task(f"analysing {movie.name}", total=None)
+    # the figures' worker starts now: it imports matplotlib while the frames stream
+    with FigureWorker() if not no_figures else contextlib.nullcontext() as figure_worker:
+        with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
+                      TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
+                      console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
+            task = bar.add_task(f"analysing {movie.name}", total=None)
 
-        def progress(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
+            def progress(done: int, total: int) -> None:
+                bar.update(task, completed=done, total=total)
 
-        result = run_analysis(movie, params, progress=progress, threads=threads)
-    result.save(out, figures=not no_figures, report=not no_figures)
+            result = run_analysis(movie, params, progress=progress, threads=threads)
+        result.save(out, figures=not no_figures, report=not no_figures, figure_worker=figure_worker)
     s = result.summary
     if as_json:
         _echo_json(s)

@@ -36,8 +36,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
-from skimage import filters as skimage_filters
 
 MIN_SEPARATION_ETA = 0.8
 MIN_CLASS_FRACTION = 0.02
@@ -80,6 +78,7 @@ class Normalized:
 
 def _otsu(values: np.ndarray) -> tuple[float, float]:
     """Otsu threshold and its effectiveness (between-class / total variance)."""
+    from skimage import filters as skimage_filters
     v = values[np.isfinite(values)]
     if v.size < 4 or np.ptp(v) == 0:
         return float(np.median(v)) if v.size else 0.0, 0.0
@@ -122,6 +121,7 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
         The class levels and ``b(s)`` are fitted on at most this many frames spread
         over the record; the per-frame gains ``a(t)`` are then found for every frame.
     """
+    from scipy import ndimage
     d = np.asarray(values, dtype=np.float32)
     scale = max(float(np.percentile(d[:: max(1, d.shape[0] // 200)], 99)), 1e-9)
     L = np.maximum(d, np.float32(1e-3 * scale))

@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 #: frame pairs correlated at once
 PAIRS_PER_BLOCK = 64
@@ -52,6 +51,7 @@ def falling_grains(z: np.ndarray, *, mm_per_sample: float, fps: float, min_speed
     ``max_pairs`` pairs spread over a record longer than ``2 max_pairs`` frames
     (enough for a clear peak; a long record adds time and memory, not information).
     """
+    from scipy import ndimage
     n_t, n_s = z.shape
     if n_t < 3 or n_s < 16:
         return GrainMotion(None, 0.0, 0.0)

@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import special
 
 from ..plugs import Runs, Tracks
 
@@ -44,6 +43,7 @@ class Lengths:
 
 
 def _mean_ci(values: np.ndarray, scale_rel_sd: float) -> tuple[float, tuple[float, float] | None, float | None]:
+    from scipy import special
     m = float(np.mean(values))
     if len(values) < 2:
         return m, None, None

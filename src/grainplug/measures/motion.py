@@ -40,7 +40,6 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import special
 
 log = logging.getLogger(__name__)
 
@@ -240,6 +239,7 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     Motion or None
         None when fewer than two usable edge observations exist.
     """
+    from scipy import special
     ok = np.isfinite(top_mm)
     tr = track[ok]
     counts = np.bincount(tr) if tr.size else np.zeros(0, int)

@@ -1,0 +1,80 @@
+"""``grainplug synth``: its options list the synthetic formats and regimes, so it is
+loaded only when named (see :class:`grainplug.cli.app.LazyGroup`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..errors import ParameterError
+from ..params import FLOW_DIRECTIONS
+from ..synthetic import FORMATS, REGIMES
+from .app import _echo_json, err_console
+
+
+def _synth_options(f):
+    opts = [
+        click.option("--out", "out", type=click.Path(path_type=Path), required=True,
+                     help="Folder to write the movie and its truth into."),
+        click.option("--format", "fmt", type=click.Choice(list(FORMATS)), default="tiff", show_default=True),
+        click.option("--seed", type=int, default=0, show_default=True),
+        click.option("--frames", "n_frames", type=int, default=300, show_default=True),
+        click.option("--fps", type=float, default=250.0, show_default=True),
+        click.option("--width", "width_px", type=int, default=128, show_default=True,
+                     help="Frame width across the tube (canonical vertical view)."),
+        click.option("--height", "height_px", type=int, default=640, show_default=True,
+                     help="Frame height along the tube (canonical vertical view)."),
+        click.option("--mm-per-px", type=float, default=0.185, show_default=True),
+        click.option("--tube-diameter-mm", type=float, default=3.0, show_default=True),
+        click.option("--wall-mm", type=float, default=1.0, show_default=True),
+        click.option("--tube-offset-px", type=float, default=0.0, show_default=True),
+        click.option("--tilt-deg", type=float, default=0.0, show_default=True),
+        click.option("--flow-direction", type=click.Choice(FLOW_DIRECTIONS), default="down", show_default=True),
+        click.option("--polarity", type=click.Choice(["dark", "bright"]), default="dark", show_default=True,
+                     help="dark plugs on a bright field, or bright plugs on a dark field"),
+        click.option("--grey", "grey", is_flag=True, help="Write grey frames instead of RGB."),
+        click.option("--bit-depth", type=click.Choice(["8", "16"]), default="8", show_default=True),
+        click.option("--regime", type=click.Choice(REGIMES), default="propagative", show_default=True),
+        click.option("--no-plug-fill", type=click.Choice(["empty", "compact"]), default="empty", show_default=True),
+        click.option("--celerity-m-s", type=float, default=-0.05, show_default=True),
+        click.option("--frequency-hz", type=float, default=7.0, show_default=True),
+        click.option("--amplitude-mm", type=float, default=1.5, show_default=True),
+        click.option("--stick-fraction", type=float, default=0.5, show_default=True),
+        click.option("--plug-length-mm", type=float, default=30.0, show_default=True),
+        click.option("--plug-length-sd-mm", type=float, default=2.0, show_default=True),
+        click.option("--bubble-length-mm", type=float, default=25.0, show_default=True),
+        click.option("--bubble-length-sd-mm", type=float, default=4.0, show_default=True),
+        click.option("--merge-split", is_flag=True, help="Let some plugs merge and split again."),
+        click.option("--falling-grains-per-mm", type=float, default=0.4, show_default=True),
+        click.option("--noise-sigma", type=float, default=3.0, show_default=True),
+        click.option("--flicker", type=float, default=0.0, show_default=True),
+        click.option("--gradient", type=float, default=0.0, show_default=True),
+    ]
+    for opt in reversed(opts):
+        f = opt(f)
+    return f
+
+
+@click.command()
+@_synth_options
+@click.option("--json", "as_json", is_flag=True, help="Print the truth as JSON.")
+def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwargs: object) -> None:
+    """Render a synthetic plug-flow movie with its ground truth (truth.json)."""
+    from ..synthetic import SynthConfig, synthesize
+
+    try:
+        cfg = SynthConfig(rgb=not grey, bit_depth=int(bit_depth), **kwargs)
+    except TypeError as exc:  # pragma: no cover - option/field mismatch is a bug
+        raise ParameterError(str(exc)) from None
+    if fmt in ("mraw", "cine") and cfg.rgb:
+        cfg = SynthConfig(**{**cfg.as_dict(), "rgb": False, "tint": cfg.tint})
+        err_console.print(f"note: {fmt} is written grey")
+    with err_console.status(f"rendering {cfg.n_frames} frames"):
+        result = synthesize(cfg, out, fmt=fmt)
+    if as_json:
+        _echo_json(result.truth)
+    else:
+        click.echo(f"wrote {result.movie} and {result.truth_json.name}")
+
+
