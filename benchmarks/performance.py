@@ -294,9 +294,9 @@ def main() -> int:
     if not can_drop:
         print("(no posix_fadvise: the movies cannot be evicted from memory, every measure is warm)")
     # the interpreter's own files in memory, as after any earlier use of grainplug
-    subprocess.run([sys.executable, "-c", "import grainplug.cli.app, grainplug.analysis, grainplug.outputs, "
-                    "grainplug.plotting.helper, av, tifffile, skimage.measure; "
-                    "grainplug.plotting.helper.warm_up()"], check=True)
+    subprocess.run([sys.executable, "-c", "import grainplug.cli.app, grainplug.pipeline, grainplug.outputs, "
+                    "grainplug.plotting.worker, scipy.ndimage, av, tifffile, skimage.measure; "
+                    "grainplug.plotting.worker._warm_up()"], check=True)
     rows = []
 
     def only(path: Path) -> Path:

@@ -18,11 +18,11 @@ import numpy as np
 
 from . import jsonio
 from ._atomic import atomic_directory
-from .result import AnalysisResult
 from .store import RESULT_FILE, write_result
 
 if TYPE_CHECKING:
     from .plotting.worker import FigureWorker
+    from .result import AnalysisResult
 
 log = logging.getLogger(__name__)
 

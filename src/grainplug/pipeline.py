@@ -86,6 +86,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("sample_s")
         wanted = tube_orientation(params.flow_direction) if params.flow_direction else None
         tube = find_tube(sample, orientation=wanted)
+        sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
         laps("tube_s")
         band, axis_px = band_along_tube(tube)
         mm_per_px, scale_source, scale_rel_sd = _scale(tube, params)
@@ -109,15 +110,14 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         motion, lengths, statement = _measures(norm, diagram, runs, links, tube, fps=info.fps,
                                                mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
     laps("measures_s")
-    keep = np.unique(np.linspace(0, len(sample) - 1, min(len(sample), KEPT_SAMPLE_FRAMES)).round().astype(int))
-    best = _most_edges(runs, np.asarray(sample_idx)[keep])
+    best = _most_edges(runs, sample_idx)
     timings = dict(laps.timings, stream_fps=round(diagram.n_frames / max(laps.timings["stream_s"], 1e-9), 1))
     return AnalysisResult(
         params=params, input=identity, info=info, tube=tube, mm_per_px=mm_per_px, scale_source=scale_source,
         flow_direction=flow.direction, flow_direction_source=flow.source, diagram=diagram, normalized=norm,
         runs=runs, links=links, motion=motion, lengths=lengths, has_plugs=bool(norm.two_phase and len(runs) > 0),
         statement=statement,
-        sample_frame=sample[keep[best]], sample_frame_index=int(sample_idx[keep[best]]), timings=timings,
+        sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s, warnings=list(flow.warnings),
     )
 
@@ -146,6 +146,13 @@ def _opened(source: object, params: AnalysisParams) -> Iterator[Movie]:
         return
     with as_movie(source, fps=params.fps, glob=params.glob) as movie:
         yield movie
+
+
+def _keep_for_figure(indices: np.ndarray, frames: list[np.ndarray]) -> tuple[np.ndarray, list[np.ndarray]]:
+    """A few of the sampled frames, spread over the movie, for the annotated figure (the
+    others are let go: 32 full frames of a 1280 x 1024 RGB movie are 126 MB)."""
+    keep = np.unique(np.linspace(0, len(frames) - 1, min(len(frames), KEPT_SAMPLE_FRAMES)).round().astype(int))
+    return np.asarray(indices)[keep], [frames[k] for k in keep]
 
 
 def _check_movie(movie: Movie) -> None:
