@@ -190,3 +190,12 @@ def test_no_global_state_in_the_library():
         if "sys.argv" in text and path.name not in ("__init__.py", "demo.py", "__main__.py"):
             found.append(f"{path.relative_to(SRC)}: reads sys.argv")
     assert not found, found
+
+
+def test_an_open_movie_is_not_changed_by_the_analysis(movie):
+    with gp.open_movie(movie.movie) as m:
+        before = m.info
+        res = gp.analyze(m, fps=500.0)
+        assert m.info == before  # the caller's movie keeps its own frame rate
+    assert res.info.fps == 500.0 and res.info.fps_source == "user"
+    assert res.diagram.time_s[1] == pytest.approx(1 / 500.0)

@@ -31,7 +31,7 @@ from .measures import Lengths, Motion, measure_lengths, measure_motion
 from .measures.grains import GrainMotion, falling_grains
 from .params import AnalysisParams, opposite, runs_backwards, tube_orientation
 from .plugs import Runs, Tracks, find_runs, link, plug_mask
-from .readers import Movie, as_movie
+from .readers import Movie, MovieInfo, as_movie
 from .result import AnalysisResult
 
 log = logging.getLogger(__name__)
@@ -78,8 +78,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         raise ParameterError(f"give at least 1 (or None for one per core), got {threads}", param="threads")
     laps = _Laps()
     with _opened(source, params) as movie:
-        info = movie.info
-        _check_movie(movie)
+        info = _movie_info(movie, params)
+        _check_movie(info)
         laps("open_s")
         sample_idx, sample = movie.sample(params.sample_frames)
         movie.prefetch()  # the rest of the movie is read while the tube is found
@@ -94,7 +94,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         values = movie.read_band(band, threads=threads,
                                  progress=(lambda k: progress(k, info.n_frames)) if progress else None)
         laps("stream_s")
-        time_s = _frame_times(movie, len(values))
+        time_s = _frame_times(movie, info, len(values))
         identity = _identity(source, movie)
         laps("fingerprint_s")
     diagram = Diagram(values, time_s, axis_px * mm_per_px, mm_per_px)
@@ -140,8 +140,6 @@ class _Laps:
 def _opened(source: object, params: AnalysisParams) -> Iterator[Movie]:
     """The source as a movie; closed at the end if opened here (a Movie passed in is left open)."""
     if isinstance(source, Movie):
-        if params.fps and source.info.fps != params.fps:
-            source.info = dataclasses.replace(source.info, fps=float(params.fps), fps_source="user")
         yield source
         return
     with as_movie(source, fps=params.fps, glob=params.glob) as movie:
@@ -155,8 +153,14 @@ def _keep_for_figure(indices: np.ndarray, frames: list[np.ndarray]) -> tuple[np.
     return np.asarray(indices)[keep], [frames[k] for k in keep]
 
 
-def _check_movie(movie: Movie) -> None:
-    info = movie.info
+def _movie_info(movie: Movie, params: AnalysisParams) -> MovieInfo:
+    """The movie's description, with the frame rate the user gave (the movie itself is not changed)."""
+    if params.fps and movie.info.fps != params.fps:
+        return dataclasses.replace(movie.info, fps=float(params.fps), fps_source="user")
+    return movie.info
+
+
+def _check_movie(info: MovieInfo) -> None:
     if not info.fps:
         raise ParameterError(f"{info.path}: the frame rate is unknown (image folders, arrays and some TIFFs "
                              "hold none) — give the camera's frame rate", param="fps")
@@ -173,9 +177,8 @@ def _scale(tube: TubeGeometry, params: AnalysisParams) -> tuple[float, str, floa
     return mm_per_px, source, TUBE_WIDTH_SD_PX / tube.inner_diameter_px
 
 
-def _frame_times(movie: Movie, n: int) -> np.ndarray:
+def _frame_times(movie: Movie, info: MovieInfo, n: int) -> np.ndarray:
     """Time of each frame: the file's presentation times where it has them, else index / fps."""
-    info = movie.info
     if movie.has_file_timestamps and info.fps_source == "file":
         stamps = movie.timestamps_s()  # recorded while streaming, for video
         if len(stamps) == n:
