@@ -55,32 +55,22 @@ def edges_table(res: AnalysisResult) -> str:
 
 
 def tracks_table(res: AnalysisResult) -> str:
-    """CSV with one row per plug track."""
+    """CSV with one row per plug track (:func:`grainplug.result.track_rows`), empty where NaN."""
+    from .result import TRACK_COLUMNS, track_rows
+
+    formats = {"first_time_s": "{:.6f}", "last_time_s": "{:.6f}", "celerity_m_s": "{:.6f}",
+               "mean_length_mm": "{:.4f}", "median_length_mm": "{:.4f}", "composite": "{:d}"}
+
+    def cell(key: str, v: object) -> object:
+        if isinstance(v, float) and not np.isfinite(v):
+            return ""
+        return formats[key].format(int(v) if key == "composite" else v) if key in formats else v
+
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["plug_id", "first_frame", "last_frame", "first_time_s", "last_time_s", "n_frames",
-                "n_frames_whole", "celerity_m_s", "mean_length_mm", "median_length_mm",
-                "started_by", "ended_by", "composite"])
-    r, tr = res.runs, res.links
-    t = res.diagram.time_s
-    for tid in range(len(tr)):
-        sel = tr.run_track == tid
-        frames = r.frame[sel]
-        top, bot = r.top_mm[sel], r.bottom_mm[sel]
-        whole = np.isfinite(top) & np.isfinite(bot)
-        edge = top if np.isfinite(top).sum() >= 2 else bot
-        ok = np.isfinite(edge)
-        cel = ""
-        if ok.sum() >= 2 and np.ptp(t[frames[ok]]) > 0:
-            cel = f"{np.polyfit(t[frames[ok]], edge[ok], 1)[0] / 1000:.6f}"
-        lengths = (bot - top)[whole]
-        w.writerow([
-            tid, int(tr.first_frame[tid]), int(tr.last_frame[tid]), f"{t[tr.first_frame[tid]]:.6f}",
-            f"{t[tr.last_frame[tid]]:.6f}", int(sel.sum()), int(whole.sum()), cel,
-            f"{lengths.mean():.4f}" if lengths.size else "",
-            f"{np.median(lengths):.4f}" if lengths.size else "",
-            tr.started_by[tid], tr.ended_by[tid], int(tr.composite(tid)),
-        ])
+    w.writerow(TRACK_COLUMNS)
+    for row in track_rows(res):
+        w.writerow([cell(k, row[k]) for k in TRACK_COLUMNS])
     return buf.getvalue()
 
 

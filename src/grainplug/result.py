@@ -143,31 +143,7 @@ class AnalysisResult:
         """One row per plug track: when it was seen, its celerity and length, how it began and ended."""
         import pandas as pd
 
-        r, tr, t = self.runs, self.links, self.diagram.time_s
-        rows = []
-        for tid in range(len(tr)):
-            sel = tr.run_track == tid
-            frames = r.frame[sel]
-            top, bot = r.top_mm[sel], r.bottom_mm[sel]
-            whole = np.isfinite(top) & np.isfinite(bot)
-            edge = top if np.isfinite(top).sum() >= 2 else bot
-            ok = np.isfinite(edge)
-            cel = np.nan
-            if ok.sum() >= 2 and np.ptp(t[frames[ok]]) > 0:
-                cel = float(np.polyfit(t[frames[ok]], edge[ok], 1)[0] / 1000)
-            lengths = (bot - top)[whole]
-            rows.append({
-                "plug_id": tid, "first_frame": int(tr.first_frame[tid]), "last_frame": int(tr.last_frame[tid]),
-                "first_time_s": float(t[tr.first_frame[tid]]), "last_time_s": float(t[tr.last_frame[tid]]),
-                "n_frames": int(sel.sum()), "n_frames_whole": int(whole.sum()), "celerity_m_s": cel,
-                "mean_length_mm": float(lengths.mean()) if lengths.size else np.nan,
-                "median_length_mm": float(np.median(lengths)) if lengths.size else np.nan,
-                "started_by": tr.started_by[tid], "ended_by": tr.ended_by[tid], "composite": bool(tr.composite(tid)),
-            })
-        columns = ["plug_id", "first_frame", "last_frame", "first_time_s", "last_time_s", "n_frames",
-                   "n_frames_whole", "celerity_m_s", "mean_length_mm", "median_length_mm", "started_by",
-                   "ended_by", "composite"]
-        return pd.DataFrame(rows, columns=columns)
+        return pd.DataFrame(track_rows(self), columns=list(TRACK_COLUMNS))
 
     @cached_property
     def plugs(self) -> pd.DataFrame:
@@ -317,6 +293,45 @@ class AnalysisResult:
         from .outputs import write_outputs
 
         return write_outputs(self, out_dir, figures=figures, report=report, figure_worker=figure_worker)
+
+
+#: columns of :attr:`AnalysisResult.tracks` and ``tracks.csv``
+TRACK_COLUMNS = ("plug_id", "first_frame", "last_frame", "first_time_s", "last_time_s", "n_frames",
+                 "n_frames_whole", "celerity_m_s", "mean_length_mm", "median_length_mm", "started_by",
+                 "ended_by", "composite")
+
+
+def track_rows(res: AnalysisResult) -> list[dict[str, Any]]:
+    """One dict per plug track (:data:`TRACK_COLUMNS`; NaN where a figure cannot be had).
+
+    Notes
+    -----
+    A track's celerity is the slope of a straight line fitted to its upper edges (its lower
+    edges when fewer than two upper ones are in view), in m/s; its lengths are over the
+    frames where both edges are in view.
+    """
+    r, tr, t = res.runs, res.links, res.diagram.time_s
+    rows = []
+    for tid in range(len(tr)):
+        sel = tr.run_track == tid
+        frames = r.frame[sel]
+        top, bot = r.top_mm[sel], r.bottom_mm[sel]
+        whole = np.isfinite(top) & np.isfinite(bot)
+        edge = top if np.isfinite(top).sum() >= 2 else bot
+        ok = np.isfinite(edge)
+        cel = np.nan
+        if ok.sum() >= 2 and np.ptp(t[frames[ok]]) > 0:
+            cel = float(np.polyfit(t[frames[ok]], edge[ok], 1)[0] / 1000)
+        lengths = (bot - top)[whole]
+        rows.append({
+            "plug_id": tid, "first_frame": int(tr.first_frame[tid]), "last_frame": int(tr.last_frame[tid]),
+            "first_time_s": float(t[tr.first_frame[tid]]), "last_time_s": float(t[tr.last_frame[tid]]),
+            "n_frames": int(sel.sum()), "n_frames_whole": int(whole.sum()), "celerity_m_s": cel,
+            "mean_length_mm": float(lengths.mean()) if lengths.size else np.nan,
+            "median_length_mm": float(np.median(lengths)) if lengths.size else np.nan,
+            "started_by": tr.started_by[tid], "ended_by": tr.ended_by[tid], "composite": bool(tr.composite(tid)),
+        })
+    return rows
 
 
 def _r(x: float | None, nd: int = 6) -> float | None:
