@@ -33,6 +33,8 @@ class Band:
     The profile of frame :math:`I` at position :math:`i` is
     :math:`p_i = \\sum_j w_{ij}\\, \\bar I(r_{ij}, c_{ij})`, where :math:`\\bar I` is the
     mean over the colour channels (equal weights, so channel order does not matter).
+    A reader of YUV-coded video uses the luma plane for :math:`\\bar I` instead (see
+    :meth:`grainplug.readers.Movie.read_band`).
     """
 
     rows: np.ndarray

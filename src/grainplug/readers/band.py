@@ -58,8 +58,8 @@ class BandGather:
         if frame.ndim == 3 and frame.shape[2] == 4:
             frame = frame[..., :3]
         if self._key != (frame.shape, frame.strides, frame.dtype.str):
-            if any(s == 0 for s in frame.strides) or not frame.dtype.isnative:
-                frame = np.ascontiguousarray(frame, dtype=frame.dtype.newbyteorder("="))
+            if any(s == 0 for s in frame.strides):  # broadcast axes: no layout to follow
+                frame = np.ascontiguousarray(frame)
             self._prepare(frame)
         return frame
 

@@ -272,7 +272,10 @@ class Movie(abc.ABC):
         read-ahead (:meth:`prefetch`) is restricted to the bytes the band
         touches where that skips most of each frame; other formats are decoded
         once, in order, in their native layout. All give the numbers of
-        :meth:`grainplug.band.Band.profile`.
+        :meth:`grainplug.band.Band.profile` of the frames :meth:`frames` hands out,
+        except YUV-coded video (H.264, MJPEG...), whose profiles are of the luma plane as
+        decoded, with no colour conversion: for grey or uniformly tinted scenes an affine
+        function of the channel mean, which the analysis's normalisation absorbs.
         """
         from .band import BandGather, profiles_from_blocks, profiles_from_frames
 
@@ -341,14 +344,18 @@ class Movie(abc.ABC):
         return False
 
     # -- context manager ----------------------------------------------------
-    def close(self) -> None:  # noqa: B027 - optional hook
-        """Release the file."""
+    def close(self) -> None:
+        """Stop the read-ahead (joining its thread) and release the file."""
+        self._stop_prefetch()
+        self._close()
+
+    def _close(self) -> None:  # noqa: B027 - optional hook
+        """Release the reader's own resources (files, decoders)."""
 
     def __enter__(self) -> Movie:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self._stop_prefetch()
         self.close()
 
     def __repr__(self) -> str:

@@ -102,5 +102,5 @@ class MrawMovie(Movie):
         arr = np.asarray(self._images[index])
         return np.ascontiguousarray(arr.astype(self.info.dtype, copy=False))
 
-    def close(self) -> None:
+    def _close(self) -> None:
         self._images = None

@@ -161,5 +161,5 @@ class TiffStackMovie(Movie):
             return out
         return self._page(index)[rows, cols]
 
-    def close(self) -> None:
+    def _close(self) -> None:
         self._tif.close()

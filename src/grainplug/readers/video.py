@@ -418,7 +418,7 @@ class VideoMovie(Movie):
             plane = frame.planes[0]
             arr = np.frombuffer(plane, np.uint8).reshape(h, plane.line_size)[:, : w * 4].reshape(h, w, 4)
             return arr[..., 1:] if name[0] in "0a" else arr[..., :3]
-        if name.startswith(("yuv", "yuvj", "nv12", "nv21", "gbrp")) and not any(
+        if name.startswith(("yuv", "yuvj", "nv12", "nv21")) and not any(
                 d in name for d in ("9", "10", "12", "14", "16")):
             plane = frame.planes[0]
             return np.frombuffer(plane, np.uint8).reshape(h, plane.line_size)[:, :w]

@@ -1,0 +1,133 @@
+"""The measures' fast paths agree with plain computations.
+
+The drift fit without the one-hot block of track offsets against ``lstsq`` of the
+full design; the falling grains correlated on spread frame pairs against all
+pairs; the vectorised bubble lengths against a loop over frames.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from grainplug.measures import motion
+from grainplug.measures.grains import falling_grains
+from grainplug.measures.lengths import measure_lengths
+from grainplug.plugs.segment import find_runs, plug_mask
+from grainplug.plugs.tracking import link
+
+
+def test_fit_without_one_hot_equals_full_design(rng):
+    n_tracks, n = 9, 700
+    tix = np.sort(rng.integers(0, n_tracks, n))
+    t = rng.uniform(0, 3, n)
+    y = -40 * t + rng.normal(0, 5, n_tracks)[tix] + 0.7 * np.sin(2 * np.pi * 6.3 * t) + rng.normal(0, 0.2, n)
+    w = rng.uniform(0, 1, n)
+    w[tix == 3] = 0.0  # a track with no weight at all: offset 0, as the minimum-norm solution
+    for f, nh, weights in ((None, 0, None), (6.3, 3, None), (6.3, 3, w), (None, 0, w)):
+        coef, rss, res = motion._fit_res(t, y, tix, n_tracks, f, nh, weights)
+        A = motion._design(t, tix, n_tracks, f, nh)
+        sw = np.ones(n) if weights is None else np.sqrt(weights)
+        ref, *_ = np.linalg.lstsq(A * sw[:, None], y * sw, rcond=None)
+        np.testing.assert_allclose(coef, ref, rtol=1e-8, atol=1e-8)
+        np.testing.assert_allclose(res, y - A @ ref, rtol=1e-8, atol=1e-8)
+        np.testing.assert_allclose(rss, float(np.sum(sw**2 * (y - A @ ref) ** 2)), rtol=1e-9)
+
+
+def test_fit_of_a_rank_deficient_design(rng):
+    """Edges seen only at whole periods: the harmonic columns vanish once the track offsets
+    are projected out, the normal equations are singular, and the fit falls back to lstsq:
+    the same fitted values and drift as the full design, no weight on the dead columns."""
+    n_tracks, f = 4, 5.0
+    t = np.repeat(np.arange(40) / f, 3)
+    tix = np.tile(np.arange(3), 40) + (np.arange(120) >= 60)
+    y = -30 * t + rng.normal(0, 0.3, t.size)
+    coef, rss, res = motion._fit_res(t, y, tix, n_tracks, f, 2)
+    A = motion._design(t, tix, n_tracks, f, 2)
+    assert np.linalg.matrix_rank(A) < A.shape[1]
+    ref, *_ = np.linalg.lstsq(A, y, rcond=None)
+    np.testing.assert_allclose(res, y - A @ ref, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(rss, float(np.sum((y - A @ ref) ** 2)), rtol=1e-9)
+    np.testing.assert_allclose(A @ coef, A @ ref, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(coef[0], ref[0], rtol=1e-8)
+    np.testing.assert_allclose(coef[-4:], 0.0, atol=1e-9)
+
+
+def test_falling_grains_on_spread_pairs_agrees_with_all_pairs(rng):
+    n_t, n_s, shift = 1500, 400, 8  # specks moving 8 samples per frame through a bubble
+    z = np.full((n_t, n_s), 0.1, np.float32)
+    specks = rng.integers(0, n_s + shift * n_t, 4000)
+    for k in range(n_t):
+        s = specks - shift * (n_t - k)
+        s = s[(s >= 0) & (s < n_s)]
+        z[k, s] += 0.25
+    z += rng.normal(0, 0.01, z.shape).astype(np.float32)
+    all_pairs = falling_grains(z, mm_per_sample=0.2, fps=250.0, max_pairs=n_t)
+    spread = falling_grains(z, mm_per_sample=0.2, fps=250.0, max_pairs=300)
+    expected = shift * 0.2 * 250.0 / 1000.0
+    assert all_pairs.speed_m_s == pytest.approx(expected, abs=0.01)
+    assert spread.speed_m_s == pytest.approx(expected, abs=0.01)
+    # the specks moving the other way are found moving the other way
+    back = falling_grains(z[::-1], mm_per_sample=0.2, fps=250.0, max_pairs=300)
+    assert back.speed_m_s == pytest.approx(-expected, abs=0.01)
+
+
+def _plug_diagram(rng, n_t=240, n_s=500):
+    """Contrast diagram of a plug train drifting down and oscillating, with noise: plugs
+    and bubbles of random lengths enter at the top and leave at the bottom; cracks split
+    plugs for a few frames."""
+    lengths = rng.uniform(25, 90, 80)  # plug, bubble, plug, ... in samples
+    edges = np.concatenate(([0.0], np.cumsum(lengths))) - lengths.sum() + n_s + 60
+    z = np.zeros((n_t, n_s), np.float32)
+    s = np.arange(n_s)
+    for k in range(n_t):
+        shift = 3.0 * k + 6 * np.sin(2 * np.pi * k / 37)
+        idx = np.searchsorted(edges + shift, s, side="right")
+        z[k] = (idx % 2 == 1) & (idx > 0) & (idx < len(edges))
+    # now and then a crack splits a plug for a few frames: short tracks, merges and splits
+    for k in rng.choice(n_t - 4, 12, replace=False):
+        at = int(rng.integers(20, n_s - 20))
+        z[k: k + int(rng.integers(1, 5)), at: at + 12] = 0.0
+    z = ndimage.uniform_filter1d(z, 3, axis=1)
+    return z + rng.normal(0, 0.15, z.shape).astype(np.float32)
+
+
+def _bubbles_by_loop(runs, tracks, min_frames):
+    """Frame by frame, neighbour by neighbour: the gap between each pair of tracks seen one
+    after the other, its median over the frames, kept if seen in >= min_frames frames."""
+    gaps: dict[tuple[int, int], list[float]] = {}
+    for k in np.unique(runs.frame):
+        idx = runs.in_frame(int(k))
+        for u, d in itertools.pairwise(idx):
+            if np.isfinite(runs.bottom_mm[u]) and np.isfinite(runs.top_mm[d]):
+                key = (int(tracks.run_track[u]), int(tracks.run_track[d]))
+                gaps.setdefault(key, []).append(float(runs.top_mm[d] - runs.bottom_mm[u]))
+    return {key: float(np.median(v)) for key, v in gaps.items() if len(v) >= min_frames}
+
+
+def test_bubble_lengths_vectorised_equal_the_loop(rng):
+    z = _plug_diagram(rng)
+    pos = np.arange(z.shape[1]) * 0.2
+    mask = plug_mask(z, mm_per_sample=0.2)
+    runs = find_runs(z, mask, pos)
+    tracks = link(runs, z.shape[0])
+    assert len(runs) > 300 and len(tracks) > 10
+    sizes = []
+    for min_frames in (1, 3, 10, 60):
+        got = measure_lengths(runs, tracks, min_frames=min_frames)
+        ref = _bubbles_by_loop(runs, tracks, min_frames)
+        pairs = [tuple(int(x) for x in p) for p in got.bubble_tracks]
+        assert got.bubble_tracks.shape == (len(ref), 2)
+        assert got.per_bubble_mm.shape == (len(ref),)
+        assert len(set(pairs)) == len(pairs)
+        assert dict(zip(pairs, got.per_bubble_mm.tolist(), strict=True)) == pytest.approx(ref, abs=1e-12)
+        assert got.n_bubbles_measured == len(ref)
+        if ref:
+            assert got.bubble_length_mm == pytest.approx(np.mean(list(ref.values())), rel=1e-12)
+        else:
+            assert got.bubble_length_mm is None
+        sizes.append(len(ref))
+    assert sizes[0] > sizes[-1] > 0  # the threshold on frames seen does filter
