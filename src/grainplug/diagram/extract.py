@@ -58,26 +58,24 @@ def display_stride(shape: tuple[int, int], max_side: int = 1200) -> tuple[int, i
     return -(-shape[0] // max_side), -(-shape[1] // max_side)
 
 
-def band_along_tube(tube: TubeGeometry, *, reverse: bool = False,
-                    core_fraction: float = CORE_FRACTION) -> tuple[Band, np.ndarray]:
+def band_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTION) -> tuple[Band, np.ndarray]:
     """The core band of the bore along the axis: which pixels make each profile sample.
 
     Parameters
     ----------
     tube : TubeGeometry
         The tube found by :func:`grainplug.calibration.find_tube`.
-    reverse : bool
-        The flow runs towards decreasing canonical rows (upwards, or leftwards):
-        the profile then starts at the bottom (right) of the view.
     core_fraction : float
         Part of the inner diameter that is averaged across the tube.
 
     Returns
     -------
     band : Band
-        Pixels and weights, in frame coordinates, ordered downstream.
+        Pixels and weights, in frame coordinates, from the top (left) of the view; the
+        pipeline turns the diagram once the flow direction is known
+        (:func:`grainplug.pipeline.analyze`).
     axis_px : ndarray
-        Distance of each position along the axis from the upstream edge of the
+        Distance of each position along the axis from the top (left) edge of the
         view, in pixels.
 
     Notes
@@ -100,12 +98,9 @@ def band_along_tube(tube: TubeGeometry, *, reverse: bool = False,
     weights = valid[keep].astype(np.float32)
     weights /= weights.sum(axis=1, keepdims=True)
     along = np.repeat(rows[:, None], cols.shape[1], axis=1)
-    if reverse:
-        rows, cols, along, weights = rows[::-1], cols[::-1], along[::-1], weights[::-1]
     if tube.orientation == "horizontal":  # canonical view = the frame transposed
         band = Band(cols, along, np.ascontiguousarray(weights), (w, h))
     else:
         band = Band(along, cols, np.ascontiguousarray(weights), (h, w))
     cos_t = np.cos(np.radians(tube.tilt_deg))
-    edge = (h - 1 - rows) if reverse else rows
-    return band, (edge + 0.5) / cos_t
+    return band, (rows + 0.5) / cos_t
