@@ -72,7 +72,8 @@ def info(movie: Path, glob_: str | None, fps: float | None, as_json: bool) -> No
     if as_json:
         _echo_json(d)
         return
-    fps_txt = f"{d['fps']:.6g} fps ({d['fps_source']})" if d["fps"] else "unknown (pass --fps)"
+    how = f": {d['fps_note']}" if d.get("fps_note") else ""
+    fps_txt = f"{d['fps']:.6g} fps ({d['fps_source']}{how})" if d["fps"] else "unknown (pass --fps)"
     dur = f"{d['duration_s']:.3f} s" if d["duration_s"] is not None else "unknown"
     kind = "grey" if d["channels"] == 1 else "RGB"
     click.echo(f"movie      {d['path']}")

@@ -45,6 +45,10 @@ class MovieInfo:
         numpy dtype of the frames (``"uint8"`` or ``"uint16"``).
     fps_source : str
         Where ``fps`` came from: ``"file"``, ``"user"`` or ``"none"``.
+    fps_note : str
+        How a file's frame rate was derived, where it is not simply stored (e.g.
+        ``"record rate 50000 fps / save step 2500"`` for a Photron recording that saved
+        one frame in 2500).
     """
 
     path: str
@@ -57,6 +61,7 @@ class MovieInfo:
     bit_depth: int
     dtype: str
     fps_source: str = "file"
+    fps_note: str = ""
 
     @property
     def duration_s(self) -> float | None:
@@ -87,6 +92,7 @@ class MovieInfo:
             "n_frames": self.n_frames,
             "fps": self.fps,
             "fps_source": self.fps_source,
+            "fps_note": self.fps_note,
             "channels": self.channels,
             "bit_depth": self.bit_depth,
             "dtype": self.dtype,

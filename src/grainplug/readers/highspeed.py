@@ -5,6 +5,7 @@ Both readers are optional extras: ``pip install grainplug[highspeed]``.
 
 from __future__ import annotations
 
+import logging
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -13,6 +14,8 @@ import numpy as np
 
 from ..errors import MovieError
 from .base import Movie, MovieInfo
+
+log = logging.getLogger(__name__)
 
 _EXTRA_HINT = "install the high-speed readers with: pip install 'grainplug[highspeed]'"
 
@@ -68,6 +71,30 @@ def _cih_path(path: Path) -> Path:
     raise MovieError(f"{path}: no .cih/.cihx header beside the .mraw file — copy it along with the movie")
 
 
+def photron_saved_rate(cih: Path, meta: dict) -> tuple[float | None, str]:
+    """Frame rate of the *saved* frames of a Photron recording, and how it was derived.
+
+    The camera records at ``Record Rate`` but may save one frame in ``Save Step``
+    (``.cih``) or ``skipFrame`` (``.cihx``): the saved frames are then
+    ``record rate / step`` apart. The step is read from the header itself (pyMRAW does
+    not report it for ``.cihx``).
+    """
+    rate = meta.get("Record Rate(fps)")
+    if not rate:
+        return None, "none"
+    step = meta.get("Save Step")
+    if step is None and cih.suffix.lower() == ".cihx":
+        import re
+
+        text = cih.read_bytes().decode("utf-8", errors="ignore")
+        found = re.search(r"<frameInfo>.*?<skipFrame>\s*(\d+)\s*</skipFrame>", text, flags=re.S)
+        step = int(found.group(1)) if found else None
+    step = int(step) if step else 1
+    if step <= 1:
+        return float(rate), f"record rate {float(rate):g} fps"
+    return float(rate) / step, f"record rate {float(rate):g} fps / save step {step}"
+
+
 class MrawMovie(Movie):
     """Photron ``.mraw`` + ``.cih``/``.cihx`` through `pyMRAW` (memory-mapped, lazy)."""
 
@@ -77,6 +104,10 @@ class MrawMovie(Movie):
         except ImportError:
             raise MovieError(f"cannot read {path}: pyMRAW is not installed — {_EXTRA_HINT}") from None
         cih = _cih_path(path)
+        data = cih.with_suffix(".mraw")
+        if not data.exists() and not cih.with_suffix(".MRAW").exists():
+            raise MovieError(f"{cih}: its image data {data.name} is not beside it — copy the .mraw file "
+                             "along with its header")
         try:
             with warnings.catch_warnings():  # pyMRAW warns about any depth but 12 bits
                 warnings.simplefilter("ignore")
@@ -87,11 +118,13 @@ class MrawMovie(Movie):
         n_frames, height, width = images.shape[:3]
         channels = 3 if images.ndim == 4 else 1
         depth = 8 if images.dtype == np.uint8 else 16
-        rate = meta.get("Record Rate(fps)")
-        file_fps = float(rate) if rate else None
+        file_fps, how = photron_saved_rate(cih, meta)
+        if file_fps and file_fps != float(meta.get("Record Rate(fps)") or 0):
+            log.info("%s: saved frames at %g fps (%s)", path.name, file_fps, how)
         use_fps, source = (fps, "user") if fps else (file_fps, "file" if file_fps else "none")
         info = MovieInfo(str(path), "mraw", int(width), int(height), int(n_frames), use_fps,
-                         channels, depth, "uint8" if depth == 8 else "uint16", source)
+                         channels, depth, "uint8" if depth == 8 else "uint16", source,
+                         fps_note="" if fps else how)
         super().__init__(path, info)
 
     def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
