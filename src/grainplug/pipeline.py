@@ -70,10 +70,10 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     Examples
     --------
     >>> import grainplug as gp
-    >>> frames = gp.datasets.sample_frames()          # doctest: +SKIP
-    >>> res = gp.analyze(frames, fps=1000, mm_per_px=0.1875)  # doctest: +SKIP
+    >>> res = gp.analyze(gp.datasets.sample_movie())              # doctest: +SKIP
+    >>> res = gp.analyze(frames, fps=1000, mm_per_px=0.1875)      # doctest: +SKIP
     """
-    params = (params or AnalysisParams()).replace(**overrides) if overrides else (params or AnalysisParams())
+    params = (params or AnalysisParams()).replace(**overrides)
     if threads is not None and threads < 1:
         raise ParameterError(f"give at least 1 (or None for one per core), got {threads}", param="threads")
     laps = _Laps()
@@ -95,7 +95,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                                  progress=(lambda k: progress(k, info.n_frames)) if progress else None)
         laps("stream_s")
         time_s = _frame_times(movie, info, len(values))
-        identity = _identity(source, movie)
+        identity = _identity(movie)
         laps("fingerprint_s")
     diagram = Diagram(values, time_s, axis_px * mm_per_px, mm_per_px)
     norm = normalize(diagram.values, background_level=tube.background_level)
@@ -314,10 +314,10 @@ def fingerprint(path: str | Path) -> dict[str, object]:
             "sha256_ends": h.hexdigest()}
 
 
-def _identity(source: object, movie: Movie) -> dict[str, object]:
+def _identity(movie: Movie) -> dict[str, object]:
     """Provenance of the input: a file's :func:`fingerprint`, or an array's shape and the hash
     of its first and last frames."""
-    if movie.path.exists() and not movie.info.format.startswith("array"):
+    if not movie.info.format.startswith("array"):
         return fingerprint(movie.path)
     n = movie.info.n_frames
     h = hashlib.sha256()

@@ -9,7 +9,7 @@ import click
 
 from ..errors import ParameterError
 from ..params import FLOW_DIRECTIONS
-from ..synthetic import FORMATS, REGIMES
+from ..synthetic import FORMATS, REGIMES, SynthConfig, synthesize
 from .app import _echo_json, err_console
 
 
@@ -61,8 +61,6 @@ def _synth_options(f):
 @click.option("--json", "as_json", is_flag=True, help="Print the truth as JSON.")
 def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwargs: object) -> None:
     """Render a synthetic plug-flow movie with its ground truth (truth.json)."""
-    from ..synthetic import SynthConfig, synthesize
-
     try:
         cfg = SynthConfig(rgb=not grey, bit_depth=int(bit_depth), **kwargs)
     except TypeError as exc:  # pragma: no cover - option/field mismatch is a bug

@@ -10,9 +10,6 @@ import numpy as np
 from ..errors import MovieError, ParameterError
 from .base import Movie, MovieInfo
 
-#: dtypes the readers hand out, which the analysis takes as they are
-_DTYPES = (np.uint8, np.uint16, np.float32, np.float64)
-
 
 class ArrayMovie(Movie):
     """A stack of frames ``T x H x W`` (grey) or ``T x H x W x 3`` (RGB) as a movie.
@@ -37,7 +34,7 @@ class ArrayMovie(Movie):
     (10, 1000.0, 'array:uint8')
     """
 
-    #: frames per block handed to the band reader
+    #: frames taken from the array at a time when iterating (a dask array computes a block at once)
     BLOCK_FRAMES = 16
 
     def __init__(self, frames: object, *, fps: float | None = None, name: str = "<array>") -> None:
@@ -58,7 +55,7 @@ class ArrayMovie(Movie):
         if dtype.kind == "b" or not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)):
             raise MovieError(f"frames of dtype {dtype} are not images — pass integer or float pixel values")
         if fps is not None and not fps > 0:
-            raise ParameterError(f"fps must be positive, got {fps} — pass the camera's frame rate", param="fps")
+            raise ParameterError(f"must be positive, got {fps} — give the camera's frame rate", param="fps")
         self._frames = frames
         self._dask = hasattr(frames, "compute") and hasattr(frames, "chunks")
         info = MovieInfo(

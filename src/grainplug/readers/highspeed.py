@@ -5,7 +5,6 @@ Both readers are optional extras: ``pip install grainplug[highspeed]``.
 
 from __future__ import annotations
 
-import logging
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -14,8 +13,6 @@ import numpy as np
 
 from ..errors import MovieError
 from .base import Movie, MovieInfo
-
-log = logging.getLogger(__name__)
 
 _EXTRA_HINT = "install the high-speed readers with: pip install 'grainplug[highspeed]'"
 
@@ -119,8 +116,6 @@ class MrawMovie(Movie):
         channels = 3 if images.ndim == 4 else 1
         depth = 8 if images.dtype == np.uint8 else 16
         file_fps, how = photron_saved_rate(cih, meta)
-        if file_fps and file_fps != float(meta.get("Record Rate(fps)") or 0):
-            log.info("%s: saved frames at %g fps (%s)", path.name, file_fps, how)
         use_fps, source = (fps, "user") if fps else (file_fps, "file" if file_fps else "none")
         info = MovieInfo(str(path), "mraw", int(width), int(height), int(n_frames), use_fps,
                          channels, depth, "uint8" if depth == 8 else "uint16", source,

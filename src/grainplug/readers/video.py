@@ -395,7 +395,7 @@ class VideoMovie(Movie):
 
     def _analysis_frames(self) -> Iterator[np.ndarray]:
         """Decoded frames in their native layout: packed RGB/BGR as they are, luma only for
-        YUV and the first plane for planar RGB, 16-bit through a conversion. No colour
+        YUV, planar RGB and 16-bit through a conversion to RGB. No colour
         conversion is done, so analysis runs at the speed of decoding."""
         return self._iter(0, self.info.n_frames, 1, native=True)
 
