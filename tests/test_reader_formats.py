@@ -43,8 +43,6 @@ CONTRACT = {
 }
 #: mean absolute grey error of lossy formats (8-bit levels, noise sigma 3)
 LOSSY_MEAN_ERR = 5.0
-#: what a format's writer or reader needs beyond the core dependencies
-NEEDS = {"cine": "pycine", "mraw": "pyMRAW"}
 
 
 def random_band(rng: np.random.Generator, shape: tuple[int, int], n_pos: int = 50, n_across: int = 5) -> Band:
@@ -114,8 +112,6 @@ def check_contract(movie, truth: np.ndarray, fps: float | None, lossless: bool, 
 
 
 def _skip_without_writer(fmt: str) -> None:
-    if fmt in NEEDS:
-        pytest.importorskip(NEEDS[fmt], reason=f"the {fmt} format needs {NEEDS[fmt]} (grainplug[highspeed])")
     if fmt == "h264" and "libx264" not in av.codecs_available:
         pytest.skip("this FFmpeg has no libx264 encoder for the h264 writer")
 

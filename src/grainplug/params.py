@@ -55,6 +55,9 @@ class AnalysisParams:
         Frames sampled over the movie to find the tube.
     glob : str, optional
         For image folders: only files matching this pattern.
+    allow_truncated : bool
+        For camera files that end early: analyse the complete frames (with a warning)
+        instead of refusing the file.
 
     Examples
     --------
@@ -70,6 +73,7 @@ class AnalysisParams:
     min_gap_mm: float = 0.6
     sample_frames: int = 32
     glob: str | None = None
+    allow_truncated: bool = False
 
     def __post_init__(self) -> None:
         def check(ok: bool, param: str, message: str) -> None:

@@ -118,7 +118,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         runs=runs, links=links, motion=motion, lengths=lengths, has_plugs=bool(norm.two_phase and len(runs) > 0),
         statement=statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
-        falling_grain_speed_m_s=None if grains is None else grains.speed_m_s, warnings=list(flow.warnings),
+        falling_grain_speed_m_s=None if grains is None else grains.speed_m_s, warnings=[*info.warnings, *flow.warnings],
     )
 
 
@@ -142,7 +142,7 @@ def _opened(source: object, params: AnalysisParams) -> Iterator[Movie]:
     if isinstance(source, Movie):
         yield source
         return
-    with as_movie(source, fps=params.fps, glob=params.glob) as movie:
+    with as_movie(source, fps=params.fps, glob=params.glob, allow_truncated=params.allow_truncated) as movie:
         yield movie
 
 

@@ -58,12 +58,14 @@ def _echo_json(data: object) -> None:
 @click.argument("movie", type=click.Path(path_type=Path))
 @click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
 @click.option("--fps", type=float, default=None, help="Frame rate to use instead of the file's.")
+@click.option("--allow-truncated", is_flag=True,
+              help="For camera files that end early: describe the complete frames instead of refusing.")
 @click.option("--json", "as_json", is_flag=True, help="Print the description as JSON.")
-def info(movie: Path, glob_: str | None, fps: float | None, as_json: bool) -> None:
-    """Describe MOVIE: size, frames, frame rate, bit depth, channels, duration."""
+def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: bool, as_json: bool) -> None:
+    """Describe MOVIE: size, frames, frame rate and how it was derived, bit depth, colour, camera."""
     from ..readers import open_movie
 
-    with open_movie(movie, glob=glob_, fps=fps, verify=True) as m:
+    with open_movie(movie, glob=glob_, fps=fps, verify=True, allow_truncated=allow_truncated) as m:
         d = m.info.as_dict()
         # decode the last frame: a file that cannot deliver it is reported now
         last = m.read(m.info.n_frames - 1)
@@ -81,9 +83,22 @@ def info(movie: Path, glob_: str | None, fps: float | None, as_json: bool) -> No
     click.echo(f"size       {d['width']} x {d['height']} px")
     click.echo(f"frames     {d['n_frames']}")
     click.echo(f"frame rate {fps_txt}")
+    if d.get("record_fps"):
+        click.echo(f"recorded   {d['record_fps']:.6g} fps")
     click.echo(f"bit depth  {d['bit_depth']} ({d['dtype']})")
-    click.echo(f"channels   {d['channels']} ({kind})")
+    click.echo(f"channels   {d['channels']} ({d.get('colour') or kind})")
     click.echo(f"duration   {dur}")
+    if d.get("camera"):
+        click.echo(f"camera     {d['camera']}")
+    details = d.get("details") or {}
+    flips = [name for name, key in (("vertical", "flip_vertical"), ("horizontal", "flip_horizontal"))
+             if details.get(key)]
+    if flips:
+        click.echo(f"flipped    {' and '.join(flips)} (applied, as the camera was set)")
+    if details.get("timestamp_jitter"):
+        click.echo(f"time stamp jitter {100 * float(details['timestamp_jitter']):.2g} %")
+    for line in d.get("warnings") or []:
+        err_console.print(f"[yellow]warning:[/] {line}", highlight=False)
 
 
 # ---------------------------------------------------------------------------
@@ -102,11 +117,13 @@ def info(movie: Path, glob_: str | None, fps: float | None, as_json: bool) -> No
 @click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
 @click.option("--threads", type=int, default=None,
               help="Threads reading uncompressed frames (TIFF stacks, raw video) [default: one per core].")
+@click.option("--allow-truncated", is_flag=True,
+              help="For camera files that end early: analyse the complete frames instead of refusing.")
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
             tube_diameter_mm: float | None, flow_direction: str | None, min_plug_mm: float,
-            glob_: str | None, threads: int | None, no_figures: bool, as_json: bool) -> None:
+            glob_: str | None, threads: int | None, allow_truncated: bool, no_figures: bool, as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -119,7 +136,8 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
                              "not both")
     diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
-                            flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_)
+                            flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_,
+                            allow_truncated=allow_truncated)
     # the figures' worker starts now: it imports matplotlib while the frames stream
     with FigureWorker() if not no_figures else contextlib.nullcontext() as figure_worker:
         with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
@@ -133,6 +151,8 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
             result = run_analysis(movie, params, progress=progress, threads=threads)
         result.save(out, figures=not no_figures, report=not no_figures, figure_worker=figure_worker)
     s = result.summary
+    for line in result.warnings:
+        err_console.print(f"[yellow]warning:[/] {line}", highlight=False)
     if as_json:
         _echo_json(s)
         return

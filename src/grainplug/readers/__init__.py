@@ -25,15 +25,16 @@ VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov", ".m4v", ".webm", ".mj2", ".nut
 
 
 def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float | None = None,
-               verify: bool = False) -> Movie:
+               verify: bool = False, allow_truncated: bool = False) -> Movie:
     """Open a movie of any supported kind for streaming.
 
     Parameters
     ----------
     path : str or Path or array
         A video file (AVI, MP4, MKV, MOV...), a multi-page TIFF, a folder of
-        numbered images, a Phantom ``.cine`` or a Photron ``.mraw``/``.cih``;
-        or frames in memory, ``T x H x W`` or ``T x H x W x 3`` (numpy, dask).
+        numbered images, a Phantom ``.cine``, a Photron ``.mraw`` (or its
+        ``.cih``/``.cihx`` header), a NorPix ``.seq``; or frames in memory,
+        ``T x H x W`` or ``T x H x W x 3`` (numpy, dask).
     glob : str, optional
         For folders: only images matching this pattern (e.g. ``"cam1_*.png"``).
     fps : float, optional
@@ -41,6 +42,9 @@ def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float
         and for files that do not record one, if times are needed).
     verify : bool
         For videos: demux the whole file to count frames and detect truncation.
+    allow_truncated : bool
+        For camera files (``.cine``, ``.mraw``, ``.seq``) that end early: read the
+        complete frames, with a warning in ``info.warnings``, instead of refusing.
 
     Returns
     -------
@@ -66,21 +70,32 @@ def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float
         raise MovieError(f"no such file or folder: {p} — check the path")
     if p.is_dir():
         return ImageFolderMovie(p, glob=glob, fps=fps)
+    if not p.is_file():
+        raise MovieError(f"{p} is not a regular file (a pipe or a device?) — give a movie file")
     if p.stat().st_size == 0:
         raise MovieError(f"{p} is empty (0 bytes) — copy the movie again")
     suffix = p.suffix.lower()
+    kind = _sniff(p)
+    expected = {"cine": (".cine",), "seq": (".seq",), "tiff": TIFF_SUFFIXES}
+    if kind and suffix not in expected[kind]:
+        raise MovieError(f"{p} is a {CAMERA_NAMES[kind]} file despite its '{suffix}' extension — rename it to "
+                         f"'{expected[kind][0]}'")
     if suffix in TIFF_SUFFIXES:
         from .tiffstack import TiffStackMovie
 
         return TiffStackMovie(p, fps=fps)
     if suffix == ".cine":
-        from .highspeed import CineMovie
+        from .cine import CineMovie
 
-        return CineMovie(p, fps=fps)
+        return CineMovie(p, fps=fps, allow_truncated=allow_truncated)
     if suffix in (".mraw", ".cih", ".cihx"):
-        from .highspeed import MrawMovie
+        from .photron import MrawMovie
 
-        return MrawMovie(p, fps=fps)
+        return MrawMovie(p, fps=fps, allow_truncated=allow_truncated)
+    if suffix == ".seq":
+        from .norpix import SeqMovie
+
+        return SeqMovie(p, fps=fps, allow_truncated=allow_truncated)
     if suffix in IMAGE_SUFFIXES:
         raise MovieError(
             f"{p} is a single image — pass the folder that holds the numbered frames instead"
@@ -90,11 +105,29 @@ def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float
     return VideoMovie(p, fps=fps, verify=verify)
 
 
-def as_movie(source: object, *, fps: float | None = None, glob: str | None = None) -> Movie:
+#: formats recognised by their first bytes, whatever the file's extension
+CAMERA_NAMES = {"cine": "Phantom .cine", "seq": "NorPix .seq", "tiff": "TIFF"}
+
+
+def _sniff(path: Path) -> str | None:
+    """The format the file's first bytes announce, for those that announce one."""
+    with open(path, "rb") as fh:
+        head = fh.read(8)
+    if head[:2] == b"CI" and len(head) >= 8 and int.from_bytes(head[2:4], "little") >= 0x2C:
+        return "cine"
+    if head[:4] == (0xFEED).to_bytes(4, "little"):
+        return "seq"
+    if head[:4] in (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+"):
+        return "tiff"
+    return None
+
+
+def as_movie(source: object, *, fps: float | None = None, glob: str | None = None,
+             allow_truncated: bool = False) -> Movie:
     """``source`` as a :class:`Movie`: a Movie as it is, anything else through :func:`open_movie`."""
     if isinstance(source, Movie):
         return source
-    return open_movie(source, fps=fps, glob=glob)
+    return open_movie(source, fps=fps, glob=glob, allow_truncated=allow_truncated)
 
 
 def __getattr__(name: str) -> object:

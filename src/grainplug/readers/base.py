@@ -8,7 +8,7 @@ import math
 import mmap
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +40,8 @@ class MovieInfo:
     channels : int
         1 for grey, 3 for RGB.
     bit_depth : int
-        Bits per sample (8 or 16 for the arrays handed out).
+        Significant bits per sample as the camera stored them (10, 12, 14 for many
+        high-speed cameras), which may be fewer than the array's ``dtype`` holds.
     dtype : str
         numpy dtype of the frames (``"uint8"`` or ``"uint16"``).
     fps_source : str
@@ -49,6 +50,21 @@ class MovieInfo:
         How a file's frame rate was derived, where it is not simply stored (e.g.
         ``"record rate 50000 fps / save step 2500"`` for a Photron recording that saved
         one frame in 2500).
+    record_fps : float or None
+        The rate the camera recorded at, where the file says and it differs from the
+        rate of the saved frames (a camera that saved one frame in ``n``).
+    colour : str
+        How colour is stored: ``"grey"``, ``"rgb"``, or the raw Bayer pattern that
+        was demosaiced (``"bayer RGGB, demosaiced"``).
+    camera : str
+        Camera model and serial number where the file says.
+    warnings : tuple of str
+        Anything doubtful about the file (time stamps that disagree with the header, a
+        frame with a bad time stamp, a truncated file read in part), each with the fix;
+        the analysis repeats them in its results.
+    details : dict
+        Format facts kept for provenance (trigger time, first frame number, flips,
+        black and white levels, time stamp jitter...), JSON-ready.
     """
 
     path: str
@@ -62,6 +78,11 @@ class MovieInfo:
     dtype: str
     fps_source: str = "file"
     fps_note: str = ""
+    record_fps: float | None = None
+    colour: str = ""
+    camera: str = ""
+    warnings: tuple[str, ...] = ()
+    details: dict[str, object] = field(default_factory=dict)
 
     @property
     def duration_s(self) -> float | None:
@@ -97,6 +118,11 @@ class MovieInfo:
             "bit_depth": self.bit_depth,
             "dtype": self.dtype,
             "duration_s": self.duration_s,
+            "record_fps": self.record_fps,
+            "colour": self.colour or ("grey" if self.channels == 1 else "rgb"),
+            "camera": self.camera,
+            "warnings": list(self.warnings),
+            "details": dict(self.details),
         }
 
 

@@ -70,6 +70,9 @@ def run_report(res: AnalysisResult, folder: Path) -> str:
     figs = "".join(_img(folder / name) for name in ("diagram.png", "spectrum.png", "frame.png")
                    if (folder / name).exists())
     statement = f'<p class="note">{html.escape(res.statement)}</p>' if res.statement else ""
+    warnings = "".join(f"<li>{html.escape(w)}</li>" for w in res.warnings)
+    if warnings:
+        warnings = f'<h2 class="note">Warnings</h2><ul class="note">{warnings}</ul>'
     prov = {"grainplug_version": s["grainplug_version"], "input": s["input"],
             "parameters": s["parameters"], "movie": s["movie"],
             "generated": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
@@ -78,6 +81,7 @@ def run_report(res: AnalysisResult, folder: Path) -> str:
 <style>{_CSS}</style></head><body>
 <h1>grainplug analysis of <code>{html.escape(Path(res.info.path).name)}</code></h1>
 {statement}
+{warnings}
 <h2>Results</h2>{_table([(k, s.get(k)) for k in keys])}
 <h2>Figures</h2>{figs}
 <h2>Provenance</h2><pre>{html.escape(json.dumps(prov, indent=2, default=str))}</pre>

@@ -256,37 +256,37 @@ class MovieWriter:
         self._impl.write(data)
 
     def _finish_cine(self) -> None:
-        """Assemble a 16-bit grey .cine with pycine's own header structures."""
-        import ctypes
+        """Assemble a 16-bit grey .cine following Vision Research's published layout.
 
-        from pycine import cine
+        CINEFILEHEADER (44 bytes), BITMAPINFOHEADER (40), a SETUP block of the current
+        size (10412 bytes: marker ``ST``, its length, ``FrameRate``, ``RealBPP``, the rest
+        zero), the image offsets, then each image: annotation (its size, 8, and the
+        image size) and the rows bottom-up.
+        """
+        import struct
 
         self._impl.close()
         part = self.path.with_suffix(".cine.part")
         h, w = self._shape
         n = self.count
-        cfh, bih, setup = cine.CINEFILEHEADER(), cine.BITMAPINFOHEADER(), cine.SETUP()
-        off_bih = ctypes.sizeof(cfh)
-        off_setup = off_bih + ctypes.sizeof(bih)
-        off_offsets = off_setup + ctypes.sizeof(setup)
+        setup = bytearray(10412)
+        struct.pack_into("<H", setup, 0, min(int(round(self.fps)), 65535))  # FrameRate16
+        struct.pack_into("<2sH", setup, 140, b"ST", len(setup))
+        struct.pack_into("<I", setup, 768, int(round(self.fps)))  # FrameRate
+        struct.pack_into("<I", setup, 896, 16)  # RealBPP
+        struct.pack_into("<d", setup, 10400, float(self.fps))  # dFrameRate
+        off_bih, off_setup = 44, 84
+        off_offsets = off_setup + len(setup)
         first_image = off_offsets + 8 * n
-        cfh.Type, cfh.Headersize, cfh.Compression, cfh.Version = 0x4943, off_bih, 0, 1
-        cfh.TotalImageCount = cfh.ImageCount = n
-        cfh.FirstImageNo = cfh.FirstMovieImage = 0
-        cfh.OffImageHeader, cfh.OffSetup, cfh.OffImageOffsets = off_bih, off_setup, off_offsets
-        bih.biSize, bih.biWidth, bih.biHeight = ctypes.sizeof(bih), w, h
-        bih.biPlanes, bih.biBitCount, bih.biCompression = 1, 16, 0
-        bih.biSizeImage = w * h * 2
-        setup.FrameRate = int(round(self.fps))
-        setup.RealBPP = 16
-        setup.BlackLevel, setup.WhiteLevel = 0, 65535
+        header = struct.pack("<2sHHHiIiIIIIII", b"CI", 44, 0, 1, 0, n, 0, n, off_bih, off_setup, off_offsets, 0, 0)
+        bih = struct.pack("<IiiHHIIiiII", 40, w, h, 1, 16, 0, w * h * 2, 0, 0, 0, 0)
         offsets, pos = [], first_image
         for size in self._cine_frames:
             offsets.append(pos)
             pos += 8 + size
         with open(self.path, "wb") as out, open(part, "rb") as src:
-            out.write(bytes(cfh))
-            out.write(bytes(bih))
+            out.write(header)
+            out.write(bih)
             out.write(bytes(setup))
             out.write(np.asarray(offsets, dtype="<i8").tobytes())
             for size in self._cine_frames:

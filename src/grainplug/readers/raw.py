@@ -1,0 +1,280 @@
+"""Frames stored uncompressed at known places in one file: the camera formats' common reader.
+
+Phantom ``.cine``, Photron ``.mraw`` and NorPix ``.seq`` all store each frame's pixels
+as a run of bytes at a known offset, in one of a few encodings (:data:`ENCODINGS`).
+:class:`RawFramesMovie` serves the movie protocol over such a file: frames are
+memory-mapped a block at a time, decoded (unpacked, flipped, demosaiced) where the
+encoding asks for it, and handed out as plain arrays of the stored values; plain 8-
+and 16-bit frames are handed to the band gather as views of the map, so only the
+bytes the band touches are read. A file that ends early is refused with one line, or,
+with ``allow_truncated``, read up to its last complete frame with a warning.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import MovieError
+from .base import Movie, MovieInfo, map_file, read_file
+
+log = logging.getLogger(__name__)
+
+#: how a frame's pixels are stored: bits per pixel of each encoding
+ENCODINGS = {
+    "u8": 8,  # one byte per sample
+    "u16le": 16,  # two bytes per sample, little-endian
+    "p10": 10,  # 4 pixels in 5 bytes, most significant bits first (Phantom "P10")
+    "p12": 12,  # 2 pixels in 3 bytes, most significant bits first (Photron 12-bit, Phantom "P12L")
+}
+
+#: Bayer patterns, named by the 2 x 2 cell at the top left of the image as handed out
+BAYER_PATTERNS = ("RGGB", "GRBG", "GBRG", "BGGR")
+
+
+def unpack10(raw: np.ndarray, n_pixels: int) -> np.ndarray:
+    """10-bit samples packed 4 in 5 bytes, most significant bits first, as ``uint16``.
+
+    Parameters
+    ----------
+    raw : ndarray of uint8, shape (..., n_bytes)
+        Packed bytes of each frame (the last axis).
+    n_pixels : int
+        Pixels per frame (a multiple of 4).
+
+    Returns
+    -------
+    ndarray of uint16, shape (..., n_pixels)
+
+    Notes
+    -----
+    Bytes ``b0..b4`` hold pixels ``p0..p3`` as the bit string
+    ``p0[9:0] p1[9:0] p2[9:0] p3[9:0]``, so ``p0 = b0 << 2 | b1 >> 6``, and so on.
+    """
+    b = raw[..., : n_pixels // 4 * 5].reshape(*raw.shape[:-1], -1, 5).astype(np.uint16)
+    out = np.empty((*raw.shape[:-1], n_pixels // 4, 4), np.uint16)
+    out[..., 0] = (b[..., 0] << 2) | (b[..., 1] >> 6)
+    out[..., 1] = ((b[..., 1] & 0x3F) << 4) | (b[..., 2] >> 4)
+    out[..., 2] = ((b[..., 2] & 0x0F) << 6) | (b[..., 3] >> 2)
+    out[..., 3] = ((b[..., 3] & 0x03) << 8) | b[..., 4]
+    return out.reshape(*raw.shape[:-1], n_pixels)
+
+
+def unpack12(raw: np.ndarray, n_pixels: int) -> np.ndarray:
+    """12-bit samples packed 2 in 3 bytes, most significant bits first, as ``uint16``.
+
+    Notes
+    -----
+    Bytes ``b0 b1 b2`` hold ``p0[11:0] p1[11:0]``: ``p0 = b0 << 4 | b1 >> 4`` and
+    ``p1 = (b1 & 0xF) << 8 | b2`` (Photron 12-bit ``.mraw``).
+    """
+    b = raw[..., : n_pixels // 2 * 3].reshape(*raw.shape[:-1], -1, 3).astype(np.uint16)
+    out = np.empty((*raw.shape[:-1], n_pixels // 2, 2), np.uint16)
+    out[..., 0] = (b[..., 0] << 4) | (b[..., 1] >> 4)
+    out[..., 1] = ((b[..., 1] & 0x0F) << 8) | b[..., 2]
+    return out.reshape(*raw.shape[:-1], n_pixels)
+
+
+def demosaic(mosaic: np.ndarray, pattern: str) -> np.ndarray:
+    """RGB frame(s) from raw Bayer mosaic(s) with OpenCV's edge-aware interpolation.
+
+    Parameters
+    ----------
+    mosaic : ndarray, shape (H, W) or (N, H, W), uint8 or uint16
+        Raw sensor values, one colour per pixel.
+    pattern : str
+        The colours of the 2 x 2 cell at the top left, row by row (``"RGGB"``...).
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3) or (N, H, W, 3), same dtype, channels R, G, B
+
+    Notes
+    -----
+    OpenCV names a pattern by the second row's second and third pixels, so that its
+    ``COLOR_BayerBG2RGB`` is the cell ``RGGB`` named here; the table below translates
+    (checked by the tests on mosaics of known scenes).
+    """
+    import cv2
+
+    code = {"RGGB": cv2.COLOR_BayerBG2RGB_EA, "GRBG": cv2.COLOR_BayerGB2RGB_EA,
+            "GBRG": cv2.COLOR_BayerGR2RGB_EA, "BGGR": cv2.COLOR_BayerRG2RGB_EA}[pattern]
+    if mosaic.ndim == 2:
+        return cv2.cvtColor(np.ascontiguousarray(mosaic), code)
+    return np.stack([cv2.cvtColor(np.ascontiguousarray(m), code) for m in mosaic])
+
+
+@dataclass(frozen=True)
+class RawLayout:
+    """Where and how a movie's frames are stored.
+
+    Attributes
+    ----------
+    offsets : ndarray of int64
+        File offset of each frame's first pixel byte.
+    shape : tuple of int
+        ``(height, width)`` of a frame as stored, or ``(height, width, 3)`` for
+        interleaved colour (stored B, G, R when ``bgr``).
+    encoding : str
+        One of :data:`ENCODINGS`.
+    bottom_up : bool
+        Rows stored from the bottom of the image to its top.
+    mirrored : bool
+        Columns stored from the right of the image to its left.
+    bgr : bool
+        Interleaved colour stored as B, G, R.
+    bayer : str or None
+        Raw Bayer mosaic with this pattern (in the image as handed out): demosaiced.
+    """
+
+    offsets: np.ndarray
+    shape: tuple[int, ...]
+    encoding: str
+    bottom_up: bool = False
+    mirrored: bool = False
+    bgr: bool = False
+    bayer: str | None = None
+
+    @property
+    def n_pixels(self) -> int:
+        return int(np.prod(self.shape))
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of one stored frame."""
+        return self.n_pixels * ENCODINGS[self.encoding] // 8
+
+    @property
+    def is_view(self) -> bool:
+        """Whether frames are handed out as views of the file's bytes (no decoding)."""
+        return self.encoding in ("u8", "u16le") and self.bayer is None
+
+    @property
+    def stride(self) -> int | None:
+        """Bytes from one frame to the next where they are evenly spaced, else None."""
+        if len(self.offsets) < 2:
+            return max(self.nbytes, 1)
+        steps = np.diff(self.offsets)
+        return int(steps[0]) if steps[0] >= self.nbytes and np.all(steps == steps[0]) else None
+
+    def decode(self, raw: np.ndarray) -> np.ndarray:
+        """Frames ``(count, *shape as handed out)`` from their stored bytes ``(count, nbytes)``."""
+        count = raw.shape[0]
+        if self.encoding == "u8":
+            frames = raw.reshape(count, *self.shape)
+        elif self.encoding == "u16le":
+            frames = raw.view("<u2").reshape(count, *self.shape)
+        elif self.encoding == "p10":
+            frames = unpack10(raw, self.n_pixels).reshape(count, *self.shape)
+        else:
+            frames = unpack12(raw, self.n_pixels).reshape(count, *self.shape)
+        if self.bottom_up:
+            frames = frames[:, ::-1]
+        if self.mirrored:
+            frames = frames[:, :, ::-1]
+        if self.bgr:
+            frames = frames[..., ::-1]
+        if self.bayer is not None:
+            frames = demosaic(frames, self.bayer)
+        return frames
+
+
+def complete_frames(path: Path, layout: RawLayout, *, allow_truncated: bool, what: str) -> tuple[int, str]:
+    """How many frames the file holds whole, and a warning if fewer than its header says.
+
+    Raises
+    ------
+    MovieError
+        When the file holds fewer frames than its header says and ``allow_truncated``
+        is not set, or holds no frame at all.
+    """
+    size = path.stat().st_size
+    n = len(layout.offsets)
+    whole = int(np.count_nonzero(layout.offsets + layout.nbytes <= size))
+    if whole == n and np.all(layout.offsets >= 0):
+        return n, ""
+    ends = layout.offsets + layout.nbytes
+    if np.any(layout.offsets < 0) or (np.any(np.diff(ends[:whole]) < 0) and layout.stride is not None):
+        raise MovieError(f"{path}: the {what} header points at frames outside the file — the file is corrupt")
+    if whole == 0:
+        raise MovieError(f"{path} is truncated: its {what} header describes {n} frames but not one is complete "
+                         "— copy the file again")
+    if not allow_truncated:
+        raise MovieError(f"{path} is truncated: it holds {whole} of the {n} frames its header describes — copy the "
+                         f"file again, or pass --allow-truncated (allow_truncated=True) to read the {whole} "
+                         "complete frames")
+    return whole, f"the file is truncated: reading the first {whole} of the {n} frames its header describes"
+
+
+class RawFramesMovie(Movie):
+    """A movie whose frames sit uncompressed at known offsets of one file (see :class:`RawLayout`)."""
+
+    #: frames mapped at once while streaming in order
+    CHUNK_FRAMES = 16
+
+    def __init__(self, path: Path, info: MovieInfo, layout: RawLayout) -> None:
+        super().__init__(path, info)
+        self._layout = layout
+
+    # -- reading bytes -------------------------------------------------------------
+    def _raw_block(self, start: int, count: int, *, random_access: bool = False) -> np.ndarray:
+        """Stored bytes of frames ``start .. start+count-1``, shape ``(count, nbytes)``
+        (a memory map where frames are evenly spaced)."""
+        lay = self._layout
+        first = int(lay.offsets[start])
+        self._advise_ahead(first)
+        stride = lay.stride
+        if random_access and count == 1:
+            return read_file(self.path, first, (1, lay.nbytes), np.uint8, random_access=True)
+        if stride is None:
+            return np.stack([read_file(self.path, int(lay.offsets[k]), (lay.nbytes,), np.uint8)
+                             for k in range(start, start + count)])
+        span = (count - 1) * stride + lay.nbytes
+        flat = map_file(self.path, first, (span,), np.uint8, sparse=self._sparse)
+        return np.lib.stride_tricks.as_strided(flat, shape=(count, lay.nbytes), strides=(stride, 1),
+                                               writeable=False)
+
+    def _read_block(self, start: int, count: int) -> np.ndarray:
+        """Frames ``start .. start+count-1`` as handed out (views of the map for plain frames)."""
+        return self._layout.decode(self._raw_block(start, count))
+
+    # -- the movie protocol ---------------------------------------------------------
+    def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
+        if step == 1:
+            for first in range(start, stop, self.CHUNK_FRAMES):
+                block = self._read_block(first, min(self.CHUNK_FRAMES, stop - first))
+                for frame in block:
+                    yield np.ascontiguousarray(frame)
+                del block
+            return
+        for i in range(start, stop, step):
+            yield np.ascontiguousarray(self._read_block(i, 1)[0])
+
+    def _analysis_frames(self) -> Iterator[np.ndarray]:
+        n = self.info.n_frames
+        for first in range(0, n, self.CHUNK_FRAMES):
+            block = self._read_block(first, min(self.CHUNK_FRAMES, n - first))
+            yield from block
+            del block
+
+    def read(self, index: int) -> np.ndarray:
+        if not 0 <= index < self.info.n_frames:
+            raise IndexError(f"frame {index} out of range 0..{self.info.n_frames - 1}")
+        return np.ascontiguousarray(self._read_block(index, 1)[0])
+
+    def _read_sampled(self, index: int) -> np.ndarray:
+        return np.ascontiguousarray(self._layout.decode(self._raw_block(index, 1, random_access=True))[0])
+
+    def _block_reader(self) -> Callable[[int, int], np.ndarray] | None:
+        return self._read_block
+
+    def _frame_offsets(self) -> np.ndarray | None:
+        """Offsets of frames handed out as views of evenly spaced stored frames (for the
+        read-ahead's restriction to the band's bytes); None where frames are decoded."""
+        if not self._layout.is_view or self._layout.stride is None:
+            return None
+        return self._layout.offsets[: self.info.n_frames]
