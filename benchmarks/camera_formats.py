@@ -64,7 +64,7 @@ def write_all(folder: Path, n_frames: int) -> dict[str, Path]:
 
 
 CHILD = r"""
-import json, resource, sys, time
+import json, sys, time
 import numpy as np
 import grainplug as gp
 from grainplug.band import Band
@@ -87,7 +87,9 @@ else:
     res = gp.analyze(path)
     n = res.info.n_frames
 dt = time.perf_counter() - t0
-print(json.dumps({"s": dt, "frames": n, "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+# VmHWM: this process's own peak (ru_maxrss would carry the parent's peak over exec)
+hwm = next(int(line.split()[1]) for line in open("/proc/self/status") if line.startswith("VmHWM:"))
+print(json.dumps({"s": dt, "frames": n, "rss_mb": hwm / 1024}))
 """
 
 

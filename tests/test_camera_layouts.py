@@ -47,6 +47,28 @@ def test_cine_layouts_and_flips_read_back_the_frames_written(tmp_path, layout, b
         np.testing.assert_array_equal(np.stack(list(movie.frames())), frames)
 
 
+def small_band(rng: np.random.Generator, shape: tuple[int, int], rows: tuple[int, int],
+               cols: tuple[int, int]) -> Band:
+    """A band inside a window of the frame (its edges not on whole bytes of packed pixels)."""
+    r = rng.integers(*rows, (20, 3))
+    c = rng.integers(*cols, (20, 3))
+    w = rng.uniform(0.1, 1.0, (20, 3)).astype(np.float32)
+    return Band(r, c, w / w.sum(axis=1, keepdims=True), shape)
+
+
+@pytest.mark.parametrize("layout", ["p10", "p12l"])
+@pytest.mark.parametrize(("flip_v", "flip_h"), [(False, False), (True, True), (False, True), (True, False)])
+def test_packed_frames_unpacked_in_the_band_window_give_the_band_profiles(tmp_path, layout, flip_v, flip_h):
+    frames = random_frames(20, 16, 40, 10 if layout == "p10" else 12)
+    path = write_cine(tmp_path / "m.cine", frames, layout=layout, flip_v=flip_v, flip_h=flip_h)
+    rng = np.random.default_rng(2)
+    with open_movie(path) as movie:
+        for rows, cols in (((3, 11), (5, 14)), ((0, 16), (37, 40)), ((15, 16), (0, 40)), ((0, 1), (0, 1))):
+            band = small_band(rng, (16, 40), rows, cols)
+            want = np.stack([band.profile(f) for f in frames])
+            np.testing.assert_allclose(movie.read_band(band, threads=2), want, rtol=1e-6, err_msg=f"{rows} {cols}")
+
+
 def test_cine_passes_the_reader_contract(tmp_path):
     cfg = SynthConfig(n_frames=24, width_px=64, height_px=160, fps=250.0, rgb=False, bit_depth=16, seed=4)
     truth = np.stack(list(Renderer(cfg).frames())) >> 6  # 10-bit values

