@@ -40,6 +40,7 @@ CONTRACT = {
     "h264": (True, 8),
     "mraw": (False, 8),  # written grey
     "cine": (False, 16),  # written grey, 16-bit
+    "seq": (True, 8),  # B-G-R colour, time-stamped
 }
 #: mean absolute grey error of lossy formats (8-bit levels, noise sigma 3)
 LOSSY_MEAN_ERR = 5.0

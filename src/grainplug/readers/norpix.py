@@ -104,20 +104,29 @@ class SeqMovie(RawFramesMovie):
             dtype="uint16" if bits == 16 else "uint8", fps_source=source, fps_note="" if fps else note,
             colour="rgb" if channels == 3 else "grey", camera="NorPix StreamPix", warnings=tuple(warnings_),
             details={"version": version, "suggested_fps": suggested, "timestamp_jitter": round(jitter, 6),
-                     "first_timestamp_s": float(stamps[0]) if len(stamps) else None},
+                     "first_timestamp_s": _first_stamp(path, header + image_bytes)},
         )
         super().__init__(path, info, layout)
 
 
 def _stamps(path: Path, header: int, stride: int, image_bytes: int, n: int, *, micro: bool) -> np.ndarray:
-    """Each frame's time stamp in seconds (since 1970, local time of the recording PC)."""
+    """Each frame's time stamp in seconds from the whole second of the first one."""
     if n == 0:
         return np.zeros(0)
     width = 8 if micro else 6
     flat = map_file(path, header + image_bytes, ((n - 1) * stride + width,), np.uint8)
     raw = np.lib.stride_tricks.as_strided(flat, shape=(n, width), strides=(stride, 1), writeable=False)
     raw = np.ascontiguousarray(raw)
-    seconds = raw[:, :4].copy().view("<u4")[:, 0].astype(np.float64)
-    ms = raw[:, 4:6].copy().view("<u2")[:, 0].astype(np.float64)
-    us = raw[:, 6:8].copy().view("<u2")[:, 0].astype(np.float64) if micro else 0.0
-    return seconds + ms / 1e3 + us / 1e6
+    seconds = raw[:, :4].copy().view("<u4")[:, 0].astype(np.int64)
+    ms = raw[:, 4:6].copy().view("<u2")[:, 0].astype(np.int64)
+    us = raw[:, 6:8].copy().view("<u2")[:, 0].astype(np.int64) if micro else 0
+    # in whole microseconds from the first frame's second: a float of seconds since 1970 resolves 0.2 us only
+    return ((seconds - seconds[0]) * 1_000_000 + ms * 1000 + us).astype(np.float64) / 1e6
+
+
+def _first_stamp(path: Path, offset: int) -> float:
+    """The first frame's time stamp, seconds since 1970 (local time of the recording PC)."""
+    with open(path, "rb") as fh:
+        fh.seek(offset)
+        seconds, ms = struct.unpack("<IH", fh.read(6))
+    return seconds + ms / 1e3

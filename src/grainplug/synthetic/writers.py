@@ -38,6 +38,7 @@ FORMATS: dict[str, FormatSpec] = {f.name: f for f in (
     FormatSpec("h264", ".mp4", False, "MP4, H.264 (lossy, libx264 crf 20)"),
     FormatSpec("mraw", ".mraw", True, "Photron .mraw + .cih (grey)"),
     FormatSpec("cine", ".cine", True, "Phantom .cine (16-bit grey)"),
+    FormatSpec("seq", ".seq", True, "NorPix StreamPix 6 .seq (8/16-bit grey or 24-bit colour), time-stamped"),
 )}
 
 
@@ -97,6 +98,8 @@ class MovieWriter:
             self._write_cih()
         elif self.fmt == "cine":
             self._finish_cine()
+        elif self.fmt == "seq":
+            self._finish_seq()
         elif self.fmt in ("avi", "mjpeg", "ffv1", "mov", "h264"):
             container, stream = impl
             for packet in stream.encode():
@@ -133,6 +136,11 @@ class MovieWriter:
                 raise ParameterError("the .cine writer takes grey frames — render with rgb=False")
             self._cine_frames: list[int] = []
             self._impl = open(self.path.with_suffix(".cine.part"), "wb")
+        elif fmt == "seq":
+            if frame.ndim == 3 and frame.dtype != np.uint8:
+                raise ParameterError("the .seq writer stores colour as 8 bits per channel — use bit_depth=8")
+            self._impl = open(self.path, "wb")
+            self._impl.write(bytes(self.SEQ_HEADER))  # rewritten with the frame count at the end
         else:
             self._open_av(frame)
 
@@ -249,6 +257,42 @@ class MovieWriter:
             fh.write("#Camera Information Header\n")
             for key, value in info.items():
                 fh.write(f"{key} : {value}\n")
+
+    #: StreamPix 6 (.seq version 5): header size, and each frame padded to whole 512-byte sectors
+    SEQ_HEADER = 8192
+
+    def _seq_sizes(self) -> tuple[int, int]:
+        image_bytes = int(np.prod(self._shape)) * self._dtype.itemsize
+        return image_bytes, -(-(image_bytes + 8) // 512) * 512
+
+    def _write_seq(self, frame: np.ndarray) -> None:
+        """Pixels (colour as B, G, R), then the time stamp (u32 s, u16 ms, u16 us), then padding."""
+        import struct
+
+        image_bytes, true_size = self._seq_sizes()
+        t_us = round(self.count * 1e6 / self.fps)  # from an arbitrary start: 2026-01-01 00:00:00
+        block = bytearray(true_size)
+        block[:image_bytes] = np.ascontiguousarray(frame[..., ::-1] if frame.ndim == 3 else frame).astype(
+            frame.dtype.newbyteorder("<")).tobytes()
+        struct.pack_into("<IHH", block, image_bytes, 1_767_225_600 + t_us // 1_000_000, t_us % 1_000_000 // 1000,
+                         t_us % 1000)
+        self._impl.write(bytes(block))
+
+    def _finish_seq(self) -> None:
+        """The header, now that the frame count is known (NorPix's documented offsets)."""
+        import struct
+
+        image_bytes, true_size = self._seq_sizes()
+        h, w = self._shape[:2]
+        colour = len(self._shape) == 3
+        bits = 8 * self._dtype.itemsize * (3 if colour else 1)
+        head = bytearray(self.SEQ_HEADER)
+        struct.pack_into("<I24sii", head, 0, 0xFEED, "Norpix seq".encode("utf-16-le")[:24], 5, self.SEQ_HEADER)
+        struct.pack_into("<6I", head, 548, w, h, bits, 8 * self._dtype.itemsize, image_bytes, 200 if colour else 100)
+        struct.pack_into("<IIId", head, 572, self.count, 0, true_size, self.fps)
+        self._impl.seek(0)
+        self._impl.write(bytes(head))
+        self._impl.close()
 
     def _write_cine(self, frame: np.ndarray) -> None:
         data = np.flipud(frame.astype("<u2")).tobytes()  # .cine stores rows bottom-up
