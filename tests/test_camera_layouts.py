@@ -243,7 +243,7 @@ def test_seq_with_dropped_frames_says_so(tmp_path):
     path = write_seq(tmp_path / "m.seq", random_frames(8, 4, 4, 8), stamps_s=stamps, suggested_fps=100.0)
     with open_movie(path) as movie:
         assert movie.info.fps == pytest.approx(100.0, rel=1e-3)
-        assert any("frame(s) 4 have a time stamp out of step" in w for w in movie.info.warnings)
+        assert any("frame 4's time stamp is out of step" in w for w in movie.info.warnings)
 
 
 # -- damaged files ------------------------------------------------------------------------------

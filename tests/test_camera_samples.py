@@ -105,7 +105,7 @@ def test_packed_cine_last_frame_is_kept_as_stored_with_a_warning_on_its_time_sta
         info = movie.info
     assert np.all(last == 1012)
     assert info.details["frames_with_bad_timestamp"] == [234]
-    assert any("frame(s) 234 have a time stamp out of step" in w for w in info.warnings)
+    assert any("frame 234's time stamp is out of step" in w for w in info.warnings)
 
 
 def test_seq_rate_is_the_time_stamps_with_a_warning_on_the_header():
@@ -145,7 +145,7 @@ def test_info_tells_the_truth_on_the_command_line(capsys):
     assert "flipped    vertical" in out
     assert main(["info", str(SAMPLES / "pyidi/data_small_cine.cine")]) == 0
     out, err = capsys.readouterr()
-    assert "bit depth  10 (uint16)" in out and "warning: frame(s) 234 have a time stamp" in err
+    assert "bit depth  10 (uint16)" in out and "warning: frame 234's time stamp is out of step" in err
     assert main(["info", "--json", str(SAMPLES / "pims/sample_norpix6.seq")]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["colour"] == "grey" and any("header suggests 10 fps" in w for w in d["warnings"])

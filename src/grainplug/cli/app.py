@@ -98,7 +98,7 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
     if details.get("timestamp_jitter"):
         click.echo(f"time stamp jitter {100 * float(details['timestamp_jitter']):.2g} %")
     for line in d.get("warnings") or []:
-        err_console.print(f"[yellow]warning:[/] {line}", highlight=False)
+        err_console.print(f"[yellow]warning:[/] {line}", highlight=False, soft_wrap=True)
 
 
 # ---------------------------------------------------------------------------
@@ -152,7 +152,7 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
         result.save(out, figures=not no_figures, report=not no_figures, figure_worker=figure_worker)
     s = result.summary
     for line in result.warnings:
-        err_console.print(f"[yellow]warning:[/] {line}", highlight=False)
+        err_console.print(f"[yellow]warning:[/] {line}", highlight=False, soft_wrap=True)
     if as_json:
         _echo_json(s)
         return

@@ -290,9 +290,9 @@ def _frame_rate(setup: dict[str, object], stamps: np.ndarray | None,
     facts["timestamp_fps"] = None if stamp_fps is None else round(stamp_fps, 3)
     facts["timestamp_jitter"] = round(jitter, 6)
     if bad:
-        shown = ", ".join(str(k) for k in bad[:5]) + (" ..." if len(bad) > 5 else "")
-        warnings_.append(f"frame(s) {shown} have a time stamp out of step with the others — check those frames "
-                         "(a camera writes a bad stamp on a frame it did not record whole)")
+        warnings_.append(f"{frames_named(bad)} out of step with the others — check "
+                         f"{'it' if len(bad) == 1 else 'them'} (a camera writes a bad stamp on a frame it did not "
+                         "record whole)")
         facts["frames_with_bad_timestamp"] = bad
     if stamp_fps is None:
         return nominal, note, record if decimation > 1 else None, warnings_, facts
@@ -303,3 +303,11 @@ def _frame_rate(setup: dict[str, object], stamps: np.ndarray | None,
         warnings_.append(f"the frame time stamps say {stamp_fps:.6g} fps but the header says {nominal:g} fps — "
                          "using the time stamps; pass --fps if the header is right")
     return stamp_fps, f"time stamps ({stamp_fps:.6g} fps)", record if decimation > 1 else None, warnings_, facts
+
+
+def frames_named(indices: list[int]) -> str:
+    """``"frame 234's time stamp is"`` or ``"the time stamps of frames 3, 9 are"`` (five at most)."""
+    if len(indices) == 1:
+        return f"frame {indices[0]}'s time stamp is"
+    shown = ", ".join(str(k) for k in indices[:5]) + (" ..." if len(indices) > 5 else "")
+    return f"the time stamps of frames {shown} are"

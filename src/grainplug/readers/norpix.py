@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import MovieError
 from .base import MovieInfo, map_file
-from .cine import stamp_rate
+from .cine import frames_named, stamp_rate
 from .raw import RawFramesMovie, RawLayout
 
 MAGIC = 0xFEED
@@ -95,8 +95,8 @@ class SeqMovie(RawFramesMovie):
             warnings_.append(f"the frame time stamps say {stamp_fps:.4g} fps but the header suggests {suggested:g} fps "
                              "— using the time stamps; pass --fps if the header is right")
         if bad:
-            warnings_.append(f"frame(s) {', '.join(map(str, bad[:5]))} have a time stamp out of step with the others "
-                             "— frames may have been dropped while recording")
+            warnings_.append(f"{frames_named(bad)} out of step with the others — frames may have been dropped "
+                             "while recording")
         use_fps, source = (fps, "user") if fps else (rate, "file" if rate else "none")
         info = MovieInfo(
             path=str(path), format=f"seq:{bits}-bit", width=width, height=height, n_frames=n,
