@@ -14,6 +14,9 @@ The public API, imported on first use so that ``import grainplug`` stays fast:
 - :func:`synthesize` and :class:`SynthConfig`: synthetic movies with known truth;
 - :func:`analyze_stability`, :func:`sweep`, :class:`ModelParams`: the paper's linear
   stability analysis (:mod:`grainplug.stability`);
+- :func:`calibrate_image` / :func:`calibrate_file` (a checkerboard or dot-grid image) giving a
+  :class:`Calibration`, :func:`save_calibration` / :func:`load_calibration`; pass it as
+  ``analyze(..., calibration=cal)``;
 - :func:`run_campaign`: many movies from a manifest, optionally on Dask;
 - :mod:`datasets`: the sample movie and the paper's tables.
 """
@@ -41,6 +44,11 @@ _EXPORTS = {
     "sweep": "grainplug.stability",
     "ModelParams": "grainplug.stability",
     "run_campaign": "grainplug.campaigns.batch",
+    "calibrate_image": "grainplug.calibration.pattern",
+    "Calibration": "grainplug.calibration.pattern",
+    "calibrate_file": "grainplug.calibration.files",
+    "load_calibration": "grainplug.calibration.files",
+    "save_calibration": "grainplug.calibration.files",
     "GrainplugError": "grainplug.errors",
     "MovieError": "grainplug.errors",
     "ParameterError": "grainplug.errors",
@@ -48,10 +56,10 @@ _EXPORTS = {
 _SUBMODULES = ("datasets", "stability", "synthetic", "readers", "plotting")
 
 __all__ = [
-    "FLOW_DIRECTIONS", "AnalysisParams", "AnalysisResult", "GrainplugError", "ModelParams", "Movie", "MovieError",
-    "MovieInfo", "ParameterError", "SynthConfig", "__version__", "analyze", "analyze_stability", "datasets",
-    "load_result", "open_movie", "plotting", "readers", "run_campaign", "stability", "sweep", "synthesize",
-    "synthetic",
+    "FLOW_DIRECTIONS", "AnalysisParams", "AnalysisResult", "Calibration", "GrainplugError", "ModelParams", "Movie",
+    "MovieError", "MovieInfo", "ParameterError", "SynthConfig", "__version__", "analyze", "analyze_stability",
+    "calibrate_file", "calibrate_image", "datasets", "load_calibration", "load_result", "open_movie", "plotting",
+    "readers", "run_campaign", "save_calibration", "stability", "sweep", "synthesize", "synthetic",
 ]
 
 
@@ -72,6 +80,8 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the names as if imported eagerly
     from . import datasets, plotting, readers, stability, synthetic
+    from .calibration.files import calibrate_file, load_calibration, save_calibration
+    from .calibration.pattern import Calibration, calibrate_image
     from .campaigns.batch import run_campaign
     from .errors import GrainplugError, MovieError, ParameterError
     from .params import FLOW_DIRECTIONS, AnalysisParams

@@ -9,8 +9,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from .errors import ParameterError
+
+if TYPE_CHECKING:
+    from .calibration.pattern import Calibration
 
 #: directions of the grain flow in the image
 FLOW_DIRECTIONS = ("down", "up", "left", "right")
@@ -58,6 +62,9 @@ class AnalysisParams:
     allow_truncated : bool
         For camera files that end early: analyse the complete frames (with a warning)
         instead of refusing the file.
+    calibration : Calibration, optional
+        The scale from a calibration image (:func:`grainplug.calibrate_image`, or
+        ``grainplug calibrate``), taken along the tube's axis; instead of ``mm_per_px``.
 
     Examples
     --------
@@ -74,6 +81,7 @@ class AnalysisParams:
     sample_frames: int = 32
     glob: str | None = None
     allow_truncated: bool = False
+    calibration: Calibration | None = None
 
     def __post_init__(self) -> None:
         def check(ok: bool, param: str, message: str) -> None:
@@ -88,6 +96,8 @@ class AnalysisParams:
         check(self.min_plug_mm > 0, "min_plug_mm", f"must be positive, got {self.min_plug_mm}")
         check(self.min_gap_mm >= 0, "min_gap_mm", f"must be non-negative, got {self.min_gap_mm}")
         check(self.sample_frames >= 4, "sample_frames", f"must be at least 4, got {self.sample_frames}")
+        check(self.calibration is None or self.mm_per_px is None, "calibration",
+              "give either a calibration or mm_per_px (the scale), not both")
 
     def replace(self, **changes: object) -> AnalysisParams:
         """A copy with some fields changed (checked like the original)."""

@@ -15,6 +15,7 @@ import contextlib
 import dataclasses
 import hashlib
 import logging
+import math
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -25,6 +26,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .calibration import TubeGeometry, find_tube
+from .calibration.pattern import Calibration
 from .diagram import Diagram, Normalized, band_along_tube, normalize
 from .errors import ParameterError
 from .measures import Lengths, Motion, measure_lengths, measure_motion
@@ -89,7 +91,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
         laps("tube_s")
         band, axis_px = band_along_tube(tube)
-        mm_per_px, scale_source, scale_rel_sd = _scale(tube, params)
+        mm_per_px, scale_source, scale_rel_sd, scale_warnings = _scale(tube, params, info)
         laps("setup_s")
         values = movie.read_band(band, threads=threads,
                                  progress=(lambda k: progress(k, info.n_frames)) if progress else None)
@@ -118,7 +120,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         runs=runs, links=links, motion=motion, lengths=lengths, has_plugs=bool(norm.two_phase and len(runs) > 0),
         statement=statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
-        falling_grain_speed_m_s=None if grains is None else grains.speed_m_s, warnings=[*info.warnings, *flow.warnings],
+        falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
+        warnings=[*info.warnings, *scale_warnings, *flow.warnings], scale_rel_sd=scale_rel_sd,
     )
 
 
@@ -168,13 +171,44 @@ def _check_movie(info: MovieInfo) -> None:
         raise ParameterError(f"{info.path} holds {info.n_frames} frames; at least 8 are needed", param="source")
 
 
-def _scale(tube: TubeGeometry, params: AnalysisParams) -> tuple[float, str, float]:
-    """``(mm_per_px, where it came from, its relative standard uncertainty)``."""
+def _scale(tube: TubeGeometry, params: AnalysisParams, info: MovieInfo) -> tuple[float, str, float, list[str]]:
+    """``(mm_per_px, where it came from, its relative standard uncertainty, warnings)``."""
     if params.mm_per_px:
-        return float(params.mm_per_px), "user", 0.0
-    mm_per_px = params.tube_diameter_mm / tube.inner_diameter_px
-    source = f"tube inner width ({params.tube_diameter_mm:g} mm = {tube.inner_diameter_px:.3f} px)"
-    return mm_per_px, source, TUBE_WIDTH_SD_PX / tube.inner_diameter_px
+        return float(params.mm_per_px), "user", 0.0, []
+    from_tube = params.tube_diameter_mm / tube.inner_diameter_px
+    cal = params.calibration
+    if cal is None:
+        source = f"tube inner width ({params.tube_diameter_mm:g} mm = {tube.inner_diameter_px:.3f} px)"
+        return from_tube, source, TUBE_WIDTH_SD_PX / tube.inner_diameter_px, []
+    return _calibrated_scale(cal, tube, info, from_tube, params.tube_diameter_mm)
+
+
+def _calibrated_scale(cal: Calibration, tube: TubeGeometry, info: MovieInfo, from_tube: float,
+                      diameter_mm: float) -> tuple[float, str, float, list[str]]:
+    """The calibration's scale along the tube's axis, its uncertainty, and what is doubtful.
+
+    The uncertainty combines the fit's with the scale's variation over the pattern
+    (the tube may lie anywhere in it: a uniform spread, ``variation / sqrt(12)``).
+    """
+    slope = math.tan(math.radians(tube.tilt_deg))
+    axis = (slope, 1.0) if tube.orientation == "vertical" else (1.0, slope)
+    mm_per_px = cal.mm_per_px_along(axis)
+    rel_sd = math.hypot(cal.rel_sd, cal.scale_variation / math.sqrt(12.0))
+    name = cal.image.get("name", "calibration image")
+    source = (f"calibration image {name} ({cal.pattern}, {cal.n_points} points {cal.pitch_mm:g} mm apart, "
+              "along the tube's axis)")
+    warnings = list(cal.warnings)
+    if tuple(cal.image_shape) != (info.height, info.width):
+        warnings.append(f"the calibration image is {cal.image_shape[1]} x {cal.image_shape[0]} px but the movie's "
+                        f"frames are {info.width} x {info.height}: its scale holds only if the camera, lens, focus "
+                        "and distance did not change (a crop is fine)")
+    disagree = from_tube / mm_per_px - 1
+    if abs(disagree) > 0.03:
+        warnings.append(f"the tube's inner width reads {tube.inner_diameter_px:.1f} px, {diameter_mm:g} mm by the "
+                        f"calibration being {diameter_mm / mm_per_px:.1f} px ({100 * disagree:+.0f} % in scale): "
+                        "back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
+                        "the tube's plane, else check --tube-diameter-mm")
+    return mm_per_px, source, rel_sd, warnings
 
 
 def _frame_times(movie: Movie, info: MovieInfo, n: int) -> np.ndarray:

@@ -106,6 +106,7 @@ class AnalysisResult:
     timings: dict[str, float] = field(default_factory=dict)
     falling_grain_speed_m_s: float | None = None
     warnings: list[str] = field(default_factory=list)
+    scale_rel_sd: float = 0.0
 
     # -- figures --------------------------------------------------------------
     @property
@@ -384,6 +385,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "duration_s": _r(res.diagram.n_frames / res.info.fps, 6),
         "mm_per_px": _r(res.mm_per_px, 6),
         "scale_source": res.scale_source,
+        "scale_rel_sd": _r(res.scale_rel_sd, 6),
         "tube_diameter_mm": D,
         "tube_diameter_px": _r(tube.inner_diameter_px, 4),
         "tube_axis_angle_deg": _r(flow_angle_deg(tube, res.flow_direction), 4),

@@ -24,6 +24,7 @@ RESULT_FILE = "result.npz"
 
 
 def _types() -> dict[str, type]:
+    from .calibration.pattern import Calibration
     from .calibration.tube import TubeGeometry
     from .diagram import Diagram, Normalized
     from .measures import Lengths, Motion
@@ -32,7 +33,7 @@ def _types() -> dict[str, type]:
     from .readers.base import MovieInfo
     from .result import AnalysisResult
 
-    return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Diagram,
+    return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
                                     Normalized, Runs, Tracks, Motion, Lengths)}
 
 

@@ -103,6 +103,47 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
 
 # ---------------------------------------------------------------------------
 @cli.command()
+@click.argument("image", type=click.Path(path_type=Path))
+@click.option("--pitch-mm", type=float, required=True,
+              help="Distance between neighbouring checkerboard corners (a square's side) or dot centres, in mm.")
+@click.option("--pattern", type=click.Choice(["auto", "checkerboard", "dots"]), default="auto", show_default=True,
+              help="The pattern in the image.")
+@click.option("--out", "out", type=click.Path(path_type=Path), default=Path("calibration.json"), show_default=True,
+              help="Where to write the calibration; a PNG of what was found is written beside it.")
+@click.option("--json", "as_json", is_flag=True, help="Print the calibration as JSON.")
+def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bool) -> None:
+    """The scale (mm per pixel) from IMAGE of a checkerboard or dot grid held at the tube's plane.
+
+    IMAGE is a picture (PNG, TIFF, JPEG, BMP) or a short movie of the pattern taken with the
+    camera and lens of the experiment (its first frames are averaged). Writes OUT (JSON, with the
+    image's fingerprint) and OUT with a .png suffix: the image with the points found. Use it with
+    `grainplug analyze MOVIE --calibration OUT`.
+    """
+    from ..calibration.files import calibrate_file, draw_calibration, read_calibration_image, save_calibration
+
+    if not (pitch_mm > 0 and pitch_mm < 1e4):
+        raise ParameterError(f"--pitch-mm must be a length between 0 and 10 m, got {pitch_mm}")
+    if out.suffix.lower() != ".json":
+        raise ParameterError(f"--out must name a .json file, got {out}")
+    cal = calibrate_file(image, pitch_mm=pitch_mm, pattern=pattern)
+    save_calibration(cal, out)
+    figure = draw_calibration(read_calibration_image(image), cal, out.with_suffix(".png"))
+    if as_json:
+        _echo_json(cal.as_dict())
+    else:
+        click.echo(f"scale       {cal.mm_per_px:.6g} mm/px ± {100 * cal.rel_sd:.2g} % "
+                   f"(x {cal.mm_per_px_x:.6g}, y {cal.mm_per_px_y:.6g})")
+        click.echo(f"pattern     {cal.pattern}, {cal.n_points} points, pitch {cal.pitch_mm:g} mm, "
+                   f"fit residual {cal.rms_residual_px:.2f} px")
+        click.echo(f"tilt        {cal.tilt_deg:+.2f}°")
+        click.echo(f"variation   {100 * cal.scale_variation:.2g} % over the pattern")
+        click.echo(f"written     {out} and {figure}")
+    for line in cal.warnings:
+        err_console.print(f"[yellow]warning:[/] {line}", highlight=False, soft_wrap=True)
+
+
+# ---------------------------------------------------------------------------
+@cli.command()
 @click.argument("movie", type=click.Path(path_type=Path))
 @click.option("--out", "out", type=click.Path(path_type=Path), required=True,
               help="Folder for summary.json, CSV tables, diagram, figures and report.")
@@ -117,13 +158,16 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
 @click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
 @click.option("--threads", type=int, default=None,
               help="Threads reading uncompressed frames (TIFF stacks, raw video) [default: one per core].")
+@click.option("--calibration", "calibration", type=click.Path(path_type=Path), default=None,
+              help="calibration.json from `grainplug calibrate`: the scale, instead of the tube's width.")
 @click.option("--allow-truncated", is_flag=True,
               help="For camera files that end early: analyse the complete frames instead of refusing.")
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
             tube_diameter_mm: float | None, flow_direction: str | None, min_plug_mm: float,
-            glob_: str | None, threads: int | None, allow_truncated: bool, no_figures: bool, as_json: bool) -> None:
+            glob_: str | None, threads: int | None, calibration: Path | None, allow_truncated: bool, no_figures: bool,
+            as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -134,10 +178,17 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
     if mm_per_px is not None and tube_diameter_mm is not None:
         raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
                              "not both")
+    if mm_per_px is not None and calibration is not None:
+        raise ParameterError("give either --mm-per-px or --calibration (the scale), not both")
+    cal = None
+    if calibration is not None:
+        from ..calibration.files import load_calibration
+
+        cal = load_calibration(calibration)
     diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_,
-                            allow_truncated=allow_truncated)
+                            allow_truncated=allow_truncated, calibration=cal)
     # the figures' worker starts now: it imports matplotlib while the frames stream
     with FigureWorker() if not no_figures else contextlib.nullcontext() as figure_worker:
         with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),

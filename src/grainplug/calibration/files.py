@@ -1,0 +1,122 @@
+"""Calibration files: read a calibration image, write and read ``calibration.json`` and its figure.
+
+The only I/O of calibration: :mod:`grainplug.calibration.pattern` works on arrays.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .._atomic import atomic_file
+from .._version import __version__
+from ..errors import MovieError
+from .pattern import Calibration, CalibrationError, calibrate_image
+
+#: frames of a movie given as a calibration image that are averaged (less noise)
+MOVIE_FRAMES_AVERAGED = 10
+
+
+def image_identity(path: Path) -> dict[str, object]:
+    """Name, size and SHA-256 of a file."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(chunk)
+    return {"name": path.name, "path": str(path), "bytes": path.stat().st_size, "sha256": digest.hexdigest()}
+
+
+def read_calibration_image(path: str | Path) -> np.ndarray:
+    """A calibration image as an array: a picture file (PNG, TIFF, JPEG, BMP), or a movie
+    of the pattern (any format grainplug reads), whose first frames are averaged.
+
+    Raises
+    ------
+    MovieError
+        When the file cannot be read as an image or a movie.
+    """
+    from ..readers import IMAGE_SUFFIXES, open_movie
+
+    p = Path(path).expanduser()
+    if not p.is_file():
+        raise MovieError(f"no such calibration image: {p} — check the path")
+    if p.suffix.lower() in IMAGE_SUFFIXES and p.suffix.lower() not in (".tif", ".tiff"):
+        from PIL import Image, UnidentifiedImageError
+
+        try:
+            with Image.open(p) as im:
+                return np.asarray(im)
+        except (UnidentifiedImageError, OSError) as exc:
+            raise MovieError(f"cannot read {p} as an image ({exc}) — is the file complete?") from None
+    with open_movie(p) as movie:
+        n = min(movie.info.n_frames, MOVIE_FRAMES_AVERAGED)
+        frames = [movie.read(k).astype(np.float64) for k in range(n)]
+    return np.mean(frames, axis=0)
+
+
+def calibrate_file(path: str | Path, *, pitch_mm: float, pattern: str = "auto") -> Calibration:
+    """:func:`calibrate_image` on a file, its identity kept with the result."""
+    p = Path(path).expanduser()
+    return calibrate_image(read_calibration_image(p), pitch_mm=pitch_mm, pattern=pattern,
+                           identity=image_identity(p))
+
+
+def save_calibration(cal: Calibration, path: str | Path) -> Path:
+    """Write ``calibration.json`` atomically (with the grainplug version); returns its path."""
+    dest = Path(path)
+    data = {**cal.as_dict(), "grainplug_version": __version__}
+    with atomic_file(dest) as tmp:
+        tmp.write_text(json.dumps(data, indent=2) + "\n")
+    return dest
+
+
+def load_calibration(path: str | Path) -> Calibration:
+    """Read a ``calibration.json`` written by :func:`save_calibration` (``grainplug calibrate``).
+
+    Raises
+    ------
+    CalibrationError
+        When the file is missing, not JSON, or not a calibration.
+    """
+    p = Path(path).expanduser()
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise CalibrationError(f"no such calibration file: {p} — make one with `grainplug calibrate IMAGE`") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CalibrationError(f"{p} is not a calibration JSON ({exc}) — make one with `grainplug calibrate`") \
+            from None
+    if not isinstance(data, dict):
+        raise CalibrationError(f"{p} is not a calibration JSON — make one with `grainplug calibrate`")
+    try:
+        return Calibration.from_dict(data)
+    except CalibrationError as exc:
+        raise CalibrationError(f"{p}: {exc}") from None
+
+
+def draw_calibration(image: np.ndarray, cal: Calibration, path: str | Path) -> Path:
+    """The image with the points found and the scale, for the user to check (PNG, atomic)."""
+    from ..plotting._figure import new_figure
+
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim == 3:
+        img = img[..., :3].mean(axis=2)
+    h, w = img.shape
+    fig, ax = new_figure(figsize=(8.0, 8.0 * h / w + 0.6))
+    ax.imshow(img, cmap="gray", interpolation="nearest")
+    if cal.points_px:
+        pts = np.asarray(cal.points_px)
+        ax.plot(pts[:, 0], pts[:, 1], "+", color="tab:red", markersize=6, markeredgewidth=1.0,
+                label=f"{cal.n_points} points found")
+    ax.plot(*cal.centre_px, "o", color="tab:cyan", markersize=6, label="scale taken here")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.set_title(f"{cal.mm_per_px:.5g} mm/px ± {100 * cal.rel_sd:.2g} % ({cal.pattern}, pitch {cal.pitch_mm:g} mm), "
+                 f"tilt {cal.tilt_deg:+.2f}°, variation {100 * cal.scale_variation:.2g} %", fontsize=9)
+    ax.set_axis_off()
+    dest = Path(path)
+    with atomic_file(dest) as tmp:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    return dest

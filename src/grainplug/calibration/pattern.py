@@ -1,0 +1,429 @@
+"""The scale from a calibration image: a checkerboard or a dot grid held at the tube's plane.
+
+The pattern's points are found (a checkerboard's inner corners: scikit-image's
+Harris peaks refined to sub-pixel saddle points; or the dots' centroids), indexed on
+their lattice by growing from the centre (so that neither the board's size nor a
+hidden part of it needs to be known), then a plane-to-image homography is fitted to
+them by least squares (OpenCV). Its local derivative gives the mm per
+pixel along the image's axes at the pattern's centre, the spread of that derivative
+over the pattern says how much the scale varies over the field (perspective, lens
+distortion), and the fit's residuals give the scale's uncertainty.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import GrainplugError
+
+#: version of the calibration.json layout
+CALIBRATION_FORMAT = 1
+#: the scale may vary over the pattern by this much before a warning
+SCALE_VARIATION_WARN = 0.005
+PATTERNS = ("auto", "checkerboard", "dots")
+
+
+class CalibrationError(GrainplugError):
+    """The calibration image holds no usable pattern."""
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """What a calibration image says about the scale.
+
+    Attributes
+    ----------
+    mm_per_px : float
+        Scale at the pattern's centre (geometric mean of the two axes).
+    mm_per_px_x, mm_per_px_y : float
+        mm spanned by one pixel along the image's columns (x) and rows (y).
+    jacobian_mm_per_px : tuple of tuple of float
+        Local derivative of plane position (mm) with respect to image position (px)
+        at the pattern's centre, ``[[dX/dx, dX/dy], [dY/dx, dY/dy]]``: the mm per
+        pixel in any direction of the image.
+    rel_sd : float
+        Relative standard uncertainty of ``mm_per_px`` from the fit's residuals.
+    tilt_deg : float
+        Angle of the pattern's rows (or columns, whichever is nearer) to the image's rows,
+        degrees in [-45, 45), counter-clockwise positive.
+    scale_variation : float
+        (max - min) / mean of the local scale over the pattern: perspective or lens
+        distortion. Above 0.5 % a warning says so.
+    rms_residual_px : float
+        Root mean square distance between the points found and the fitted homography.
+    n_points : int
+        Points used in the fit.
+    pattern : str
+        ``"checkerboard"`` or ``"dots"``.
+    pitch_mm : float
+        Distance between neighbouring points on the pattern, as given.
+    image_shape : tuple of int
+        ``(height, width)`` of the calibration image.
+    centre_px : tuple of float
+        Where in the image the pattern's centre is (x, y).
+    homography : tuple of tuple of float
+        3 x 3 map from the pattern's plane (mm) to the image (px).
+    image : dict
+        Identity of the calibration image (name, size in bytes, sha256).
+    warnings : tuple of str
+        What is doubtful, each with the fix.
+    points_px : tuple of (float, float)
+        The pattern's points found in the image (x, y), for drawing them over it.
+    """
+
+    mm_per_px: float
+    mm_per_px_x: float
+    mm_per_px_y: float
+    jacobian_mm_per_px: tuple[tuple[float, float], tuple[float, float]]
+    rel_sd: float
+    tilt_deg: float
+    scale_variation: float
+    rms_residual_px: float
+    n_points: int
+    pattern: str
+    pitch_mm: float
+    image_shape: tuple[int, int]
+    centre_px: tuple[float, float]
+    homography: tuple[tuple[float, ...], ...]
+    image: dict[str, object] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+    points_px: tuple[tuple[float, float], ...] = ()
+
+    def mm_per_px_along(self, direction_xy: tuple[float, float]) -> float:
+        """mm per pixel along an image direction ``(dx, dy)`` (e.g. the tube's axis)."""
+        u = np.asarray(direction_xy, float)
+        u = u / np.hypot(*u)
+        return float(np.hypot(*(np.asarray(self.jacobian_mm_per_px) @ u)))
+
+    def as_dict(self) -> dict[str, object]:
+        """JSON-ready, with the layout's version."""
+        d = dataclasses.asdict(self)
+        return {"format": "grainplug-calibration", "version": CALIBRATION_FORMAT, **d}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, object]) -> Calibration:
+        """The calibration written by :meth:`as_dict`.
+
+        Raises
+        ------
+        CalibrationError
+            When ``data`` is not a calibration of a layout this version reads.
+        """
+        if data.get("format") != "grainplug-calibration":
+            raise CalibrationError("this JSON is not a grainplug calibration — make one with `grainplug calibrate`")
+        if data.get("version") != CALIBRATION_FORMAT:
+            raise CalibrationError(f"calibration layout version {data.get('version')} is not "
+                                   f"{CALIBRATION_FORMAT} — redo it with this grainplug (`grainplug calibrate`)")
+        names = {f.name for f in dataclasses.fields(cls)}
+        try:
+            kw = {k: v for k, v in data.items() if k in names}
+            kw["jacobian_mm_per_px"] = tuple(tuple(float(x) for x in row) for row in kw["jacobian_mm_per_px"])
+            kw["homography"] = tuple(tuple(float(x) for x in row) for row in kw["homography"])
+            kw["image_shape"] = tuple(int(x) for x in kw["image_shape"])
+            kw["centre_px"] = tuple(float(x) for x in kw["centre_px"])
+            kw["warnings"] = tuple(kw.get("warnings", ()))
+            kw["points_px"] = tuple(tuple(float(x) for x in p) for p in kw.get("points_px", ()))
+            cal = cls(**kw)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CalibrationError(f"the calibration is incomplete or damaged ({exc}) — redo it with "
+                                   "`grainplug calibrate`") from None
+        if not (math.isfinite(cal.mm_per_px) and cal.mm_per_px > 0):
+            raise CalibrationError(f"the calibration's scale {cal.mm_per_px} mm/px is not a positive number — redo it")
+        return cal
+
+
+def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto",
+                    identity: dict[str, object] | None = None) -> Calibration:
+    """The scale from an image of a checkerboard or a dot grid.
+
+    Parameters
+    ----------
+    image : ndarray, (H, W) or (H, W, 3), uint8 or uint16
+        The calibration image.
+    pitch_mm : float
+        Distance between neighbouring corners (checkerboard: the side of a square) or
+        dot centres, in mm.
+    pattern : {"auto", "checkerboard", "dots"}
+        Which pattern to look for; ``"auto"`` tries the checkerboard first.
+    identity : dict, optional
+        The image's identity (name, size, hash) to keep with the result.
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    CalibrationError
+        When no pattern of at least 3 x 3 points is found.
+
+    Notes
+    -----
+    With ``H`` the homography from plane coordinates ``(X, Y)`` (mm) to image
+    coordinates ``(x, y)`` (px), fitted by least squares to the points, the local scale
+    at an image point is the inverse of the derivative of ``H`` there:
+    ``J = (dH/d(X, Y))^-1`` in mm/px; the reported scale is
+    ``sqrt(|det J|)`` at the pattern's centre. Its uncertainty is that of the scale of an
+    affine fit to the same points, from the residuals' variance and the points' spread
+    (ordinary least squares).
+    """
+    if pattern not in PATTERNS:
+        raise CalibrationError(f"unknown pattern {pattern!r}: choose one of {', '.join(PATTERNS)}")
+    if not (math.isfinite(pitch_mm) and pitch_mm > 0):
+        raise CalibrationError(f"the pattern's pitch must be a positive length in mm, got {pitch_mm}")
+    grey = _grey8(image)
+    finders = {"checkerboard": _checkerboard_points, "dots": _dot_points}
+    fits = []
+    for kind in (("checkerboard", "dots") if pattern == "auto" else (pattern,)):
+        found = finders[kind](grey)
+        if found is None:
+            continue
+        index, points = found
+        cal = _fit(index * pitch_mm, points, pitch_mm=pitch_mm, kind=kind, shape=grey.shape,
+                   identity=identity or {})
+        # a lattice read wrongly (the corners between dots taken for a board...) is not square
+        if abs(cal.mm_per_px_x / cal.mm_per_px_y - 1) < 0.1 and cal.rms_residual_px < 1.0:
+            fits.append(cal)
+    if not fits:
+        what = {"auto": "a checkerboard or a dot grid", "checkerboard": "a checkerboard", "dots": "a dot grid"}[pattern]
+        raise CalibrationError(f"no {what} of at least 3 x 3 points was found in the image — make sure the pattern "
+                               "is in focus, evenly lit and fills a good part of the frame")
+    return max(fits, key=lambda c: c.n_points)
+
+
+# -- finding the points -----------------------------------------------------------------------
+def _grey8(image: np.ndarray) -> np.ndarray:
+    """8-bit grey, stretched between the 0.5th and 99.5th percentiles."""
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim == 3:
+        img = img[..., :3].mean(axis=2)
+    if img.ndim != 2 or min(img.shape) < 16:
+        raise CalibrationError(f"a calibration image must be a 2-D picture of at least 16 x 16 pixels, got shape "
+                               f"{np.shape(image)}")
+    lo, hi = np.percentile(img, [0.5, 99.5])
+    if not hi > lo:
+        raise CalibrationError("the calibration image is uniform — it shows no pattern")
+    return np.clip((img - lo) * (255.0 / (hi - lo)), 0, 255).astype(np.uint8)
+
+
+def _checkerboard_points(grey: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Inner corners of a checkerboard, ``(index (N, 2), image points (N, 2))``, any board size.
+
+    Harris corner peaks (scikit-image) refined to sub-pixel saddle points
+    (:func:`skimage.feature.corner_subpix`), kept where the image around them has the
+    two-fold symmetry of an inner corner (dark, light, dark, light around a circle: the
+    second Fourier harmonic of the circle's profile dominates; the board's outer
+    corners, a quarter dark, have a dominant first harmonic), then indexed on their
+    lattice (:func:`index_lattice`).
+    """
+    from skimage.feature import corner_harris, corner_peaks, corner_subpix
+
+    g = grey.astype(np.float64) / 255.0
+    peaks = corner_peaks(corner_harris(g, sigma=2), min_distance=4, threshold_rel=0.02)
+    if len(peaks) < 9:
+        return None
+    gaps = np.sort(np.hypot(*(peaks[:, None, :] - peaks[None, :, :]).transpose(2, 0, 1)), axis=1)[:, 1]
+    pitch = float(np.median(gaps))
+    refined = corner_subpix(g, peaks, window_size=max(5, int(0.6 * pitch) | 1), alpha=0.99)
+    refined = refined[~np.isnan(refined).any(axis=1)]
+    if len(refined) < 9:
+        return None
+    inner = refined[_x_corners(g, refined, radius=pitch / 3)]
+    return index_lattice(inner[:, ::-1]) if len(inner) >= 9 else None
+
+
+def _x_corners(g: np.ndarray, rc: np.ndarray, *, radius: float) -> np.ndarray:
+    """Which points ``(row, col)`` are inner (X-shaped) checkerboard corners."""
+    from scipy import ndimage
+
+    theta = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
+    rows = rc[:, :1] + radius * np.sin(theta)
+    cols = rc[:, 1:] + radius * np.cos(theta)
+    ring = ndimage.map_coordinates(g, [rows.ravel(), cols.ravel()], order=1, mode="nearest").reshape(rows.shape)
+    f = np.abs(np.fft.rfft(ring, axis=1))
+    return (f[:, 2] > f[:, 1]) & (f[:, 2] > 2 * f[:, 3])
+
+
+def _dot_points(grey: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Centres of dots (dark on light or light on dark) indexed on their lattice."""
+    from scipy import ndimage
+
+    best = None
+    thr = _otsu(grey)
+    for dark in (True, False):
+        mask = grey < thr if dark else grey > thr
+        labels, n = ndimage.label(mask)
+        if n < 9:
+            continue
+        idx = np.arange(1, n + 1)
+        area = ndimage.sum_labels(mask, labels, idx)
+        weights = (255.0 - grey if dark else grey.astype(np.float64))
+        cy, cx = np.array(ndimage.center_of_mass(weights * mask, labels, idx)).T
+        # dots: blobs of the typical size, not touching the border, compact
+        med = np.median(area[area >= 6]) if np.any(area >= 6) else 0
+        box = ndimage.find_objects(labels)
+        keep = []
+        for k, sl in enumerate(box):
+            if not (0.4 * med <= area[k] <= 2.5 * med) or med < 6:
+                continue
+            h, w = sl[0].stop - sl[0].start, sl[1].stop - sl[1].start
+            touches = sl[0].start == 0 or sl[1].start == 0 or sl[0].stop == grey.shape[0] or sl[1].stop == grey.shape[1]
+            if touches or area[k] < 0.45 * h * w or max(h, w) > 3 * min(h, w):
+                continue
+            keep.append(k)
+        if len(keep) < 9:
+            continue
+        pts = np.stack([cx[keep], cy[keep]], axis=1)
+        indexed = index_lattice(pts)
+        if indexed is not None and (best is None or len(indexed[0]) > len(best[0])):
+            best = indexed
+    return best
+
+
+def _otsu(grey: np.ndarray) -> float:
+    from skimage.filters import threshold_otsu
+
+    return float(threshold_otsu(grey))
+
+
+def index_lattice(points: np.ndarray, *, tolerance: float = 0.3) -> tuple[np.ndarray, np.ndarray] | None:
+    """Integer lattice indices of points on a (perspective-distorted) square grid.
+
+    Grows from the point nearest the centroid: a neighbour of an indexed point found
+    within ``tolerance`` of a lattice step of it (the local steps, updated as the growth
+    moves, so that perspective is followed) gets the neighbouring index.
+
+    Returns
+    -------
+    (index (M, 2), points (M, 2)) of the points reached, or None when fewer than 9.
+    """
+    from scipy.spatial import cKDTree
+
+    pts = np.asarray(points, float)
+    if len(pts) < 9:
+        return None
+    tree = cKDTree(pts)
+    _, nn = tree.query(pts, k=5)
+    steps = (pts[nn[:, 1:]] - pts[:, None, :]).reshape(-1, 2)
+    lengths = np.hypot(*steps.T)
+    pitch = float(np.median(np.sort(lengths.reshape(len(pts), 4), axis=1)[:, 0]))
+    # the two lattice directions: angles of the short steps, folded to [0, 180)
+    short = steps[lengths < 1.3 * pitch]
+    ang = np.degrees(np.arctan2(short[:, 1], short[:, 0])) % 180.0
+
+    def wrapped(a: np.ndarray, ref: float) -> np.ndarray:  # a - ref folded to [-90, 90)
+        return (a - ref + 90.0) % 180.0 - 90.0
+
+    hist, edges = np.histogram(ang, bins=36, range=(0, 180))
+    peak = float(edges[np.argmax(hist)] + 2.5)
+    near = np.abs(wrapped(ang, peak)) < 10
+    a1 = peak + float(np.median(wrapped(ang[near], peak)))
+    far = np.abs(wrapped(ang, a1)) > 45
+    if far.sum() < 3:
+        return None
+    a2 = a1 + 90.0 + float(np.median(wrapped(ang[far], a1 + 90.0)))
+    u = pitch * np.array([math.cos(math.radians(a1)), math.sin(math.radians(a1))])
+    v = pitch * np.array([math.cos(math.radians(a2)), math.sin(math.radians(a2))])
+    start = int(np.argmin(np.hypot(*(pts - pts.mean(axis=0)).T)))
+    index = {start: (0, 0)}
+    local = {start: (u, v)}
+    queue = [start]
+    taken = {(0, 0)}
+    while queue:
+        k = queue.pop(0)
+        i, j = index[k]
+        lu, lv = local[k]
+        for di, dj, step in ((1, 0, lu), (-1, 0, -lu), (0, 1, lv), (0, -1, -lv)):
+            if (i + di, j + dj) in taken:
+                continue
+            dist, m = tree.query(pts[k] + step)
+            if m in index or dist > tolerance * np.hypot(*step):
+                continue
+            index[m] = (i + di, j + dj)
+            taken.add((i + di, j + dj))
+            found = pts[m] - pts[k]
+            nu, nv = (found * di, lv) if di else (lu, found * dj)
+            local[m] = (np.asarray(nu, float), np.asarray(nv, float))
+            queue.append(m)
+    if len(index) < 9:
+        return None
+    keys = np.array(list(index))
+    ij = np.array([index[k] for k in keys], float)
+    ij -= ij.min(axis=0)
+    if len(np.unique(ij[:, 0])) < 3 or len(np.unique(ij[:, 1])) < 3:
+        return None
+    return ij, pts[keys]
+
+
+# -- the fit ----------------------------------------------------------------------------------
+def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str, shape: tuple[int, int],
+         identity: dict[str, object]) -> Calibration:
+    import cv2
+
+    H, _ = cv2.findHomography(world.astype(np.float64), image_pts.astype(np.float64), 0)
+    if H is None:
+        raise CalibrationError("the pattern's points do not fit a plane seen by a camera — retake the image")
+    proj = cv2.perspectiveTransform(world.reshape(-1, 1, 2), H).reshape(-1, 2)
+    rms = float(np.sqrt(np.mean(np.sum((proj - image_pts) ** 2, axis=1))))
+    centre_world = world.mean(axis=0)
+    J = _inverse_jacobian(H, centre_world)
+    mm_x, mm_y = float(np.hypot(*J[:, 0])), float(np.hypot(*J[:, 1]))
+    scale = float(math.sqrt(abs(np.linalg.det(J))))
+    local = np.array([math.sqrt(abs(np.linalg.det(_inverse_jacobian(H, w)))) for w in world])
+    variation = float((local.max() - local.min()) / local.mean())
+    # pattern rows in the image: the image of the plane's X axis
+    d = cv2.perspectiveTransform(np.array([[centre_world, centre_world + np.array([pitch_mm, 0.0])]]), H)[0]
+    tilt = float(math.degrees(math.atan2(-(d[1, 1] - d[0, 1]), d[1, 0] - d[0, 0])))
+    tilt = (tilt + 45.0) % 90.0 - 45.0  # a square grid looks the same turned by a quarter
+    rel_sd = _affine_scale_rel_sd(world, image_pts, residual_mm=rms * scale)
+    centre = cv2.perspectiveTransform(centre_world.reshape(1, 1, 2), H).reshape(2)
+    warnings = []
+    if variation > SCALE_VARIATION_WARN:
+        warnings.append(f"the scale varies by {100 * variation:.1f} % over the pattern (perspective or lens "
+                        "distortion): hold the pattern square to the camera, at the tube's plane, and use the "
+                        "scale where the tube is")
+    if abs(mm_x / mm_y - 1) > 0.01:
+        warnings.append(f"pixels are not square here ({mm_x:.5g} x {mm_y:.5g} mm): the scale along the tube "
+                        "is taken along its axis")
+    if rms > 0.5:
+        warnings.append(f"the points lie {rms:.2f} px from the fitted plane on average (lens distortion, or a "
+                        "pattern that is not flat)")
+    return Calibration(
+        mm_per_px=scale, mm_per_px_x=mm_x, mm_per_px_y=mm_y,
+        jacobian_mm_per_px=((float(J[0, 0]), float(J[0, 1])), (float(J[1, 0]), float(J[1, 1]))),
+        rel_sd=rel_sd, tilt_deg=tilt, scale_variation=variation, rms_residual_px=rms, n_points=len(world),
+        pattern=kind, pitch_mm=float(pitch_mm), image_shape=(int(shape[0]), int(shape[1])),
+        centre_px=(float(centre[0]), float(centre[1])),
+        homography=tuple(tuple(float(x) for x in row) for row in H), image=dict(identity),
+        warnings=tuple(warnings), points_px=tuple((float(x), float(y)) for x, y in image_pts),
+    )
+
+
+def _inverse_jacobian(H: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """d(plane mm)/d(image px) at plane point ``w``: the inverse of the homography's derivative."""
+    X, Y = float(w[0]), float(w[1])
+    num = H[:2] @ np.array([X, Y, 1.0])
+    den = float(H[2] @ np.array([X, Y, 1.0]))
+    d = (H[:2, :2] * den - np.outer(num, H[2, :2])) / den**2  # d(x, y)/d(X, Y)
+    return np.linalg.inv(d)
+
+
+def _affine_scale_rel_sd(world: np.ndarray, image_pts: np.ndarray, *, residual_mm: float) -> float:
+    """Relative standard error of sqrt|det A| of the least-squares affine map image -> plane, with
+    the points' scatter about the fitted homography (``residual_mm``, rms of both coordinates
+    together) as the noise: the points' spread sets the leverage, the homography the noise."""
+    n = len(world)
+    X = np.column_stack([image_pts, np.ones(n)])
+    coef, *_ = np.linalg.lstsq(X, world, rcond=None)  # (3, 2): plane = X @ coef
+    sigma2 = residual_mm**2 / 2 * n / max(1, n - 4)  # per coordinate, for the homography's 8 parameters
+    cov = sigma2 * np.linalg.inv(X.T @ X)  # same for both output columns
+    A = coef[:2].T  # plane = A @ (x, y) + t
+    det = float(np.linalg.det(A))
+    # d det / d A = det * inv(A).T; the two rows of A are independent with covariance cov[:2, :2]
+    g = det * np.linalg.inv(A).T
+    var_det = float(g[0] @ cov[:2, :2] @ g[0] + g[1] @ cov[:2, :2] @ g[1])
+    return float(0.5 * math.sqrt(max(var_det, 0.0)) / abs(det))

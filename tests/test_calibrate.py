@@ -1,0 +1,146 @@
+"""`grainplug calibrate` and the scale from a calibration in the analysis.
+
+The accuracy of the scale on rendered calibration images (other optics, perspective,
+blur, noise, occlusion) is checked in test_calibration_accuracy.py; here: the command,
+its files and errors, and how a calibration is used and reported by the analysis.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import tifffile
+
+import grainplug as gp
+from grainplug.calibration.pattern import Calibration, CalibrationError, index_lattice
+from grainplug.cli import main
+from grainplug.synthetic import SynthConfig
+from grainplug.synthetic.render import Renderer
+
+
+def board(shape=(480, 640), square_px=32.0, n=(10, 7), angle_deg=4.0) -> np.ndarray:
+    """A plain checkerboard image, square to the camera (supersampled)."""
+    ss = 4
+    ys, xs = np.mgrid[0:shape[0] * ss, 0:shape[1] * ss] / ss
+    a = math.radians(angle_deg)
+    x, y = xs - shape[1] / 2, ys - shape[0] / 2
+    u = (math.cos(a) * x - math.sin(a) * y) / square_px
+    v = (math.sin(a) * x + math.cos(a) * y) / square_px
+    inside = (np.abs(u) < n[0] / 2) & (np.abs(v) < n[1] / 2)
+    img = np.where(inside & ((np.floor(u) + np.floor(v)) % 2 == 0), 30.0, 225.0)
+    return img.reshape(shape[0], ss, shape[1], ss).mean(axis=(1, 3)).astype(np.uint8)
+
+
+def uniform_calibration(mm_per_px: float, shape=(300, 48)) -> Calibration:
+    return Calibration(mm_per_px=mm_per_px, mm_per_px_x=mm_per_px, mm_per_px_y=mm_per_px,
+                       jacobian_mm_per_px=((mm_per_px, 0.0), (0.0, mm_per_px)), rel_sd=0.001, tilt_deg=0.0,
+                       scale_variation=0.0, rms_residual_px=0.05, n_points=60, pattern="checkerboard", pitch_mm=2.0,
+                       image_shape=shape, centre_px=(shape[1] / 2, shape[0] / 2),
+                       homography=((1 / mm_per_px, 0, 0), (0, 1 / mm_per_px, 0), (0, 0, 1)),
+                       image={"name": "cal.tif"})
+
+
+def test_calibrate_writes_the_scale_and_a_figure(tmp_path, capsys):
+    tifffile.imwrite(tmp_path / "board.tif", board())
+    out = tmp_path / "cal" / "calibration.json"
+    assert main(["calibrate", str(tmp_path / "board.tif"), "--pitch-mm", "2", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert data["format"] == "grainplug-calibration" and data["version"] == 1 and data["pattern"] == "checkerboard"
+    assert data["mm_per_px"] == pytest.approx(2.0 / 32.0, rel=2e-3)
+    assert data["tilt_deg"] == pytest.approx(4.0, abs=0.1)  # turned counter-clockwise on the screen
+    assert data["image"]["sha256"] and data["image"]["name"] == "board.tif" and data["grainplug_version"]
+    assert out.with_suffix(".png").stat().st_size > 10_000
+    assert "scale       0.0625" in printed
+    cal = gp.load_calibration(out)
+    assert cal.mm_per_px == data["mm_per_px"] and len(cal.points_px) == cal.n_points == 9 * 7
+
+
+@pytest.mark.parametrize(("image", "words"), [
+    (np.full((100, 100), 128, np.uint8), "uniform"),
+    (np.random.default_rng(0).integers(0, 255, (200, 200)).astype(np.uint8), "no a checkerboard or a dot grid"),
+])
+def test_calibrate_without_a_pattern_is_one_clear_line(tmp_path, capsys, image, words):
+    tifffile.imwrite(tmp_path / "x.tif", image)
+    assert main(["calibrate", str(tmp_path / "x.tif"), "--pitch-mm", "2", "--out", str(tmp_path / "c.json")]) != 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ") and words in err
+    assert not (tmp_path / "c.json").exists()
+
+
+def test_bad_calibration_files_are_one_clear_line(tmp_path, capsys):
+    (tmp_path / "bad.json").write_text("{not json")
+    (tmp_path / "other.json").write_text('{"format": "something"}')
+    movie = tmp_path / "m.tif"
+    tifffile.imwrite(movie, np.zeros((4, 8, 8), np.uint8), photometric="minisblack")
+    for name, words in (("missing.json", "no such calibration file"), ("bad.json", "is not a calibration JSON"),
+                        ("other.json", "is not a grainplug calibration")):
+        code = main(["analyze", str(movie), "--out", str(tmp_path / "o"), "--calibration", str(tmp_path / name)])
+        err = capsys.readouterr().err
+        assert code != 0 and err.count("\n") == 1 and words in err, err
+    with pytest.raises(CalibrationError, match="pitch must be a positive length"):
+        gp.calibrate_image(board(), pitch_mm=0.0)
+
+
+@pytest.fixture(scope="module")
+def plug_movie():
+    """Frames of plug flow, and the scale at which the tube's width reads 3 mm."""
+    cfg = SynthConfig(n_frames=120, width_px=48, height_px=300, fps=500.0, seed=3)
+    frames = np.stack(list(Renderer(cfg).frames()))
+    tube_scale = gp.analyze(frames, fps=500.0).mm_per_px
+    return frames, tube_scale
+
+
+def test_analysis_takes_its_scale_from_the_calibration(tmp_path, plug_movie):
+    frames, tube_scale = plug_movie
+    cal = uniform_calibration(tube_scale * 1.01)  # agrees with the tube within 3 %: no warning
+    res = gp.analyze(frames, fps=500.0, calibration=cal)
+    assert res.mm_per_px == pytest.approx(tube_scale * 1.01, rel=1e-12)
+    assert res.scale_source.startswith("calibration image cal.tif (checkerboard, 60 points 2 mm apart")
+    assert res.summary["scale_rel_sd"] == pytest.approx(0.001)
+    assert not res.warnings
+    # the same scale typed by hand gives the same celerity
+    typed = gp.analyze(frames, fps=500.0, mm_per_px=tube_scale * 1.01)
+    assert res.summary["celerity_m_s"] == pytest.approx(typed.summary["celerity_m_s"], rel=1e-9)
+    res.save(tmp_path / "out", figures=False, report=False)
+    assert gp.load_result(tmp_path / "out").params.calibration == cal
+
+
+def test_doubtful_calibrations_are_said(plug_movie):
+    frames, tube_scale = plug_movie
+    wrong = uniform_calibration(tube_scale * 1.2, shape=(1024, 1280))  # another image size, 20 % off the tube
+    res = gp.analyze(frames, fps=500.0, calibration=wrong)
+    text = " ".join(res.warnings)
+    assert "the calibration image is 1280 x 1024 px but the movie's frames are 48 x 300" in text
+    assert "the tube's inner width reads" in text and "(-17 % in scale)" in text
+    with pytest.raises(gp.ParameterError, match="either a calibration or mm_per_px"):
+        gp.AnalysisParams(mm_per_px=0.1, calibration=wrong)
+
+
+def test_anisotropic_calibration_is_taken_along_the_tube():
+    cal = uniform_calibration(0.1)
+    cal = Calibration(**{**cal.__dict__, "jacobian_mm_per_px": ((0.1, 0.0), (0.0, 0.12))})
+    assert cal.mm_per_px_along((0.0, 1.0)) == pytest.approx(0.12)
+    assert cal.mm_per_px_along((1.0, 0.0)) == pytest.approx(0.1)
+    assert cal.mm_per_px_along((1.0, 1.0)) == pytest.approx(math.hypot(0.1, 0.12) / math.sqrt(2))
+
+
+def test_lattice_indexing_follows_perspective_and_gaps():
+    # a 9 x 7 grid seen in strong perspective, with a hole in it
+    i, j = np.mgrid[0:9, 0:7]
+    X, Y = i.ravel() * 1.0, j.ravel() * 1.0
+    w = 1.0 + 0.04 * Y
+    pts = np.stack([(30 * X + 5 * Y) / w, (30 * Y - 4 * X) / w], axis=1)
+    hole = (np.abs(X - 4) <= 1) & (np.abs(Y - 3) <= 1)
+    index, found = index_lattice(pts[~hole])
+    assert len(index) == (~hole).sum()
+    # indices are those of the grid, up to the lattice's symmetries: check neighbours stay neighbours
+    lookup = {tuple(p): tuple(k) for p, k in zip(np.round(found, 6), index, strict=True)}
+    for a, b in ((0, 1), (10, 11), (50, 57)):
+        if hole[a] or hole[b]:
+            continue
+        ka, kb = np.array(lookup[tuple(np.round(pts[a], 6))]), np.array(lookup[tuple(np.round(pts[b], 6))])
+        assert np.abs(ka - kb).sum() == 1
