@@ -186,3 +186,19 @@ def test_scheduler_unreachable(campaign_dir, tmp_path, capsys):
     code, _, err = run(capsys, "batch", campaign_dir / "manifest.csv", "--out", tmp_path / "o",
                        "--scheduler", "tcp://127.0.0.1:9")
     assert_one_line_error(code, err, "scheduler")
+
+
+def test_manifest_calibration_column(tmp_path):
+    from test_calibrate import uniform_calibration
+
+    import grainplug as gp
+
+    (tmp_path / "cal").mkdir()
+    gp.save_calibration(uniform_calibration(0.19), tmp_path / "cal" / "day1.json")
+    (tmp_path / "m.csv").write_text("run,movie,calibration\na,a.avi,cal/day1.json\nb,b.avi,\n")
+    a, b = read_manifest(tmp_path / "m.csv")
+    assert a.params.calibration.mm_per_px == 0.19 and b.params.calibration is None
+    assert "calibration" not in a.meta
+    (tmp_path / "bad.csv").write_text("run,movie,calibration\na,a.avi,cal/missing.json\n")
+    with pytest.raises(ParameterError, match=r"bad\.csv.*calibration: no such calibration file"):
+        read_manifest(tmp_path / "bad.csv")

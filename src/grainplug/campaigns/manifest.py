@@ -8,6 +8,8 @@ Columns (CSV header, or keys of each ``[[run]]`` table in TOML; a TOML
 ``movie``                      path of the movie, relative to the manifest's folder
 ``fps``                        frame rate, when the file holds none or it is wrong
 ``mm_per_px``                  scale, or
+``calibration``                a calibration.json (``grainplug calibrate``), relative to the
+                               manifest's folder: the scale, e.g. one per day of experiments
 ``tube_diameter_mm``           inner diameter of the tube (scale from the tube; 3 mm)
 ``flow_direction``             down, up, left or right
 ``glob``                       for image folders
@@ -25,9 +27,13 @@ import csv
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import ParameterError
 from ..params import AnalysisParams
+
+if TYPE_CHECKING:
+    from ..calibration.pattern import Calibration
 
 ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "flow_direction": str,
                  "glob": str, "min_plug_mm": float}
@@ -63,16 +69,29 @@ def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec
         movie = base / movie
     kw = {k: _convert(k, row.get(k), ANALYSIS_KEYS, where) for k in ANALYSIS_KEYS if k in row}
     kw = {k: v for k, v in kw.items() if v is not None}
+    if row.get("calibration"):
+        kw["calibration"] = _calibration(str(row["calibration"]), base, where)
     try:
         params = AnalysisParams(**kw)
     except ParameterError as exc:
         raise ParameterError(f"{where}: {exc}") from None
     meta: dict[str, object] = {}
     for k, v in row.items():
-        if k in ANALYSIS_KEYS or k in ("run", "movie"):
+        if k in ANALYSIS_KEYS or k in ("run", "movie", "calibration"):
             continue
         meta[k] = _convert(k, v, KNOWN_META, where) if k in KNOWN_META else v
     return RunSpec(run, movie, params, meta)
+
+
+def _calibration(value: str, base: Path, where: str) -> Calibration:
+    from ..calibration.files import load_calibration
+    from ..calibration.pattern import CalibrationError
+
+    path = Path(value).expanduser()
+    try:
+        return load_calibration(path if path.is_absolute() else base / path)
+    except CalibrationError as exc:
+        raise ParameterError(f"{where}: calibration: {exc}") from None
 
 
 def read_manifest(path: str | Path) -> list[RunSpec]:

@@ -65,7 +65,7 @@ def run_report(res: AnalysisResult, folder: Path) -> str:
     keys = ["celerity_m_s", "celerity_ci95_m_s", "plug_length_mm", "plug_length_ci95_mm",
             "plug_length_over_diameter", "bubble_length_mm", "oscillation_frequency_hz",
             "oscillation_amplitude_mm", "regime", "n_plugs", "n_frames", "fps", "mm_per_px",
-            "scale_source", "tube_diameter_px", "tube_axis_angle_deg", "flow_direction",
+            "scale_source", "scale_rel_sd", "tube_diameter_px", "tube_axis_angle_deg", "flow_direction",
             "flow_direction_source"]
     figs = "".join(_img(folder / name) for name in ("diagram.png", "spectrum.png", "frame.png")
                    if (folder / name).exists())
