@@ -161,14 +161,16 @@ def _describe(path: Path, *, fps: float | None, allow_truncated: bool) -> tuple[
         fh.seek(off_bih)
         bih = fh.read(40)
         (_, width, height, _, bits, bi_comp, image_size, *_rest) = struct.unpack("<IiiHHIIiiII", bih)
-        fh.seek(off_setup)
+        fh.seek(min(off_setup, size))
         setup_raw = fh.read(max(0, min(off_offsets, size) - off_setup))
         setup = parse_setup(setup_raw)
-        fh.seek(off_offsets)
-        offsets_raw = fh.read(8 * count)
-        if len(offsets_raw) < 8 * count:
+        if off_offsets + 8 * count > size:
             raise MovieError(f"{path} is truncated: it ends inside its table of image offsets — copy the file again")
-        image_offsets = np.frombuffer(offsets_raw, "<i8").astype(np.int64)
+        fh.seek(off_offsets)
+        image_offsets = np.frombuffer(fh.read(8 * count), "<i8").astype(np.int64)
+        if count and not 0 < image_offsets[0] < size:
+            raise MovieError(f"{path}: its first image lies outside the file (offset {image_offsets[0]}) — the file "
+                             "is corrupt")
         annotation = 0
         if count:
             fh.seek(int(image_offsets[0]))

@@ -76,8 +76,9 @@ class SeqMovie(RawFramesMovie):
         if n_listed == 0:
             raise MovieError(f"{path} holds a .seq header but no frame — the recording is empty or was cut short")
         # a frame is whole when its pixels and its time stamp are (the padding after them may be missing)
-        offsets = header + np.arange(n_listed, dtype=np.int64) * true_size
-        n = int(np.count_nonzero(offsets + image_bytes + stamp_bytes <= size))
+        room = size - header - image_bytes - stamp_bytes
+        n = min(n_listed, room // true_size + 1) if room >= 0 else 0
+        offsets = header + np.arange(n, dtype=np.int64) * true_size
         truncated = ""
         if n < n_listed:
             if not allow_truncated or n == 0:

@@ -77,6 +77,14 @@ def _int(meta: dict[str, str], key: str, path: Path) -> int:
             from None
 
 
+def _optional_int(meta: dict[str, str], key: str, default: int) -> int:
+    """An informative header field, or ``default`` where it is missing or garbled."""
+    try:
+        return int(float(meta[key]))
+    except (KeyError, ValueError, OverflowError):
+        return default
+
+
 def photron_saved_rate(meta: dict[str, str]) -> tuple[float | None, str, float | None]:
     """Frame rate of the *saved* frames, how it was derived, and the recording rate.
 
@@ -173,15 +181,17 @@ class MrawMovie(RawFramesMovie):
             raise MovieError(f"{cih}: the header describes no frames — the file is damaged")
         encoding = {8: "u8", 12: "p12", 16: "u16le"}[bits]
         frame_bytes = width * height * bits // 8
-        layout = RawLayout(offsets=np.arange(n_frames, dtype=np.int64) * frame_bytes, shape=(height, width),
-                           encoding=encoding)
-        n, truncated = complete_frames(data, layout, allow_truncated=allow_truncated, what=".cih")
         size = data.stat().st_size
+        listed = min(n_frames, size // frame_bytes + 1)  # a header's count is not trusted with memory
+        layout = RawLayout(offsets=np.arange(listed, dtype=np.int64) * frame_bytes, shape=(height, width),
+                           encoding=encoding)
+        n, truncated = complete_frames(data, layout, allow_truncated=allow_truncated, what=".cih",
+                                       described=n_frames)
         warnings_ = [truncated] if truncated else []
         if size > n_frames * frame_bytes:
             warnings_.append(f"{data.name} holds {size - n_frames * frame_bytes} bytes more than the {n_frames} "
                              f"frames its header describes — is {cih.name} the header of this file?")
-        effective = int(meta.get("EffectiveBit Depth", bits) or bits)
+        effective = _optional_int(meta, "EffectiveBit Depth", bits)
         side = meta.get("EffectiveBit Side", "Lower")
         depth = min(effective, bits) if side.lower() == "lower" else bits
         rate, note, record = photron_saved_rate(meta)
@@ -191,8 +201,8 @@ class MrawMovie(RawFramesMovie):
             "layout": f"{bits}-bit" + (" packed" if bits == 12 else ""),
             "effective_bits": effective,
             "effective_side": side,
-            "start_frame": int(float(meta.get("Start Frame", 0) or 0)),
-            "recorded_frames": int(float(meta.get("Original Total Frame", n_frames) or n_frames)),
+            "start_frame": _optional_int(meta, "Start Frame", 0),
+            "recorded_frames": _optional_int(meta, "Original Total Frame", n_frames),
             "recorded_on": " ".join(meta[k] for k in ("Date", "Time") if meta.get(k)) or None,
         }
         info = MovieInfo(

@@ -240,23 +240,28 @@ class RawLayout:
         return frames
 
 
-def complete_frames(path: Path, layout: RawLayout, *, allow_truncated: bool, what: str) -> tuple[int, str]:
-    """How many frames the file holds whole, and a warning if fewer than its header says.
+def complete_frames(path: Path, layout: RawLayout, *, allow_truncated: bool, what: str,
+                    described: int | None = None) -> tuple[int, str]:
+    """How many frames, from the first, the file holds whole, and a warning if fewer than its header says.
+
+    ``described``: the frame count of the header, where ``layout`` lists fewer frames
+    (a header's count is not trusted with memory: the caller lists at most one frame
+    beyond the file's end).
 
     Raises
     ------
     MovieError
-        When the file holds fewer frames than its header says and ``allow_truncated``
-        is not set, or holds no frame at all.
+        When a frame lies before the file's start, or the file holds fewer frames than
+        its header says and ``allow_truncated`` is not set, or holds no whole frame.
     """
     size = path.stat().st_size
-    n = len(layout.offsets)
-    whole = int(np.count_nonzero(layout.offsets + layout.nbytes <= size))
-    if whole == n and np.all(layout.offsets >= 0):
-        return n, ""
-    ends = layout.offsets + layout.nbytes
-    if np.any(layout.offsets < 0) or (np.any(np.diff(ends[:whole]) < 0) and layout.stride is not None):
+    n = len(layout.offsets) if described is None else described
+    if np.any(layout.offsets < 0):
         raise MovieError(f"{path}: the {what} header points at frames outside the file — the file is corrupt")
+    beyond = np.flatnonzero(layout.offsets + layout.nbytes > size)
+    whole = int(beyond[0]) if len(beyond) else len(layout.offsets)
+    if whole == n:
+        return n, ""
     if whole == 0:
         raise MovieError(f"{path} is truncated: its {what} header describes {n} frames but not one is complete "
                          "— copy the file again")
