@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from .band import Band
 from .calibration import TubeGeometry, find_tube
 from .calibration.pattern import Calibration
 from .diagram import Diagram, Normalized, band_along_tube, normalize
@@ -91,6 +92,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
         laps("tube_s")
         band, axis_px = band_along_tube(tube)
+        saturation = _saturated_share(sample, band, info)
         mm_per_px, scale_source, scale_rel_sd, scale_warnings = _scale(tube, params, info)
         laps("setup_s")
         values = movie.read_band(band, threads=threads,
@@ -121,11 +123,17 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         statement=statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
-        warnings=[*info.warnings, *scale_warnings, *flow.warnings], scale_rel_sd=scale_rel_sd,
+        warnings=[*info.warnings, *scale_warnings, *flow.warnings,
+                  *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd,
     )
 
 
 # -- the stages ----------------------------------------------------------------------
+#: speeds no plug or falling grain reaches in a gravity-driven pipe flow (m/s): free fall from
+#: rest over 2 m gives 6.3 m/s; the paper's plugs move at 0.04-0.1 m/s, its grains fall at 0.8 m/s
+IMPLAUSIBLE_SPEED_M_S = 10.0
+#: share of the tube's pixels at the sensor's top value above which a warning is given
+SATURATION_WARN = 0.01
 class _Laps:
     """Seconds spent in each stage, in the order they ran."""
 
@@ -209,6 +217,31 @@ def _calibrated_scale(cal: Calibration, tube: TubeGeometry, info: MovieInfo, fro
                         "back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
                         "the tube's plane, else check --tube-diameter-mm")
     return mm_per_px, source, rel_sd, warnings
+
+
+def _saturated_share(frames: list[np.ndarray], band: Band, info: MovieInfo) -> float:
+    """Share of the tube's pixels (the band's, in the frames kept from the sample) at the top
+    value the camera can give (``2**bit_depth - 1``, any channel)."""
+    if not frames:
+        return 0.0
+    top = (1 << min(info.bit_depth, 8 * np.dtype(info.dtype).itemsize)) - 1
+    hits = [np.asarray(f)[band.rows, band.cols] >= top for f in frames]
+    return float(np.mean([h.any(axis=-1).mean() if h.ndim == 3 else h.mean() for h in hits]))
+
+
+def _implausible(motion: Motion | None, grains: GrainMotion | None, saturation: float) -> list[str]:
+    """Warnings for numbers that cannot be right, each with what to check."""
+    out = []
+    if motion is not None and motion.celerity_m_s is not None and abs(motion.celerity_m_s) > IMPLAUSIBLE_SPEED_M_S:
+        out.append(f"the plugs move at {motion.celerity_m_s:.3g} m/s, faster than grains can fall in a pipe: check "
+                   "the frame rate (--fps) and the scale (--calibration or --mm-per-px)")
+    if grains is not None and grains.speed_m_s is not None and abs(grains.speed_m_s) > IMPLAUSIBLE_SPEED_M_S:
+        out.append(f"the grains fall through the bubbles at {grains.speed_m_s:.3g} m/s, faster than free fall "
+                   "allows: check the frame rate (--fps) and the scale")
+    if saturation > SATURATION_WARN:
+        out.append(f"{100 * saturation:.1f} % of the tube's pixels are at the camera's top value (saturated): plug "
+                   "and bubble contrast is lost there — lower the exposure or the light")
+    return out
 
 
 def _frame_times(movie: Movie, info: MovieInfo, n: int) -> np.ndarray:
