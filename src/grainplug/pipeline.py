@@ -187,8 +187,30 @@ def _scale(tube: TubeGeometry, params: AnalysisParams, info: MovieInfo) -> tuple
     cal = params.calibration
     if cal is None:
         source = f"tube inner width ({params.tube_diameter_mm:g} mm = {tube.inner_diameter_px:.3f} px)"
-        return from_tube, source, TUBE_WIDTH_SD_PX / tube.inner_diameter_px, []
+        return from_tube, source, TUBE_WIDTH_SD_PX / tube.inner_diameter_px, _tube_scale_doubts(tube)
     return _calibrated_scale(cal, tube, info, from_tube, params.tube_diameter_mm)
+
+
+#: a bore narrower than this (px) is too few pixels for a scale within a few per cent
+NARROW_TUBE_PX = 15.0
+#: a bore wider than this share of the frame across the tube leaves no wall to see
+WIDE_TUBE_SHARE = 0.8
+
+
+def _tube_scale_doubts(tube: TubeGeometry) -> list[str]:
+    """Why a scale from the tube's width may be off, with the fix (issue 16, item 4)."""
+    fix = "take a calibration image (grainplug calibrate) or give --mm-per-px"
+    across = tube.canonical_shape[1]
+    out = [f"the scale comes from the tube's apparent inner width ({tube.inner_diameter_px:.1f} px): a back-lit glass "
+           "tube looks 6-25 % narrower than its bore (by the lamp's angular size), which inflates every length and "
+           f"celerity by as much — {fix}"]
+    if tube.inner_diameter_px < NARROW_TUBE_PX:
+        out.append(f"the tube is only {tube.inner_diameter_px:.1f} px wide: a scale from its width is uncertain by "
+                   f"several per cent — {fix}")
+    if tube.inner_diameter_px > WIDE_TUBE_SHARE * across:
+        out.append(f"the tube fills {100 * tube.inner_diameter_px / across:.0f} % of the frame's width: its walls may "
+                   f"be out of view and the scale from its width wrong — {fix}")
+    return out
 
 
 def _calibrated_scale(cal: Calibration, tube: TubeGeometry, info: MovieInfo, from_tube: float,
