@@ -144,6 +144,8 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
     assert t.celerity_m_s.to_numpy() == pytest.approx([-0.040, -0.054, -0.063, -0.052, -0.083], rel=0.02)
     assert set(camp.fits) == {"propagative/rough", "propagative/smooth", "all"}
     assert camp.fits["propagative/rough"]["celerity"]["n"] == 3
+    assert list(t.scale_source) == ["user"] * 5 and list(t.scale_rel_sd) == [0.0] * 5
+    assert "warnings" in t and "scale_source" in (out / "report.html").read_text()
     assert pd.read_parquet(out / "campaign.parquet").shape[0] == 5
     for name in ("campaign.csv", "fits.json", "report.html", "celerity_vs_mass_flow.png",
                  "length_vs_mass_flow.png", "runs/a/summary.json", "runs/a/report.html"):

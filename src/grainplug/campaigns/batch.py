@@ -40,7 +40,7 @@ log = logging.getLogger(__name__)
 SUMMARY_COLUMNS = [
     "celerity_m_s", "plug_length_mm", "plug_length_over_diameter", "plug_length_sd_mm",
     "bubble_length_mm", "oscillation_frequency_hz", "oscillation_amplitude_mm", "regime", "has_plugs",
-    "n_plugs", "n_frames", "fps", "duration_s", "mm_per_px", "scale_source", "tube_diameter_px",
+    "n_plugs", "n_frames", "fps", "duration_s", "mm_per_px", "scale_source", "scale_rel_sd", "tube_diameter_px",
     "tube_axis_angle_deg", "flow_direction",
 ]
 
@@ -102,7 +102,8 @@ def _flat(summary: dict) -> dict[str, object]:
                plug_length_ci95_low_mm=lci[0], plug_length_ci95_high_mm=lci[1],
                input_sha256_ends=(summary.get("input") or {}).get("sha256_ends"),
                input_bytes=(summary.get("input") or {}).get("bytes"),
-               grainplug_version=summary.get("grainplug_version"))
+               grainplug_version=summary.get("grainplug_version"),
+               warnings=" | ".join(summary.get("warnings") or []) or None)
     return out
 
 

@@ -12,7 +12,7 @@ from ..reports import images, page, provenance, table
 
 def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[str], meta: dict) -> str:
     cols = [c for c in ("run", "status", "mass_flow_rate_g_s", "surface", "regime", "celerity_m_s",
-                        "plug_length_mm", "oscillation_frequency_hz", "error") if c in tab]
+                        "plug_length_mm", "oscillation_frequency_hz", "scale_source", "warnings", "error") if c in tab]
     rows = [[("" if pd.isna(v) else v) if not isinstance(v, (list, dict)) else v for v in r]
             for r in tab[cols].itertuples(index=False)]
     links = "".join(f'<li><a href="runs/{html.escape(str(r))}/report.html">{html.escape(str(r))}</a></li>'
