@@ -61,7 +61,8 @@ def test_calibrate_writes_the_scale_and_a_figure(tmp_path, capsys):
 
 @pytest.mark.parametrize(("image", "words"), [
     (np.full((100, 100), 128, np.uint8), "uniform"),
-    (np.random.default_rng(0).integers(0, 255, (200, 200)).astype(np.uint8), "no a checkerboard or a dot grid"),
+    (np.random.default_rng(0).integers(0, 255, (200, 200)).astype(np.uint8),
+     "no checkerboard or dot grid of at least 9 points"),
 ])
 def test_calibrate_without_a_pattern_is_one_clear_line(tmp_path, capsys, image, words):
     tifffile.imwrite(tmp_path / "x.tif", image)

@@ -159,7 +159,7 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
     Raises
     ------
     CalibrationError
-        When no pattern of at least 3 x 3 points is found.
+        When no pattern of at least 9 points (in 2 rows or more) is found.
 
     Notes
     -----
@@ -189,10 +189,10 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
         if abs(cal.mm_per_px_x / cal.mm_per_px_y - 1) < 0.1 and cal.rms_residual_px < 1.0:
             fits.append(cal)
     if not fits:
-        what = {"auto": "a checkerboard or a dot grid", "checkerboard": "a checkerboard", "dots": "a dot grid"}[pattern]
-        raise CalibrationError(f"no {what} of at least 3 x 3 points was found in the image — make sure the pattern "
+        what = {"auto": "checkerboard or dot grid", "checkerboard": "checkerboard", "dots": "dot grid"}[pattern]
+        raise CalibrationError(f"no {what} of at least 9 points was found in the image — make sure the pattern "
                                "is in focus, evenly lit and fills a good part of the frame")
-    return max(fits, key=lambda c: c.n_points)
+    return fits[0]  # a checkerboard where one was found: its squares could pass for a grid of dots
 
 
 # -- finding the points -----------------------------------------------------------------------
@@ -274,6 +274,12 @@ def _dot_points(grey: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
             touches = sl[0].start == 0 or sl[1].start == 0 or sl[0].stop == grey.shape[0] or sl[1].stop == grey.shape[1]
             if touches or area[k] < 0.45 * h * w or max(h, w) > 3 * min(h, w):
                 continue
+            # round, not square: area against the circle through the farthest pixel (a disc ~0.9,
+            # a square 2/pi = 0.64: a checkerboard's squares are not dots)
+            rr, cc = np.nonzero(labels[sl] == k + 1)
+            r_max = np.sqrt(((rr + sl[0].start - cy[k]) ** 2 + (cc + sl[1].start - cx[k]) ** 2).max()) + 0.5
+            if area[k] < 0.75 * np.pi * r_max**2:
+                continue
             keep.append(k)
         if len(keep) < 9:
             continue
@@ -354,7 +360,7 @@ def index_lattice(points: np.ndarray, *, tolerance: float = 0.3) -> tuple[np.nda
     keys = np.array(list(index))
     ij = np.array([index[k] for k in keys], float)
     ij -= ij.min(axis=0)
-    if len(np.unique(ij[:, 0])) < 3 or len(np.unique(ij[:, 1])) < 3:
+    if len(np.unique(ij[:, 0])) < 2 or len(np.unique(ij[:, 1])) < 2:  # a strip of 2 rows is a lattice too
         return None
     return ij, pts[keys]
 
