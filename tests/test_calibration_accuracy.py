@@ -6,11 +6,16 @@ occlusion. Measured here on every case: within 0.03 % (see docs/calibration.md).
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
+import tifffile
 from calibration_optics import CASES, Camera, render
 
 import grainplug as gp
+from grainplug.cli import main
+from grainplug.synthetic import SynthConfig, synthesize
 
 SCALE_TOLERANCE = 0.005  # relative: issue 16's target
 TILT_TOLERANCE_DEG = 0.2
@@ -45,3 +50,20 @@ def test_wrong_pattern_asked_for_is_refused():
     image, _ = render(rng=np.random.default_rng(1))
     with pytest.raises(gp.GrainplugError, match="no dot grid"):
         gp.calibrate_image(image, pitch_mm=2.0, pattern="dots")
+
+
+def test_celerity_end_to_end_through_a_rendered_calibration(tmp_path):
+    """A calibration image taken with the movie's camera gives the celerity within 1 % (issue 16's target)."""
+    cfg = SynthConfig(n_frames=200, width_px=64, height_px=400, fps=500.0, mm_per_px=0.185, seed=5,
+                      celerity_m_s=-0.06)
+    movie = synthesize(cfg, tmp_path / "m", fmt="tiff")
+    image, truth = render(rng=np.random.default_rng(3), mm_per_px=0.185, pitch_mm=5.0, n=(9, 7), roll_deg=2.0,
+                          shape=(400, 640))
+    tifffile.imwrite(tmp_path / "board.tif", image)
+    assert main(["calibrate", str(tmp_path / "board.tif"), "--pitch-mm", "5", "--out", str(tmp_path / "c.json")]) == 0
+    assert main(["analyze", str(movie.movie), "--out", str(tmp_path / "out"), "--calibration",
+                 str(tmp_path / "c.json"), "--no-figures"]) == 0
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["scale_source"].startswith("calibration image board.tif")
+    assert s["mm_per_px"] == pytest.approx(truth.mm_per_px, rel=0.005)
+    assert s["celerity_m_s"] == pytest.approx(movie.truth["celerity_m_s"], rel=0.01)
