@@ -116,7 +116,7 @@ def test_doubtful_calibrations_are_said(plug_movie):
     res = gp.analyze(frames, fps=500.0, calibration=wrong)
     text = " ".join(res.warnings)
     assert "the calibration image is 1280 x 1024 px but the movie's frames are 48 x 300" in text
-    assert "the tube's inner width reads" in text and "(-17 % in scale)" in text
+    assert "the tube's bore reads" in text and "(-17 % in scale)" in text
     with pytest.raises(gp.ParameterError, match="either a calibration or mm_per_px"):
         gp.AnalysisParams(mm_per_px=0.1, calibration=wrong)
 

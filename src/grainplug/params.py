@@ -8,6 +8,7 @@ them from :data:`FLOW_DIRECTIONS`.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -47,6 +48,13 @@ class AnalysisParams:
         Scale; without it the scale comes from the tube's inner width.
     tube_diameter_mm : float
         Inner diameter of the tube (3 mm in the paper).
+    tube_outer_diameter_mm : float, optional
+        Outer diameter of the tube (glass tubing is sold by both): the scale then
+        comes from the tube's outer silhouette, which no lighting changes, checked
+        against its refraction stripes.
+    glass_index : float
+        Refractive index of the tube's glass (1.47 borosilicate; 1.52 soda-lime),
+        for the tube model.
     flow_direction : {"down", "up", "left", "right"}, optional
         Direction of the grain flow in the image. By default it is read from
         the grains falling through the bubbles; when none are seen, down for a
@@ -75,6 +83,8 @@ class AnalysisParams:
     fps: float | None = None
     mm_per_px: float | None = None
     tube_diameter_mm: float = 3.0
+    tube_outer_diameter_mm: float | None = None
+    glass_index: float = 1.47
     flow_direction: str | None = None
     min_plug_mm: float = 3.0
     min_gap_mm: float = 0.6
@@ -91,6 +101,13 @@ class AnalysisParams:
         check(self.fps is None or self.fps > 0, "fps", f"must be positive, got {self.fps}")
         check(self.mm_per_px is None or self.mm_per_px > 0, "mm_per_px", f"must be positive, got {self.mm_per_px}")
         check(self.tube_diameter_mm > 0, "tube_diameter_mm", f"must be positive, got {self.tube_diameter_mm}")
+        check(self.tube_outer_diameter_mm is None or (
+            math.isfinite(self.tube_outer_diameter_mm) and self.tube_outer_diameter_mm > self.tube_diameter_mm * 1.05),
+            "tube_outer_diameter_mm",
+            f"must exceed the inner diameter ({self.tube_diameter_mm:g} mm) by at least 5 %, "
+            f"got {self.tube_outer_diameter_mm}")
+        check(math.isfinite(self.glass_index) and 1.3 <= self.glass_index <= 2.0, "glass_index",
+              f"must be a glass's refractive index, between 1.3 and 2.0, got {self.glass_index}")
         check(self.flow_direction is None or self.flow_direction in FLOW_DIRECTIONS, "flow_direction",
               f"must be one of {', '.join(FLOW_DIRECTIONS)}, got {self.flow_direction!r}")
         check(self.min_plug_mm > 0, "min_plug_mm", f"must be positive, got {self.min_plug_mm}")

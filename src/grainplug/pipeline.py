@@ -28,6 +28,7 @@ from threadpoolctl import threadpool_limits
 from .band import Band
 from .calibration import TubeGeometry, find_tube
 from .calibration.pattern import Calibration
+from .calibration.tube_model import AGREEMENT, BoreEstimate, WallMeasure, bore_from_model
 from .diagram import Diagram, Normalized, band_along_tube, normalize
 from .errors import ParameterError
 from .measures import Lengths, Motion, measure_lengths, measure_motion
@@ -93,7 +94,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("tube_s")
         band, axis_px = band_along_tube(tube)
         saturation = _saturated_share(sample, band, info)
-        mm_per_px, scale_source, scale_rel_sd, scale_warnings = _scale(tube, params, info)
+        mm_per_px, scale_source, scale_rel_sd, scale_warnings, bore = _scale(tube, params, info)
         laps("setup_s")
         values = movie.read_band(band, threads=threads,
                                  progress=(lambda k: progress(k, info.n_frames)) if progress else None)
@@ -124,7 +125,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *scale_warnings, *flow.warnings,
-                  *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd,
+                  *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
     )
 
 
@@ -179,16 +180,49 @@ def _check_movie(info: MovieInfo) -> None:
         raise ParameterError(f"{info.path} holds {info.n_frames} frames; at least 8 are needed", param="source")
 
 
-def _scale(tube: TubeGeometry, params: AnalysisParams, info: MovieInfo) -> tuple[float, str, float, list[str]]:
-    """``(mm_per_px, where it came from, its relative standard uncertainty, warnings)``."""
+def _scale(tube: TubeGeometry, params: AnalysisParams,
+           info: MovieInfo) -> tuple[float, str, float, list[str], BoreEstimate | None]:
+    """``(mm_per_px, where it came from, its relative standard uncertainty, warnings, the tube model's bore)``."""
     if params.mm_per_px:
-        return float(params.mm_per_px), "user", 0.0, []
-    from_tube = params.tube_diameter_mm / tube.inner_diameter_px
+        return float(params.mm_per_px), "user", 0.0, [], None
+    bore = _bore(tube, params)
+    from_tube = params.tube_diameter_mm / bore.diameter_px
     cal = params.calibration
     if cal is None:
-        source = f"tube inner width ({params.tube_diameter_mm:g} mm = {tube.inner_diameter_px:.3f} px)"
-        return from_tube, source, TUBE_WIDTH_SD_PX / tube.inner_diameter_px, _tube_scale_doubts(tube)
-    return _calibrated_scale(cal, tube, info, from_tube, params.tube_diameter_mm)
+        return from_tube, _bore_source(bore, params), bore.rel_sd, _tube_scale_doubts(tube, bore, params), bore
+    return (*_calibrated_scale(cal, tube, info, from_tube, params.tube_diameter_mm, bore), bore)
+
+
+def _bore(tube: TubeGeometry, params: AnalysisParams) -> BoreEstimate:
+    """The bore's width in pixels from the tube model (the walls' features and what the user knows)."""
+    nan = float("nan")
+    walls = tube.walls or WallMeasure(nan, nan, (nan, nan), (nan, nan))
+    bore = bore_from_model(walls, visible_diameter_px=tube.inner_diameter_px, back_lit=bool(tube.back_lit),
+                           inner_diameter_mm=params.tube_diameter_mm,
+                           outer_diameter_mm=params.tube_outer_diameter_mm, n_glass=params.glass_index)
+    if tube.back_lit is None:  # nothing moved: the edges of the mean image, nothing to model
+        bore = BoreEstimate(tube.inner_diameter_px, "edges", {"edges": tube.inner_diameter_px}, rel_sd=0.1)
+    log.info("tube model: bore %.2f px by %s; estimates %s", bore.diameter_px, bore.method,
+             {k: round(v, 2) for k, v in bore.estimates_px.items()})
+    return bore
+
+
+def _bore_source(bore: BoreEstimate, params: AnalysisParams) -> str:
+    """Where a scale from the tube came from, in words."""
+    d = f"bore {params.tube_diameter_mm:g} mm = {bore.diameter_px:.2f} px"
+    glass = f"glass n = {params.glass_index:g}"
+    if bore.method == "outer":
+        return (f"tube model: outer silhouette ({params.tube_outer_diameter_mm:g} mm = "
+                f"{bore.diameter_px * params.tube_outer_diameter_mm / params.tube_diameter_mm:.2f} px), {d}")
+    if bore.method == "stripe + outer":
+        return f"tube model: refraction stripes and outer silhouette ({glass}), {d}"
+    if bore.method == "stripe":
+        shape = (f"outer diameter {params.tube_outer_diameter_mm:g} mm" if params.tube_outer_diameter_mm
+                 else "outer/inner diameter assumed 1.83")
+        return f"tube model: refraction stripes ({glass}, {shape}), {d}"
+    if bore.method == "contents":
+        return f"tube inner width seen through its contents ({d})"
+    return f"tube edges in the mean image ({d})"
 
 
 #: a bore narrower than this (px) is too few pixels for a scale within a few per cent
@@ -197,24 +231,48 @@ NARROW_TUBE_PX = 15.0
 WIDE_TUBE_SHARE = 0.8
 
 
-def _tube_scale_doubts(tube: TubeGeometry) -> list[str]:
-    """Why a scale from the tube's width may be off, with the fix (issue 16, item 4)."""
+def _tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, params: AnalysisParams) -> list[str]:
+    """Why a scale from the tube may be off, with the fix (issue 16, item 4).
+
+    Silent only when two independent estimates of the bore (the outer silhouette and the
+    refraction stripes) agree within 3 %.
+    """
     fix = "take a calibration image (grainplug calibrate) or give --mm-per-px"
     across = tube.canonical_shape[1]
-    out = [f"the scale comes from the tube's apparent inner width ({tube.inner_diameter_px:.1f} px): a back-lit glass "
-           "tube looks 6-25 % narrower than its bore (by the lamp's angular size), which inflates every length and "
-           f"celerity by as much — {fix}"]
-    if tube.inner_diameter_px < NARROW_TUBE_PX:
-        out.append(f"the tube is only {tube.inner_diameter_px:.1f} px wide: a scale from its width is uncertain by "
+    out = list(bore.warnings)
+    est = bore.estimates_px
+    if tube.back_lit is None:
+        out.append(f"the scale comes from the tube's edges in the mean image ({bore.diameter_px:.1f} px): its contents "
+                   "were not seen to change, so neither the bore nor the walls' optics could be measured and the "
+                   f"scale may be off by 10 % or more — {fix}")
+    elif bore.method == "contents" and tube.back_lit:
+        out.append(f"the scale comes from the width over which the tube's contents are seen ({bore.diameter_px:.1f} "
+                   "px) and the walls showed neither refraction stripes nor an outer silhouette to correct it: a "
+                   "back-lit glass tube looks up to 35 % narrower than its bore (by the lamp's angular size), which "
+                   f"inflates every length and celerity by as much — {fix}")
+    elif bore.method == "contents":
+        out.append(f"the scale comes from the tube's inner width seen through its contents ({bore.diameter_px:.1f} px)"
+                   ", not cross-checked (in front light it usually reads within 2 %) — give "
+                   f"--tube-outer-diameter-mm to check it against the tube's outer silhouette, or {fix}")
+    elif not math.isfinite(bore.agreement):
+        out.append(f"the scale comes from the tube model alone ({bore.method}: bore {bore.diameter_px:.1f} px, "
+                   f"about ±{100 * bore.rel_sd:.0f} %, glass index {params.glass_index:g} assumed), not cross-checked "
+                   "— give --tube-outer-diameter-mm to check it against the outer silhouette, or " + fix)
+    elif bore.agreement > AGREEMENT:
+        parts = ", ".join(f"{m} {v:.1f} px" for m, v in est.items() if m != "contents")
+        out.append(f"the tube model's estimates of the bore disagree by {100 * bore.agreement:.0f} % ({parts}): "
+                   "check --tube-diameter-mm, --tube-outer-diameter-mm and --glass-index — or " + fix)
+    if bore.diameter_px < NARROW_TUBE_PX:
+        out.append(f"the tube is only {bore.diameter_px:.1f} px wide: a scale from its width is uncertain by "
                    f"several per cent — {fix}")
-    if tube.inner_diameter_px > WIDE_TUBE_SHARE * across:
-        out.append(f"the tube fills {100 * tube.inner_diameter_px / across:.0f} % of the frame's width: its walls may "
+    if bore.diameter_px > WIDE_TUBE_SHARE * across:
+        out.append(f"the tube fills {100 * bore.diameter_px / across:.0f} % of the frame's width: its walls may "
                    f"be out of view and the scale from its width wrong — {fix}")
     return out
 
 
 def _calibrated_scale(cal: Calibration, tube: TubeGeometry, info: MovieInfo, from_tube: float,
-                      diameter_mm: float) -> tuple[float, str, float, list[str]]:
+                      diameter_mm: float, bore: BoreEstimate) -> tuple[float, str, float, list[str]]:
     """The calibration's scale along the tube's axis, its uncertainty, and what is doubtful.
 
     The uncertainty combines the fit's with the scale's variation over the pattern
@@ -234,10 +292,10 @@ def _calibrated_scale(cal: Calibration, tube: TubeGeometry, info: MovieInfo, fro
                         "and distance did not change (a crop is fine)")
     disagree = from_tube / mm_per_px - 1
     if abs(disagree) > 0.03:
-        warnings.append(f"the tube's inner width reads {tube.inner_diameter_px:.1f} px, {diameter_mm:g} mm by the "
+        warnings.append(f"the tube's bore reads {bore.diameter_px:.1f} px ({bore.method}), {diameter_mm:g} mm by the "
                         f"calibration being {diameter_mm / mm_per_px:.1f} px ({100 * disagree:+.0f} % in scale): "
                         "back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
-                        "the tube's plane, else check --tube-diameter-mm")
+                        "the tube's plane, else check --tube-diameter-mm (and --tube-outer-diameter-mm)")
     return mm_per_px, source, rel_sd, warnings
 
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from ._version import __version__
 from .calibration.tube import TubeGeometry
+from .calibration.tube_model import BoreEstimate
 from .diagram import Diagram, Normalized
 from .measures import Lengths, Motion
 from .params import AnalysisParams, runs_backwards
@@ -83,6 +84,11 @@ class AnalysisResult:
         Speed of the grains falling through the bubbles.
     warnings : list of str
         Anything doubtful about this run, with what to do about it.
+    scale_rel_sd : float
+        Relative standard uncertainty of the scale (included in the confidence intervals).
+    bore : BoreEstimate or None
+        The tube model's estimates of the bore's width in pixels (None when the
+        scale was given).
     """
 
     params: AnalysisParams
@@ -107,6 +113,7 @@ class AnalysisResult:
     falling_grain_speed_m_s: float | None = None
     warnings: list[str] = field(default_factory=list)
     scale_rel_sd: float = 0.0
+    bore: BoreEstimate | None = None
 
     # -- figures --------------------------------------------------------------
     @property
@@ -339,6 +346,22 @@ def _r(x: float | None, nd: int = 6) -> float | None:
     return None if x is None or not np.isfinite(x) else round(float(x), nd)
 
 
+def _tube_model(res: AnalysisResult) -> dict[str, object] | None:
+    """The tube model's estimates for summary.json (None when the scale was given)."""
+    b = res.bore
+    if b is None:
+        return None
+    walls = res.tube.walls
+    return {
+        "method": b.method, "bore_px": {k: _r(v, 3) for k, v in b.estimates_px.items()},
+        "agreement": _r(b.agreement, 4), "visible_fraction": _r(b.visible_fraction, 4),
+        "lamp_half_angle_deg": _r(b.lamp_half_angle_deg, 2), "back_lit": res.tube.back_lit,
+        "outer_width_px": _r(2 * walls.outer_half_px, 3) if walls else None,
+        "stripe_separation_px": _r(2 * walls.stripe_half_px, 3) if walls else None,
+        "glass_index": res.params.glass_index, "outer_diameter_mm": res.params.tube_outer_diameter_mm,
+    }
+
+
 def flow_angle_deg(tube: TubeGeometry, direction: str) -> float:
     """Direction of the flow in the image, degrees from +x towards +y (y down)."""
     a = np.radians(tube.tilt_deg)
@@ -387,7 +410,9 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "scale_source": res.scale_source,
         "scale_rel_sd": _r(res.scale_rel_sd, 6),
         "tube_diameter_mm": D,
-        "tube_diameter_px": _r(tube.inner_diameter_px, 4),
+        "tube_diameter_px": _r(res.bore.diameter_px if res.bore else res.params.tube_diameter_mm / res.mm_per_px, 4),
+        "tube_visible_width_px": _r(tube.inner_diameter_px, 4),
+        "tube_model": _tube_model(res),
         "tube_axis_angle_deg": _r(flow_angle_deg(tube, res.flow_direction), 4),
         "tube_tilt_deg": _r(tube.tilt_deg, 4),
         "tube_orientation": tube.orientation,

@@ -26,6 +26,7 @@ RESULT_FILE = "result.npz"
 def _types() -> dict[str, type]:
     from .calibration.pattern import Calibration
     from .calibration.tube import TubeGeometry
+    from .calibration.tube_model import BoreEstimate, WallMeasure
     from .diagram import Diagram, Normalized
     from .measures import Lengths, Motion
     from .params import AnalysisParams
@@ -34,7 +35,7 @@ def _types() -> dict[str, type]:
     from .result import AnalysisResult
 
     return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
-                                    Normalized, Runs, Tracks, Motion, Lengths)}
+                                    Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate)}
 
 
 def _encode(obj: Any, path: str, arrays: dict[str, np.ndarray]) -> Any:

@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import MovieError
+from .tube_model import WallMeasure, measure_walls
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +87,14 @@ class TubeGeometry:
         mean image, used when nothing moves).
     canonical_shape : tuple of int
         (height, width) of the canonical view.
+    background_level : float
+        Median grey level of the frames.
+    back_lit : bool or None
+        Whether the tube is seen against a lamp (the bore darker than its
+        surround); None when it could not be told.
+    walls : WallMeasure or None
+        The outer silhouette and the bright stripes of the walls, measured on the
+        mean image (see :mod:`grainplug.calibration.tube_model`).
     """
 
     orientation: str
@@ -96,6 +105,8 @@ class TubeGeometry:
     method: str
     canonical_shape: tuple[int, int]
     background_level: float = float("nan")
+    back_lit: bool | None = None
+    walls: WallMeasure | None = None
 
     def axis_x(self, y: np.ndarray | float) -> np.ndarray:
         """Axis position (canonical x) at canonical row ``y``."""
@@ -107,6 +118,7 @@ class TubeGeometry:
             "axis_x0_px": self.axis_x0_px, "inner_diameter_px": self.inner_diameter_px,
             "contrast": self.contrast, "method": self.method,
             "canonical_shape": list(self.canonical_shape), "background_level": self.background_level,
+            "back_lit": self.back_lit, "walls": None if self.walls is None else self.walls.as_dict(),
         }
 
 
@@ -371,8 +383,11 @@ def _bore_in_profile(grid: np.ndarray, prof: np.ndarray) -> _Bore | None:
     prof = np.interp(grid, grid[ok], prof[ok])
     step = grid[1] - grid[0]
     sm = ndimage.gaussian_filter1d(prof, 0.5 / step)
-    base = float(np.median(sm))
-    noise = float(np.median(np.abs(sm - base))) * 1.4826 + 1e-12
+    # the background: the lower part of the profile (in a strip cropped close to the tube most of
+    # the profile is the bore, so its median would be the plateau)
+    low = sm[sm <= np.percentile(sm, 25)]
+    base = float(np.median(low))
+    noise = float(np.median(np.abs(low - base))) * 1.4826 + 1e-12
     centre = int(np.argmax(sm))
     peak = float(sm[centre])
     plateau = sm[sm >= base + 0.75 * (peak - base)]
@@ -385,6 +400,17 @@ def _bore_in_profile(grid: np.ndarray, prof: np.ndarray) -> _Bore | None:
     if left is None or right is None:
         left, right = grid[0] + cross[0] * step, grid[0] + cross[1] * step
     return _Bore(float(left), float(right), top - base, noise)
+
+
+#: a frame this many times longer than wide holds a tube along its length (a strip cropped to the tube)
+STRIP_ASPECT = 2.5
+
+
+def _too_short(shape: tuple[int, ...], orient: str) -> bool:
+    """Whether a tube in this orientation would cross the short side of a strip-shaped frame: a plug
+    flow is filmed along the tube, so a strip holds the tube lengthwise."""
+    h, w = shape[:2]
+    return (orient == "horizontal" and h >= STRIP_ASPECT * w) or (orient == "vertical" and w >= STRIP_ASPECT * h)
 
 
 def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coarse: bool = False,
@@ -408,6 +434,8 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     for orient in ("vertical", "horizontal"):
         if orientation and orient != orientation:
             continue
+        if not orientation and _too_short(mean.shape, orient):
+            continue
         m = mean if orient == "vertical" else np.ascontiguousarray(mean.T)
         v = var if orient == "vertical" else np.ascontiguousarray(var.T)
         g = np.abs(np.gradient(ndimage.gaussian_filter(m, 1.0), axis=1))
@@ -429,7 +457,7 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     pf = ndimage.gaussian_filter1d(np.nan_to_num(pf, nan=float(np.nanmin(pf))), 2.0)
     x0 = float(grid1[int(np.argmax(pf))])
     # refine the axis from the bore's centre in blocks of rows
-    half = 0.25 * w
+    half = max(0.25 * w, 40.0)
     fine = np.arange(x0 - half, x0 + half, 0.1)
     n_blocks = int(np.clip(h // 40, 4, 32))
     edges = np.linspace(0, h, n_blocks + 1).astype(int)
@@ -495,10 +523,18 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
         raise MovieError(
             f"no tube found (bore {width_px:.1f} px wide) — is the tube in view, lit and at least 3 px wide?"
         )
+    back_lit = None if method == "walls" else lighting == "transmitted"
+    walls = None
+    if not coarse and back_lit:
+        # the walls' features, for the tube model: out to 3 visible widths from the axis
+        reach = 3.0 * (right - left) + 6
+        wide = np.arange(max(-pad, axis_x0 - reach), min(w + pad, axis_x0 + reach), 0.05)
+        walls = measure_walls(wide, sheared_profile(m, tan_b, wide), axis_px=axis_x0,
+                              visible_half_px=0.5 * (right - left)).scaled(np.cos(np.radians(tilt)))
     log.info("tube: %s, tilt %.3f deg, axis x0 %.2f px, inner diameter %.3f px (%s)",
              orient, tilt, axis_x0, width_px, method)
     return TubeGeometry(orient, float(tilt), float(axis_x0), float(width_px), float(contrast),
-                        method, (h, w))
+                        method, (h, w), back_lit=back_lit, walls=walls)
 
 
 def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> TubeGeometry:
@@ -549,4 +585,4 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
     fine = _locate(cm, cs, "vertical", tilt_hint=coarse.tilt_deg)
     log.debug("coarse tube at binning %d: %s", b, coarse)
     return TubeGeometry(coarse.orientation, fine.tilt_deg, fine.axis_x0_px + lo, fine.inner_diameter_px,
-                        fine.contrast, fine.method, (ch, cw), level)
+                        fine.contrast, fine.method, (ch, cw), level, fine.back_lit, fine.walls)

@@ -11,6 +11,8 @@ Columns (CSV header, or keys of each ``[[run]]`` table in TOML; a TOML
 ``calibration``                a calibration.json (``grainplug calibrate``), relative to the
                                manifest's folder: the scale, e.g. one per day of experiments
 ``tube_diameter_mm``           inner diameter of the tube (scale from the tube; 3 mm)
+``tube_outer_diameter_mm``     outer diameter of the tube (scale from its silhouette)
+``glass_index``                refractive index of the tube's glass (1.47)
 ``flow_direction``             down, up, left or right
 ``glob``                       for image folders
 ``mass_flow_rate_g_s``         mass flow rate
@@ -35,8 +37,8 @@ from ..params import AnalysisParams
 if TYPE_CHECKING:
     from ..calibration.pattern import Calibration
 
-ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "flow_direction": str,
-                 "glob": str, "min_plug_mm": float}
+ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "tube_outer_diameter_mm": float,
+                 "glass_index": float, "flow_direction": str, "glob": str, "min_plug_mm": float}
 KNOWN_META = {"mass_flow_rate_g_s": float, "humidity_pct": float, "surface": str, "group": str}
 
 

@@ -151,6 +151,10 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.option("--mm-per-px", type=float, default=None, help="Scale; by default measured from the tube's inner width.")
 @click.option("--tube-diameter-mm", type=float, default=None,
               help="Inner diameter of the tube, for the scale measured from the tube [default: 3].")
+@click.option("--tube-outer-diameter-mm", type=float, default=None,
+              help="Outer diameter of the tube: the scale then comes from its outer silhouette (any lighting).")
+@click.option("--glass-index", type=float, default=1.47, show_default=True,
+              help="Refractive index of the tube's glass (1.47 borosilicate, 1.52 soda-lime), for the tube model.")
 @click.option("--flow-direction", type=click.Choice(FLOW_DIRECTIONS), default=None,
               help="Direction of the grain flow in the image [default: down for a vertical tube].")
 @click.option("--min-plug-mm", type=float, default=3.0, show_default=True,
@@ -165,9 +169,9 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
-            tube_diameter_mm: float | None, flow_direction: str | None, min_plug_mm: float,
-            glob_: str | None, threads: int | None, calibration: Path | None, allow_truncated: bool, no_figures: bool,
-            as_json: bool) -> None:
+            tube_diameter_mm: float | None, tube_outer_diameter_mm: float | None, glass_index: float,
+            flow_direction: str | None, min_plug_mm: float, glob_: str | None, threads: int | None,
+            calibration: Path | None, allow_truncated: bool, no_figures: bool, as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -187,6 +191,7 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
         cal = load_calibration(calibration)
     diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
+                            tube_outer_diameter_mm=tube_outer_diameter_mm, glass_index=glass_index,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_,
                             allow_truncated=allow_truncated, calibration=cal)
     # the figures' worker starts now: it imports matplotlib while the frames stream

@@ -1,0 +1,415 @@
+"""The bore's true width in pixels from a physical model of the tube (issue 16, item 3).
+
+What the camera shows of a glass tube depends on the lighting; the tube's own
+geometry does not. :func:`measure_walls` reads, on the mean profile across a
+tube, the features that refraction fixes whatever the lamp:
+
+* the **outer silhouette**: where the direct view of the background ends;
+* the **bright stripe** inside each wall of a back-lit tube, where the rays that
+  are totally reflected at the inner wall go straight on
+  (:func:`grainplug.calibration.refraction.stripe_radius`).
+
+:func:`bore_from_model` turns them, with what the user knows of the tube (inner
+diameter, and the outer diameter and the glass's index if known), into
+independent estimates of the bore's width in pixels, picks the best, and says how
+far they agree.
+
+Notes
+-----
+Estimates of the bore's diameter ``2a`` in pixels (``o``, ``s``: measured outer
+and stripe half-widths; ``v``: the half-width over which the contents are seen
+to change; ``ID``, ``OD``: the tube's diameters in mm):
+
+``outer``
+    ``2 o ID / OD``: needs ``OD``; independent of the lamp and of the glass.
+``stripe + outer``
+    the ratio ``a / b`` that puts the stripe at ``s / o`` of the outer radius
+    (:func:`~grainplug.calibration.refraction.radius_ratio_from_stripe`), times
+    ``2 o``: needs the glass's index (1.47 for borosilicate; 1.52 soda-lime glass
+    moves it by ~2 %).
+``stripe``
+    ``2 s / k`` with ``k = x0 / a`` for the tube's ``OD / ID`` (or 1.395, the value
+    for ``OD / ID = 1.83``, when the outer diameter is unknown: ``k`` is 1.37-1.43
+    for ``OD / ID`` = 1.67-2.33).
+``contents``
+    ``2 v``: right in front light and for large lamps; in back light a lower
+    bound (65 % of the bore at a 15 deg lamp).
+
+The measured positions are taken on the mean image, so that the moving contents
+average out; the stripe's centre is the centroid of its bright part, which a
+symmetric optical blur does not move.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import brentq
+
+from .refraction import BOROSILICATE_INDEX, lamp_table
+
+#: OD / ID assumed for the stripe alone when the outer diameter is unknown (3 mm bore, 5.5 mm tube)
+TYPICAL_OUTER_OVER_INNER = 1.83
+#: estimates further apart than this (relative) are reported as disagreeing
+AGREEMENT = 0.03
+
+
+@dataclass(frozen=True)
+class WallMeasure:
+    """Features of the walls on the mean profile across the tube (px from the axis).
+
+    Attributes
+    ----------
+    outer_half_px : float
+        Half the outer silhouette's width (NaN when a side of the tube is out of
+        view or has no background beyond it).
+    stripe_half_px : float
+        Half the distance between the two bright stripes (NaN when not seen).
+    outer_sides_px, stripe_sides_px : tuple of float
+        The left and right values (distance from the axis), to judge symmetry.
+    stripe_width_px : float
+        Mean width of the two bright bands (grows with the lamp's size).
+    """
+
+    outer_half_px: float
+    stripe_half_px: float
+    outer_sides_px: tuple[float, float]
+    stripe_sides_px: tuple[float, float]
+    stripe_width_px: float = float("nan")
+
+    def scaled(self, factor: float) -> WallMeasure:
+        """The same measures with every distance multiplied by ``factor`` (e.g. ``cos(tilt)``)."""
+        return WallMeasure(self.outer_half_px * factor, self.stripe_half_px * factor,
+                           (self.outer_sides_px[0] * factor, self.outer_sides_px[1] * factor),
+                           (self.stripe_sides_px[0] * factor, self.stripe_sides_px[1] * factor),
+                           self.stripe_width_px * factor)
+
+    def as_dict(self) -> dict[str, object]:
+        return {"outer_half_px": self.outer_half_px, "stripe_half_px": self.stripe_half_px,
+                "outer_sides_px": list(self.outer_sides_px), "stripe_sides_px": list(self.stripe_sides_px),
+                "stripe_width_px": self.stripe_width_px}
+
+
+def _smooth(prof: np.ndarray, sigma_samples: float) -> np.ndarray:
+    if sigma_samples <= 0:
+        return prof
+    half = int(math.ceil(4 * sigma_samples))
+    k = np.exp(-0.5 * (np.arange(-half, half + 1) / sigma_samples) ** 2)
+    k /= k.sum()
+    padded = np.pad(prof, half, mode="edge")
+    return np.convolve(padded, k, mode="valid")
+
+
+def _crossing(r: np.ndarray, sm: np.ndarray, level: float, start: int, stop: int) -> float:
+    """First position between samples ``start`` and ``stop`` (either direction) where ``sm`` crosses ``level``."""
+    step = 1 if stop >= start else -1
+    above = sm[start] >= level
+    for i in range(start + step, stop + step, step):
+        if (sm[i] >= level) != above:
+            j = i - step
+            if sm[i] == sm[j]:
+                return float(r[i])
+            return float(r[j] + (r[i] - r[j]) * (level - sm[j]) / (sm[i] - sm[j]))
+    return float("nan")
+
+
+def _side(r: np.ndarray, sm: np.ndarray, visible_half: float, step_px: float) -> tuple[float, float, float]:
+    """``(outer, stripe, stripe width)`` on one side of a back-lit tube (px from the axis); NaN where not found.
+
+    ``r`` increases outwards from the axis; ``sm`` is the smoothed mean profile.
+    """
+    nan = float("nan")
+    n = len(r)
+    if n < 20:
+        return nan, nan, nan
+    px = int(round(1.0 / step_px))
+    # the background: the bright level the profile reaches beyond the tube and keeps to the end of the
+    # searched range (at least 3 px of it)
+    tail = max(3 * px, n // 20)
+    if n <= tail + 2 * px:
+        return nan, nan, nan
+    bg = float(np.median(sm[-tail:]))
+    start_v = int(np.searchsorted(r, visible_half))
+    if start_v >= n - tail:
+        return nan, nan, nan  # the range ends inside the tube (a cropped strip): no silhouette
+    dark = float(np.min(sm[start_v:]))
+    if not bg - dark > 0.2 * abs(bg):
+        return nan, nan, nan  # walls without contrast: nothing to measure
+    if np.mean(np.abs(sm[-tail:] - bg) < 0.15 * (bg - dark)) < 0.9:
+        return nan, nan, nan  # no flat background at the end of the range: the strip is cropped to the tube
+    # walk in from the background to the first sample darker than half-way to the darkest point of
+    # the wall; the silhouette's edge is the steepest point of that rise (a symmetric blur keeps it)
+    half_global = 0.5 * (bg + dark)
+    k = n - tail
+    while k > start_v and sm[k] >= half_global:
+        k -= 1
+    if k <= start_v:
+        return nan, nan, nan
+    lo, hi = max(start_v + 1, k - 2 * px), min(n - 2, k + 3 * px)
+    grad = sm[lo + 1: hi + 2] - sm[lo - 1: hi]
+    g = int(np.argmax(grad))
+    i = lo + g
+    outer = float(r[i])
+    if 0 < g < len(grad) - 1:
+        den = grad[g - 1] - 2 * grad[g] + grad[g + 1]
+        if den < 0:
+            outer += float(0.5 * (grad[g - 1] - grad[g + 1]) / den) * (r[i + 1] - r[i])
+    # the stripe: the brightest peak between the visible bore's edge and the outer wall's dark band
+    i_out = int(np.searchsorted(r, outer))
+    seg_lo = start_v + px // 2
+    seg_hi = i_out - px
+    if seg_hi - seg_lo < 2 * px:
+        return outer, nan, nan
+    seg = sm[seg_lo:seg_hi]
+    j = int(np.argmax(seg))
+    peak = float(seg[j])
+    if j == 0 or j == len(seg) - 1:
+        return outer, nan, nan  # rises into the bore or the silhouette: not a separate stripe
+    floor_in = float(np.min(seg[:j + 1]))
+    floor_out = float(np.min(seg[j:]))
+    floor = max(floor_in, floor_out)
+    if peak - floor < 0.12 * (bg - dark):
+        return outer, nan, nan
+    # the band's edges: half-way between its top and the dark on each side
+    level_in = floor_in + 0.5 * (peak - floor_in)
+    level_out = floor_out + 0.5 * (peak - floor_out)
+    rs = r[seg_lo:seg_hi]
+    inner_edge = _crossing(rs, seg, level_in, j, 0)
+    outer_edge = _crossing(rs, seg, level_out, j, len(seg) - 1)
+    if not (math.isfinite(inner_edge) and math.isfinite(outer_edge)):
+        return outer, nan, nan
+    return outer, 0.5 * (inner_edge + outer_edge), outer_edge - inner_edge
+
+
+def measure_walls(grid_px: np.ndarray, mean_profile: np.ndarray, *, axis_px: float, visible_half_px: float,
+                  blur_px: float = 0.5) -> WallMeasure:
+    """The outer silhouette and the bright stripes of a back-lit tube on its mean profile.
+
+    Parameters
+    ----------
+    grid_px : ndarray
+        Evenly spaced positions across the tube (px, canonical view), at most
+        0.25 px apart.
+    mean_profile : ndarray
+        The temporal mean image averaged along the tube's axis, on ``grid_px``
+        (NaN where no pixel was seen).
+    axis_px : float
+        The tube's axis on ``grid_px``.
+    visible_half_px : float
+        Half the width over which the contents are seen to change (the search for
+        the walls starts there).
+    blur_px : float
+        Smoothing (px) applied to the profile first.
+
+    Returns
+    -------
+    WallMeasure
+    """
+    ok = np.isfinite(mean_profile)
+    nan = float("nan")
+    empty = WallMeasure(nan, nan, (nan, nan), (nan, nan), nan)
+    if ok.sum() < 20:
+        return empty
+    step = float(grid_px[1] - grid_px[0])
+    # only the seen part, on each side of the axis (a side cut by the frame ends where the pixels do)
+    idx = np.flatnonzero(ok)
+    grid, prof = grid_px[idx[0]: idx[-1] + 1], mean_profile[idx[0]: idx[-1] + 1]
+    prof = np.interp(grid, grid[np.isfinite(prof)], prof[np.isfinite(prof)])
+    sm = _smooth(prof, blur_px / step)
+    c = int(np.searchsorted(grid, axis_px))
+    if not 0 < c < len(grid) - 1:
+        return empty
+    sides = []
+    for sl, sign in ((slice(c, None), 1.0), (slice(c, None, -1) if c > 0 else slice(0, 0), -1.0)):
+        g = grid[sl]
+        r = sign * (g - axis_px)
+        sides.append(_side(r, sm[sl], visible_half_px, step))
+    (o_r, s_r, w_r), (o_l, s_l, w_l) = sides
+    return WallMeasure(0.5 * (o_l + o_r), 0.5 * (s_l + s_r), (o_l, o_r), (s_l, s_r), 0.5 * (w_l + w_r))
+
+
+def solve_lamp(visible_half: float, stripe_mid: float, stripe_width: float, *, outer_over_inner: float,
+               n_glass: float = BOROSILICATE_INDEX) -> tuple[float, float]:
+    """The lamp's half-angle and the bore's radius that explain a back-lit tube's bright band.
+
+    Parameters
+    ----------
+    visible_half : float
+        Half the width over which the contents are seen (px).
+    stripe_mid, stripe_width : float
+        The bright wall band's middle (from the axis) and width (px).
+    outer_over_inner : float
+        The tube's ``OD / ID``.
+    n_glass : float
+        The glass's index.
+
+    Returns
+    -------
+    beta_deg, radius_px : float
+        NaN when the measures fit no lamp.
+
+    Notes
+    -----
+    In bore radii ``a``, the contents are seen over ``F(beta)`` and the band is at
+    ``M(beta)``, ``W(beta)`` wide (:func:`~grainplug.calibration.refraction.lamp_table`).
+    The measured ratio ``v / s = F / M`` fixes ``beta`` for lamps up to ~38 deg; above,
+    ``F / M`` is flat (the band joins the glass-only zone and grows outwards) and
+    ``w / s = W / M`` fixes it instead. Then ``a = s / M(beta)``.
+    """
+    nan = float("nan")
+    t = lamp_table(outer_over_inner, n_glass=n_glass)
+    ok = np.isfinite(t.band_mid)
+    if not ok.any() or not (stripe_mid > 0):
+        return nan, nan
+    beta, f_over_m = t.beta_deg[ok], (t.visible_fraction / t.band_mid)[ok]
+    w_over_m = (t.band_width / t.band_mid)[ok]
+    mid = t.band_mid[ok]
+    rising = np.maximum.accumulate(f_over_m)
+    plateau = float(rising[-1])
+    knee = int(np.argmax(rising >= plateau - 0.015))
+    ratio = visible_half / stripe_mid if visible_half > 0 else nan
+    b_deg = nan
+    if math.isfinite(ratio) and ratio < f_over_m[knee] and ratio >= f_over_m[0]:
+        b_deg = float(np.interp(ratio, rising[: knee + 1], beta[: knee + 1]))
+    elif math.isfinite(stripe_width) and stripe_width > 0:
+        wr = np.maximum.accumulate(w_over_m[knee:])
+        b_deg = float(np.interp(stripe_width / stripe_mid, wr, beta[knee:]))
+    if not math.isfinite(b_deg):
+        return nan, nan
+    return b_deg, float(stripe_mid / np.interp(b_deg, beta, mid))
+
+
+@dataclass(frozen=True)
+class BoreEstimate:
+    """The bore's width in pixels from the tube model, and how sure it is.
+
+    Attributes
+    ----------
+    diameter_px : float
+        The chosen estimate of the bore's true width.
+    method : str
+        Which estimate was chosen: ``"outer"``, ``"stripe + outer"``, ``"stripe"``
+        or ``"contents"``.
+    estimates_px : dict
+        Every estimate that could be made, by method.
+    agreement : float
+        Largest relative difference between the chosen estimate and the other
+        independent ones (NaN when there is no other).
+    rel_sd : float
+        Relative standard uncertainty of the chosen estimate.
+    visible_fraction : float
+        Share of the bore over which the contents are seen (``2 v`` over the
+        chosen width).
+    warnings : tuple of str
+        What is doubtful, with the fix.
+    lamp_half_angle_deg : float
+        The back-light's angular half-size that explains the picture (NaN when
+        not back-lit or not found).
+    """
+
+    diameter_px: float
+    method: str
+    estimates_px: dict[str, float] = field(default_factory=dict)
+    agreement: float = float("nan")
+    rel_sd: float = float("nan")
+    visible_fraction: float = float("nan")
+    warnings: tuple[str, ...] = ()
+    lamp_half_angle_deg: float = float("nan")
+
+    def as_dict(self) -> dict[str, object]:
+        return {"diameter_px": self.diameter_px, "method": self.method, "estimates_px": dict(self.estimates_px),
+                "agreement": self.agreement, "rel_sd": self.rel_sd, "visible_fraction": self.visible_fraction,
+                "warnings": list(self.warnings), "lamp_half_angle_deg": self.lamp_half_angle_deg}
+
+
+def bore_from_model(walls: WallMeasure, *, visible_diameter_px: float, back_lit: bool, inner_diameter_mm: float,
+                    outer_diameter_mm: float | None = None,
+                    n_glass: float = BOROSILICATE_INDEX) -> BoreEstimate:
+    """Independent estimates of the bore's width in pixels, the best of them, and their agreement.
+
+    Parameters
+    ----------
+    walls : WallMeasure
+        What :func:`measure_walls` found.
+    visible_diameter_px : float
+        Width over which the contents are seen to change.
+    back_lit : bool
+        The tube is seen against a lamp (the background is brighter than the bore).
+    inner_diameter_mm : float
+        The bore's diameter.
+    outer_diameter_mm : float, optional
+        The tube's outer diameter (glass tubing is sold by both).
+    n_glass : float
+        The glass's refractive index.
+
+    Returns
+    -------
+    BoreEstimate
+
+    Notes
+    -----
+    Preference: ``outer`` (no optics involved) > ``stripe + outer`` > ``stripe`` >
+    ``contents``. In back light ``contents`` is only a lower bound and is used
+    alone with a warning. The uncertainty of a single estimate is its model's:
+    0.5 px on each silhouette edge, 1 % for the stripe with the outer silhouette
+    (the glass's index), 3 % for the stripe alone (index and wall thickness).
+    """
+    est: dict[str, float] = {}
+    sd: dict[str, float] = {}
+    o, s, v, w = walls.outer_half_px, walls.stripe_half_px, 0.5 * visible_diameter_px, walls.stripe_width_px
+    q_known = outer_diameter_mm / inner_diameter_mm if outer_diameter_mm else None
+    beta = float("nan")
+    if q_known and math.isfinite(o):
+        est["outer"] = 2 * o / q_known
+        sd["outer"] = math.hypot(0.5 / o, 0.003)
+    if back_lit and math.isfinite(s):
+        if q_known:
+            beta, a = solve_lamp(v, s, w, outer_over_inner=q_known, n_glass=n_glass)
+            if math.isfinite(a):
+                est["stripe"] = 2 * a
+                sd["stripe"] = 0.01
+        elif math.isfinite(o) and 0 < s < o:
+            def mismatch(q: float) -> float:
+                _, a_q = solve_lamp(v, s, w, outer_over_inner=q, n_glass=n_glass)
+                return o / a_q - q if math.isfinite(a_q) else float("nan")
+            qs = np.arange(1.3, 3.01, 0.05)
+            ms = np.array([mismatch(float(q)) for q in qs])
+            sign = np.flatnonzero(np.isfinite(ms[:-1]) & np.isfinite(ms[1:]) & (np.sign(ms[:-1]) != np.sign(ms[1:])))
+            if len(sign):
+                i = int(sign[0])
+                q = float(brentq(mismatch, qs[i], qs[i + 1], xtol=1e-5))
+                beta, a = solve_lamp(v, s, w, outer_over_inner=q, n_glass=n_glass)
+                est["stripe + outer"] = 2 * a
+                sd["stripe + outer"] = 0.01
+        if "stripe" not in est and "stripe + outer" not in est:
+            beta, a = solve_lamp(v, s, w, outer_over_inner=TYPICAL_OUTER_OVER_INNER, n_glass=n_glass)
+            if math.isfinite(a):
+                est["stripe"] = 2 * a
+                sd["stripe"] = 0.03
+    if math.isfinite(v) and v > 0:
+        est["contents"] = 2 * v
+        sd["contents"] = math.hypot(0.25 / v, 0.01)
+    warnings: list[str] = []
+    if back_lit and "contents" in est:
+        # the contents cannot be seen wider than the bore: an estimate below that is a misread wall
+        for m in [m for m in est if m != "contents" and est[m] < 0.97 * est["contents"]]:
+            warnings.append(f"the {m} estimate of the bore ({est.pop(m):.1f} px) is narrower than the contents "
+                            f"({est['contents']:.1f} px) and was set aside")
+    order = ("outer", "stripe + outer", "stripe", "contents") if back_lit else ("contents", "outer")
+    method = next((m for m in order if m in est), None)
+    if method is None:
+        return BoreEstimate(float("nan"), "none", est, warnings=("the tube's bore could not be measured",))
+    chosen = est[method]
+    # independent pairs: the stripe-based estimates share the stripe, the outer-based ones the silhouette;
+    # in back light the contents are only a lower bound
+    families = {"outer": "silhouette", "stripe + outer": "stripe", "stripe": "stripe", "contents": "contents"}
+    others = [est[m] for m in est if families[m] != families[method] and not (back_lit and m == "contents")]
+    agreement = max((abs(e / chosen - 1) for e in others), default=float("nan"))
+    rel_sd = sd[method]
+    if math.isfinite(agreement):
+        rel_sd = max(rel_sd, agreement / 2)
+    frac = v * 2 / chosen if chosen > 0 else float("nan")
+    return BoreEstimate(float(chosen), method, est, float(agreement), float(rel_sd), float(frac), tuple(warnings),
+                        beta)
