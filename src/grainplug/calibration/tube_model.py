@@ -46,9 +46,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import brentq
 
-from .refraction import BOROSILICATE_INDEX, lamp_table
+from .refraction import BOROSILICATE_INDEX, bisect, lamp_table
 
 #: OD / ID assumed for the stripe alone when the outer diameter is unknown (3 mm bore, 5.5 mm tube)
 TYPICAL_OUTER_OVER_INNER = 1.83
@@ -374,12 +373,12 @@ def bore_from_model(walls: WallMeasure, *, visible_diameter_px: float, back_lit:
             def mismatch(q: float) -> float:
                 _, a_q = solve_lamp(v, s, w, outer_over_inner=q, n_glass=n_glass)
                 return o / a_q - q if math.isfinite(a_q) else float("nan")
-            qs = np.arange(1.3, 3.01, 0.05)
+            qs = np.arange(1.3, 3.01, 0.1)
             ms = np.array([mismatch(float(q)) for q in qs])
             sign = np.flatnonzero(np.isfinite(ms[:-1]) & np.isfinite(ms[1:]) & (np.sign(ms[:-1]) != np.sign(ms[1:])))
             if len(sign):
                 i = int(sign[0])
-                q = float(brentq(mismatch, qs[i], qs[i + 1], xtol=1e-5))
+                q = float(bisect(mismatch, qs[i], qs[i + 1], xtol=1e-4))
                 beta, a = solve_lamp(v, s, w, outer_over_inner=q, n_glass=n_glass)
                 est["stripe + outer"] = 2 * a
                 sd["stripe + outer"] = 0.01
