@@ -79,6 +79,20 @@ def reflectance(X: np.ndarray, Y: np.ndarray, *, pattern: str, pitch_mm: float, 
     if pattern == "checkerboard":
         inside = (np.abs(u) < n[0] / 2) & (np.abs(v) < n[1] / 2)
         ink = inside & ((np.floor(u + n[0] / 2) + np.floor(v + n[1] / 2)) % 2 == 0)
+    elif pattern == "graph":  # printed graph paper: thin lines every pitch, thicker ones every 10 pitches
+        inside = (np.abs(u) < n[0] / 2) & (np.abs(v) < n[1] / 2)
+        du, dv = np.abs(u - np.round(u)), np.abs(v - np.round(v))
+        du10, dv10 = np.abs(u / 10 - np.round(u / 10)) * 10, np.abs(v / 10 - np.round(v / 10)) * 10
+        ink = inside & ((du < 0.06) | (dv < 0.06) | (du10 < 0.12) | (dv10 < 0.12))
+        return np.where(ink, 0.35, 0.9)  # pale ink, as on real graph paper
+    elif pattern == "ruler":  # a white ruler along X: ticks every pitch, longer every 5 and 10, an edge
+        inside = (np.abs(u) < n[0] / 2) & (v > -n[1] / 2) & (v < n[1] / 2)
+        k = np.round(u)
+        length = np.where(k % 10 == 0, 0.45, np.where(k % 5 == 0, 0.32, 0.22)) * n[1]
+        tick = (np.abs(u - k) < 0.07) & (v > n[1] / 2 - length)
+        edge = np.abs(v - n[1] / 2) < 0.05
+        ink = inside & (tick | edge)
+        return np.where(inside, np.where(ink, 0.08, 0.85), 0.3)  # the ruler over a grey bench
     else:
         su, sv = u + (n[0] - 1) / 2, v + (n[1] - 1) / 2  # dot i at su == i, for i in 0 .. n - 1
         iu, iv = np.round(su), np.round(sv)
@@ -136,4 +150,22 @@ CASES = {
     "dot grid rolled and tilted": {"pattern": "dots", "n": (11, 8), "roll_deg": -15.0, "tilt_deg": 8.0,
                                    "distance_mm": 150.0},
     "narrow strip": {"shape": (200, 1000), "n": (20, 3), "mm_per_px": 0.04},
+}
+
+#: graph paper (1 mm lines, thicker every 10) and rulers (1 mm ticks, longer every 5 and 10, on a bench)
+GRATING_CASES = {
+    "graph paper": {"pattern": "graph", "pitch_mm": 1.0, "n": (40, 30), "mm_per_px": 0.06},
+    "graph paper rolled, tilted, blurred": {"pattern": "graph", "pitch_mm": 1.0, "n": (40, 30), "mm_per_px": 0.06,
+                                            "roll_deg": 17.0, "tilt_deg": 8.0, "distance_mm": 200.0,
+                                            "blur_px": 1.5, "noise": 0.03},
+    "graph paper occluded": {"pattern": "graph", "pitch_mm": 1.0, "n": (40, 30), "mm_per_px": 0.06,
+                             "occlusion": 0.2},
+    "ruler": {"pattern": "ruler", "pitch_mm": 1.0, "n": (60, 8), "mm_per_px": 0.1},
+    "ruler rolled -30 deg, blurred": {"pattern": "ruler", "pitch_mm": 1.0, "n": (60, 8), "mm_per_px": 0.1,
+                                      "roll_deg": -30.0, "blur_px": 1.2, "noise": 0.02},
+    "ruler tilted 10 deg, 12-bit, vignetted": {"pattern": "ruler", "pitch_mm": 1.0, "n": (60, 8),
+                                               "mm_per_px": 0.1, "tilt_deg": 10.0, "distance_mm": 150.0,
+                                               "bit_depth": 12, "vignetting": 0.3},
+    "ruler, 5 px per mm, in a strip": {"pattern": "ruler", "pitch_mm": 1.0, "n": (100, 8), "mm_per_px": 0.2,
+                                       "shape": (300, 800), "roll_deg": 3.0},
 }

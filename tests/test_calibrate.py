@@ -59,10 +59,18 @@ def test_calibrate_writes_the_scale_and_a_figure(tmp_path, capsys):
     assert cal.mm_per_px == data["mm_per_px"] and len(cal.points_px) == cal.n_points == 9 * 7
 
 
+def _tube_frame() -> np.ndarray:
+    from grainplug.synthetic import SynthConfig
+    from grainplug.synthetic.render import Renderer
+
+    return next(iter(Renderer(SynthConfig(n_frames=2, width_px=160, height_px=400, seed=1, rgb=False)).frames()))
+
+
 @pytest.mark.parametrize(("image", "words"), [
     (np.full((100, 100), 128, np.uint8), "uniform"),
     (np.random.default_rng(0).integers(0, 255, (200, 200)).astype(np.uint8),
-     "no checkerboard or dot grid of at least 9 points"),
+     "no checkerboard, dot grid, graph paper or ruler was found"),
+    (_tube_frame(), "no checkerboard, dot grid, graph paper or ruler was found"),  # a frame of the movie itself
 ])
 def test_calibrate_without_a_pattern_is_one_clear_line(tmp_path, capsys, image, words):
     tifffile.imwrite(tmp_path / "x.tif", image)

@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 import tifffile
-from calibration_optics import CASES, Camera, render
+from calibration_optics import CASES, GRATING_CASES, Camera, render
 
 import grainplug as gp
 from grainplug.cli import main
@@ -44,6 +44,29 @@ def test_scale_from_a_rendered_calibration_image(name):
     tilted = kw.get("tilt_deg", 0.0) >= 5.0
     assert any("the scale varies" in w for w in cal.warnings) is tilted
     assert 0 < cal.rel_sd < 0.002
+
+
+@pytest.mark.parametrize("name", sorted(GRATING_CASES))
+def test_scale_from_rendered_graph_paper_and_rulers(name):
+    kw = GRATING_CASES[name]
+    image, truth = render(rng=np.random.default_rng(11), **kw)
+    cal = gp.calibrate_image(image, pitch_mm=kw["pitch_mm"])  # "auto": tells graph paper from a ruler
+    assert cal.pattern == kw["pattern"]
+    if cal.pattern == "graph":
+        assert cal.mm_per_px == pytest.approx(truth.mm_per_px, rel=SCALE_TOLERANCE)
+        assert cal.mm_per_px_x == pytest.approx(truth.mm_per_px_x, rel=SCALE_TOLERANCE)
+        assert cal.mm_per_px_y == pytest.approx(truth.mm_per_px_y, rel=SCALE_TOLERANCE)
+    else:  # a ruler: the scale along its length (the image of the plane's X axis)
+        step = np.linalg.solve(truth.jacobian, [1.0, 0.0])  # px moved by 1 mm along the ruler
+        true_along = 1.0 / float(np.hypot(*step))
+        assert cal.mm_per_px_along(tuple(step)) == pytest.approx(true_along, rel=SCALE_TOLERANCE)
+        assert any("a ruler gives the scale along its length only" in w for w in cal.warnings)
+    if not kw.get("tilt_deg"):  # a ruler's short ticks give its direction to a degree or two only
+        expected = (kw.get("roll_deg", 0.0) + 45.0) % 90.0 - 45.0
+        tolerance = TILT_TOLERANCE_DEG if cal.pattern == "graph" else 2.0
+        assert cal.tilt_deg == pytest.approx(expected, abs=tolerance)
+    assert 0 < cal.rel_sd < 0.005
+    assert cal.n_points >= 50  # the line crossings or ticks drawn for the user
 
 
 def test_wrong_pattern_asked_for_is_refused():

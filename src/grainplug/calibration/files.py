@@ -109,8 +109,9 @@ def draw_calibration(image: np.ndarray, cal: Calibration, path: str | Path) -> P
     ax.imshow(img, cmap="gray", interpolation="nearest")
     if cal.points_px:
         pts = np.asarray(cal.points_px)
+        what = {"graph": "line crossings", "ruler": "ticks"}.get(cal.pattern, "points")
         ax.plot(pts[:, 0], pts[:, 1], "+", color="tab:red", markersize=6, markeredgewidth=1.0,
-                label=f"{cal.n_points} points found")
+                label=f"{cal.n_points} {what} found")
     ax.plot(*cal.centre_px, "o", color="tab:cyan", markersize=6, label="scale taken here")
     ax.legend(loc="upper right", fontsize=8)
     ax.set_title(f"{cal.mm_per_px:.5g} mm/px ± {100 * cal.rel_sd:.2g} % ({cal.pattern}, pitch {cal.pitch_mm:g} mm), "

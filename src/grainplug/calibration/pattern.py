@@ -24,7 +24,7 @@ from ..errors import GrainplugError
 CALIBRATION_FORMAT = 1
 #: the scale may vary over the pattern by this much before a warning
 SCALE_VARIATION_WARN = 0.005
-PATTERNS = ("auto", "checkerboard", "dots")
+PATTERNS = ("auto", "checkerboard", "dots", "graph", "ruler")
 
 
 class CalibrationError(GrainplugError):
@@ -54,11 +54,12 @@ class Calibration:
         (max - min) / mean of the local scale over the pattern: perspective or lens
         distortion. Above 0.5 % a warning says so.
     rms_residual_px : float
-        Root mean square distance between the points found and the fitted homography.
+        Root mean square distance between the points found and the fitted homography
+        (0 for graph paper and rulers, measured from their lines' frequency, not points).
     n_points : int
         Points used in the fit.
     pattern : str
-        ``"checkerboard"`` or ``"dots"``.
+        ``"checkerboard"``, ``"dots"``, ``"graph"`` (graph paper) or ``"ruler"``.
     pitch_mm : float
         Distance between neighbouring points on the pattern, as given.
     image_shape : tuple of int
@@ -145,10 +146,11 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
     image : ndarray, (H, W) or (H, W, 3), uint8 or uint16
         The calibration image.
     pitch_mm : float
-        Distance between neighbouring corners (checkerboard: the side of a square) or
-        dot centres, in mm.
-    pattern : {"auto", "checkerboard", "dots"}
-        Which pattern to look for; ``"auto"`` tries the checkerboard first.
+        Distance between neighbouring corners (checkerboard: the side of a square),
+        dot centres, or the finest lines or ticks (graph paper, ruler: 1 mm), in mm.
+    pattern : {"auto", "checkerboard", "dots", "graph", "ruler"}
+        Which pattern to look for; ``"auto"`` tries the checkerboard, the dots, then
+        line gratings (graph paper if two families of lines are seen, else a ruler).
     identity : dict, optional
         The image's identity (name, size, hash) to keep with the result.
 
@@ -179,6 +181,8 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
     finders = {"checkerboard": _checkerboard_points, "dots": _dot_points}
     fits = []
     for kind in (("checkerboard", "dots") if pattern == "auto" else (pattern,)):
+        if kind not in finders:
+            continue
         found = finders[kind](grey)
         if found is None:
             continue
@@ -188,11 +192,119 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
         # a lattice read wrongly (the corners between dots taken for a board...) is not square
         if abs(cal.mm_per_px_x / cal.mm_per_px_y - 1) < 0.1 and cal.rms_residual_px < 1.0:
             fits.append(cal)
+    if not fits and pattern in ("auto", "graph", "ruler"):
+        grating = _grating(grey, pitch_mm=pitch_mm, kind=pattern, identity=identity or {})
+        if grating is not None:
+            fits.append(grating)
     if not fits:
-        what = {"auto": "checkerboard or dot grid", "checkerboard": "checkerboard", "dots": "dot grid"}[pattern]
-        raise CalibrationError(f"no {what} of at least 9 points was found in the image — make sure the pattern "
+        what = {"auto": "checkerboard, dot grid, graph paper or ruler", "checkerboard": "checkerboard",
+                "dots": "dot grid", "graph": "graph paper (two families of lines)", "ruler": "ruler's ticks"}[pattern]
+        raise CalibrationError(f"no {what} was found in the image — make sure the pattern "
                                "is in focus, evenly lit and fills a good part of the frame")
     return fits[0]  # a checkerboard where one was found: its squares could pass for a grid of dots
+
+
+def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str, object]) -> Calibration | None:
+    """The scale from line gratings (graph paper, a ruler's ticks); see :mod:`grainplug.calibration.periodic`."""
+    from .periodic import find_gratings, local_frequencies
+
+    found = find_gratings(grey, families=1 if kind == "ruler" else 2)
+    if found is None or (kind == "graph" and len(found.freqs) < 2):
+        return None
+    freqs = found.freqs
+    graph = len(freqs) == 2
+    box = found.box
+    where, parts = local_frequencies(grey, found)
+    f1 = freqs[0]
+    u = f1 / np.hypot(*f1)
+    perp = np.array([-u[1], u[0]])
+    if graph:
+        f2 = freqs[1]
+        # the second family's axis, oriented so that the map keeps the image's handedness
+        if f1[0] * f2[1] - f1[1] * f2[0] < 0:
+            f2 = -f2
+        F = np.vstack([f1, f2])
+    else:
+        F = np.vstack([f1, np.hypot(*f1) * perp])
+    J = pitch_mm * F
+    scale = float(math.sqrt(abs(np.linalg.det(J))))
+
+    def part_scale(v: np.ndarray) -> float:
+        if graph:
+            return float(pitch_mm * math.sqrt(abs(v[0] * v[3] - v[1] * v[2])))
+        return float(pitch_mm * np.hypot(v[0], v[1]))
+
+    local = np.array([part_scale(v) for v in parts]) if len(parts) else np.array([scale])
+    variation = float((local.max() - local.min()) / local.mean()) if len(local) > 1 else 0.0
+    # the uncertainty: the local scales' scatter about a plane (perspective is a smooth trend, the
+    # variation above), as the standard error of the mean
+    rel_sd = 1e-4
+    if len(local) > 3:
+        A = np.column_stack([np.ones(len(local)), where - where.mean(axis=0)])
+        coef, *_ = np.linalg.lstsq(A, local, rcond=None)
+        dof = max(len(local) - np.linalg.matrix_rank(A), 1)
+        resid = local - A @ coef
+        rel_sd = float(math.hypot(math.sqrt(float(resid @ resid) / dof / len(local)) / scale, 1e-4))
+    y0, y1, x0, x1 = box
+    centre = np.array([0.5 * (x0 + x1 - 1), 0.5 * (y0 + y1 - 1)])
+    Ji = np.linalg.inv(J)
+    H = np.array([[Ji[0, 0], Ji[0, 1], centre[0]], [Ji[1, 0], Ji[1, 1], centre[1]], [0.0, 0.0, 1.0]])
+    points = _grating_points(grey, F, centre, box, graph=graph, support=found.support)
+    tilt = math.degrees(math.atan2(-perp[1], perp[0]))  # the lines' direction, as the board's rows
+    tilt = (tilt + 45.0) % 90.0 - 45.0
+    mm_x, mm_y = float(np.hypot(*J[:, 0])), float(np.hypot(*J[:, 1]))
+    warnings = []
+    if not graph:
+        warnings.append("a ruler gives the scale along its length only: pixels are taken as square — lay the "
+                        "ruler along the tube's axis (or use graph paper or a checkerboard)")
+    if variation > SCALE_VARIATION_WARN:
+        warnings.append(f"the scale varies by {100 * variation:.1f} % over the pattern (perspective or lens "
+                        "distortion): hold the pattern square to the camera, at the tube's plane, and use the "
+                        "scale where the tube is")
+    if graph and abs(mm_x / mm_y - 1) > 0.01:
+        warnings.append(f"pixels are not square here ({mm_x:.5g} x {mm_y:.5g} mm): the scale along the tube "
+                        "is taken along its axis")
+    return Calibration(
+        mm_per_px=scale, mm_per_px_x=mm_x, mm_per_px_y=mm_y,
+        jacobian_mm_per_px=((float(J[0, 0]), float(J[0, 1])), (float(J[1, 0]), float(J[1, 1]))),
+        rel_sd=rel_sd, tilt_deg=float(tilt), scale_variation=variation, rms_residual_px=0.0,
+        n_points=len(points), pattern="graph" if graph else "ruler", pitch_mm=float(pitch_mm),
+        image_shape=(int(grey.shape[0]), int(grey.shape[1])), centre_px=(float(centre[0]), float(centre[1])),
+        homography=tuple(tuple(float(x) for x in row) for row in H), image=dict(identity),
+        warnings=tuple(warnings), points_px=tuple((float(x), float(y)) for x, y in points),
+    )
+
+
+def _grating_points(grey: np.ndarray, F: np.ndarray, centre: np.ndarray, box: tuple[int, int, int, int], *,
+                    graph: bool, support: np.ndarray) -> np.ndarray:
+    """Where the lines cross (graph paper) or the ticks are (a ruler, along the middle of its box), for the
+    figure: the lines are the dark phase of each family's wave."""
+    y0, y1, x0, x1 = box
+    g = grey[y0:y1, x0:x1].astype(np.float64)
+    g -= g.mean()
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    phases = []
+    for f in F[: 2 if graph else 1]:
+        s = np.sum(g * np.exp(-2j * np.pi * (f[0] * (xx - centre[0]) + f[1] * (yy - centre[1]))))
+        phases.append((np.pi - np.angle(s)) / (2 * np.pi))  # f.(r - c) of a dark line, modulo 1
+    corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=float) - centre
+    if graph:
+        span = corners @ F.T
+        k1 = np.arange(np.floor(span[:, 0].min()), np.ceil(span[:, 0].max()) + 1)
+        k2 = np.arange(np.floor(span[:, 1].min()), np.ceil(span[:, 1].max()) + 1)
+        K1, K2 = np.meshgrid(k1 + phases[0], k2 + phases[1])
+        pts = np.linalg.solve(F, np.vstack([K1.ravel(), K2.ravel()])).T + centre
+    else:
+        f = F[0]
+        span = corners @ f
+        k = np.arange(np.floor(span.min()), np.ceil(span.max()) + 1) + phases[0]
+        pts = (k[:, None] / float(f @ f)) * f[None, :] + centre
+    inside = (pts[:, 0] >= x0) & (pts[:, 0] < x1) & (pts[:, 1] >= y0) & (pts[:, 1] < y1)
+    pts = pts[inside]
+    if graph:  # only where the paper is
+        on = support[pts[:, 1].astype(int), pts[:, 0].astype(int)] > 0.25
+        pts = pts[on]
+    return pts[:5000]
 
 
 # -- finding the points -----------------------------------------------------------------------

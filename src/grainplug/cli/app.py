@@ -106,8 +106,8 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
 @click.argument("image", type=click.Path(path_type=Path))
 @click.option("--pitch-mm", type=float, required=True,
               help="Distance between neighbouring checkerboard corners (a square's side) or dot centres, in mm.")
-@click.option("--pattern", type=click.Choice(["auto", "checkerboard", "dots"]), default="auto", show_default=True,
-              help="The pattern in the image.")
+@click.option("--pattern", type=click.Choice(["auto", "checkerboard", "dots", "graph", "ruler"]), default="auto",
+              show_default=True, help="The pattern in the image (graph: graph paper; ruler: a ruler's ticks).")
 @click.option("--out", "out", type=click.Path(path_type=Path), default=Path("calibration.json"), show_default=True,
               help="Where to write the calibration; a PNG of what was found is written beside it.")
 @click.option("--json", "as_json", is_flag=True, help="Print the calibration as JSON.")
@@ -133,8 +133,13 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
     else:
         click.echo(f"scale       {cal.mm_per_px:.6g} mm/px ± {100 * cal.rel_sd:.2g} % "
                    f"(x {cal.mm_per_px_x:.6g}, y {cal.mm_per_px_y:.6g})")
-        click.echo(f"pattern     {cal.pattern}, {cal.n_points} points, pitch {cal.pitch_mm:g} mm, "
-                   f"fit residual {cal.rms_residual_px:.2f} px")
+        if cal.pattern in ("graph", "ruler"):
+            what = "line crossings" if cal.pattern == "graph" else "ticks"
+            click.echo(f"pattern     {cal.pattern}, {cal.n_points} {what}, pitch {cal.pitch_mm:g} mm "
+                       "(from the lines' spatial frequency)")
+        else:
+            click.echo(f"pattern     {cal.pattern}, {cal.n_points} points, pitch {cal.pitch_mm:g} mm, "
+                       f"fit residual {cal.rms_residual_px:.2f} px")
         click.echo(f"tilt        {cal.tilt_deg:+.2f}°")
         click.echo(f"variation   {100 * cal.scale_variation:.2g} % over the pattern")
         click.echo(f"written     {out} and {figure}")

@@ -1,0 +1,288 @@
+"""The scale from a ruler or graph paper: the spatial frequency of their lines.
+
+A ruler's millimetre ticks and graph paper's lines are gratings: in the image's
+Fourier transform each family of parallel, evenly spaced lines is a peak at
+the frequency vector ``f`` (cycles per px) perpendicular to the lines, with
+``1 / |f|`` the spacing in pixels. The scale along ``f`` is then
+``pitch_mm * |f|`` mm per px, measured from every line in the image at once.
+
+Notes
+-----
+*Finding the peak.* The image, minus its slowly varying light (a Gaussian blur
+of 4 % of its size), times a Hann window, is Fourier transformed with padding to
+twice its size; the strongest peak away from zero frequency (at least 4 periods
+across the image, below 0.45 cycles/px) is the first family. Thin lines have
+harmonics as strong as their fundamental: when the transform is at least 35 % as
+high at ``f / m`` (m = 2, 3, 4), that is the fundamental. Only sharp, isolated peaks
+count (many lines), not the streaks of a ruler's edges. For graph paper the second
+family is the strongest such peak 60-120 deg away from the first, with a spacing
+within -20/+25 % of the first's (the paper is square).
+
+*Refining it.* The discrete-time Fourier transform
+``S(f) = sum_r w(r) g(r) exp(-2 pi i f . r)`` is maximised over ``f`` (Nelder-Mead
+from the FFT's peak), which places the frequency to a small fraction of an FFT bin.
+It is computed separably, ``e_y^T G e_x``.
+
+*Edges.* A straight edge (a ruler's sides against the bench, a finger or the
+tube's holder across graph paper) makes a streak through the transform that can
+pull a peak. Before refining, the image is weighted by where the gratings are: its
+local amplitude at the coarse frequencies (demodulated, low-passed over 1.5
+periods), so that the refinement sees the lines and not what surrounds them.
+
+*Uncertainty and variation.* The frequencies are measured again in a 3 x 3 grid of
+tiles over the pattern (five stretches along a ruler): the spread of the local
+scales is the variation over the field (perspective, lens distortion), their
+robust standard error the uncertainty.
+
+*The map.* With the families' frequency vectors ``f1``, ``f2`` as rows of ``F``,
+plane coordinates are ``(X, Y) = pitch * F (r - r0)``, so the Jacobian (mm per px)
+is ``pitch * F``; a ruler gives only ``f1``: pixels are then taken as square
+(``J = pitch |f1| R``, with ``R`` the rotation to the ruler's direction) and a
+warning says so.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: the fundamental must reach this share of the strongest harmonic's height
+FUNDAMENTAL_SHARE = 0.35
+#: at least this many periods across the image
+MIN_PERIODS = 4
+
+
+def _prepare(grey: np.ndarray) -> np.ndarray:
+    import cv2
+
+    g = grey.astype(np.float32)
+    sigma = 0.04 * max(g.shape)
+    g = g - cv2.GaussianBlur(g, (0, 0), sigma)
+    return g.astype(np.float64)
+
+
+def _window(shape: tuple[int, int]) -> np.ndarray:
+    return np.outer(np.hanning(shape[0]), np.hanning(shape[1]))
+
+
+def _dtft_power(g: np.ndarray, f: np.ndarray) -> float:
+    h, w = g.shape
+    ex = np.exp(-2j * np.pi * f[0] * (np.arange(w) - (w - 1) / 2))
+    ey = np.exp(-2j * np.pi * f[1] * (np.arange(h) - (h - 1) / 2))
+    return float(abs(ey @ (g @ ex)) ** 2)
+
+
+def _refine(g: np.ndarray, f0: np.ndarray, bin_size: float) -> np.ndarray:
+    from scipy.optimize import minimize
+
+    scale = 1.0 / max(_dtft_power(g, f0), 1e-300)
+    step = 0.3 * bin_size
+    simplex = np.array([f0, f0 + np.array([step, 0.0]), f0 + np.array([0.0, step])])
+    res = minimize(lambda f: -_dtft_power(g, f) * scale, f0, method="Nelder-Mead",
+                   options={"initial_simplex": simplex,
+                            "xatol": 1e-4 * bin_size, "fatol": 1e-12, "maxiter": 400})
+    return np.asarray(res.x, dtype=float)
+
+
+def _peaks(g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Magnitude of the padded FFT of the windowed image and its frequency axes (fx >= 0)."""
+    h, w = g.shape
+    spec = np.abs(np.fft.rfft2(g * _window(g.shape), s=(2 * h, 2 * w)))
+    fy = np.fft.fftfreq(2 * h)
+    fx = np.fft.rfftfreq(2 * w)
+    return spec, fx, fy
+
+
+def _height(spec: np.ndarray, fx: np.ndarray, fy: np.ndarray, f: np.ndarray) -> float:
+    """Largest magnitude within one bin of frequency ``f`` (either sign)."""
+    if f[0] < 0:
+        f = -f
+    ix = int(round(f[0] / fx[1]))
+    iy = int(round(f[1] / (fy[1] - fy[0]))) % len(fy)
+    best = 0.0
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            jx = ix + dx
+            if 0 <= jx < spec.shape[1]:
+                best = max(best, float(spec[(iy + dy) % spec.shape[0], jx]))
+    return best
+
+
+def _strongest(spec: np.ndarray, fx: np.ndarray, fy: np.ndarray, *, f_min: float, f_max: float = 0.45,
+               away_from: np.ndarray | None = None) -> np.ndarray | None:
+    """The strongest sharp peak (a grating of many lines), then its fundamental.
+
+    A grating of many lines (16 or more) makes a sharp, isolated peak: along its
+    direction the transform stays under half the peak's height from 5 % to 20 % of
+    its frequency away. The few edges of a ruler against the bench make a streak of
+    comparable lobes, and the thick lines every 10 mm of graph paper a comb of
+    lobes 10 % apart: neither passes.
+    """
+    import cv2
+
+    FX, FY = np.meshgrid(fx, fy)
+    r = np.hypot(FX, FY)
+    ok = (r >= f_min) & (r <= f_max)
+    if away_from is not None:
+        cos = np.abs(FX * away_from[0] + FY * away_from[1]) / np.maximum(r * np.hypot(*away_from), 1e-12)
+        ok &= cos < math.cos(math.radians(60))
+    spec32 = spec.astype(np.float32)
+    local_max = (spec32 >= cv2.dilate(spec32, np.ones((5, 5), np.uint8))) & ok
+    cand = np.flatnonzero(local_max)
+    if not len(cand):
+        return None
+    cand = cand[np.argsort(spec.ravel()[cand])[::-1][:60]]
+    bin_f = max(float(fx[1]), float(fy[1] - fy[0]))  # the coarser axis's bin
+
+    def sharp(f: np.ndarray, top: float) -> bool:
+        near = max(0.05, 4 * bin_f / float(np.hypot(*f)))
+        if near >= 0.2:
+            return False
+        around = np.concatenate([np.linspace(0.8, 1 - near, 8), np.linspace(1 + near, 1.2, 8)])
+        return max(_height(spec, fx, fy, f * k) for k in around) < 0.5 * top
+
+    for k in cand:
+        iy, ix = np.unravel_index(k, spec.shape)
+        f = np.array([fx[ix], fy[iy]])
+        top = float(spec[iy, ix])
+        if not sharp(f, top):
+            continue  # broad: not a grating
+        # the fundamental: a lower harmonic, itself sharp, nearly as high as the strongest one
+        for m in (4, 3, 2):
+            sub = f / m
+            h_sub = _height(spec, fx, fy, sub)
+            if np.hypot(*sub) >= f_min and h_sub >= FUNDAMENTAL_SHARE * top and sharp(sub, h_sub):
+                return sub
+        return f
+    return None
+
+
+def _amplitude(g: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Local amplitude of the grating of frequency ``f``: the image demodulated at ``f``, low-passed over
+    1.5 periods."""
+    import cv2
+
+    h, w = g.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    phase = 2 * np.pi * (f[0] * xx + f[1] * yy)
+    sigma = 1.5 / max(float(np.hypot(*f)), 1e-6)
+    c = cv2.GaussianBlur((g * np.cos(phase)).astype(np.float32), (0, 0), sigma)
+    s = cv2.GaussianBlur((g * np.sin(phase)).astype(np.float32), (0, 0), sigma)
+    return np.hypot(c, s).astype(np.float64)
+
+
+def _support(g: np.ndarray, freqs: list[np.ndarray]) -> np.ndarray:
+    """Where the gratings are, as weights in [0, 1]: 0 over the bench, a finger, a holder, and rising
+    to 1 over two periods inside the gratings' edge (the edge itself is a step that would pull the peak)."""
+    import cv2
+
+    total = np.zeros(g.shape)
+    for f in freqs:
+        amp = _amplitude(g, f)
+        total += amp / max(float(np.percentile(amp, 99.5)), 1e-12)
+    on = (total / len(freqs) > 0.5).astype(np.uint8)
+    period = 1.0 / max(float(np.hypot(*freqs[0])), 1e-6)
+    k = max(3, int(round((3.0 if len(freqs) > 1 else 1.5) * period)) | 1)  # a ruler's ticks are short
+    inner = cv2.erode(on, np.ones((k, k), np.uint8), borderType=cv2.BORDER_REPLICATE)
+    return np.clip(cv2.GaussianBlur(inner.astype(np.float32), (0, 0), period), 0.0, 1.0).astype(np.float64)
+
+
+@dataclass(frozen=True)
+class Gratings:
+    """Line gratings found in an image.
+
+    Attributes
+    ----------
+    freqs : list of ndarray
+        Frequency vector of each family (cycles/px, ``(fx, fy)``).
+    support : ndarray
+        Where the gratings are (weights in [0, 1]).
+    box : tuple of int
+        Bounding box ``(y0, y1, x0, x1)`` of the support.
+    """
+
+    freqs: list[np.ndarray]
+    support: np.ndarray
+    box: tuple[int, int, int, int]
+
+
+def find_gratings(grey: np.ndarray, *, families: int) -> Gratings | None:
+    """The ``families`` strongest line gratings (1: a ruler's ticks; 2: graph paper), refined.
+
+    Parameters
+    ----------
+    grey : ndarray
+        The image, grey.
+    families : {1, 2}
+        How many families of lines to look for.
+
+    Returns
+    -------
+    Gratings or None
+        None when no grating is found (a second family may be missing).
+    """
+    g = _prepare(grey)
+    spec, fx, fy = _peaks(g)
+    f_min = MIN_PERIODS / min(g.shape)
+    bin_size = float(fx[1])
+    first = _strongest(spec, fx, fy, f_min=f_min)
+    if first is None:
+        return None
+    coarse = [first]
+    if families >= 2:
+        # graph paper is square: the other family has nearly the same spacing, at 60-120 deg
+        # (rolled and seen in perspective)
+        f1 = float(np.hypot(*first))
+        second = _strongest(spec, fx, fy, f_min=max(f_min, 0.8 * f1), f_max=min(0.45, 1.25 * f1), away_from=first)
+        if second is not None and _height(spec, fx, fy, second) >= 0.15 * _height(spec, fx, fy, first):
+            coarse.append(second)
+    # weigh the image by where the gratings are, so that edges around and across them (the ruler's
+    # sides, the bench, a finger) do not pull the peaks
+    support = _support(g, coarse)
+    gw = g * _window(g.shape) * support
+    freqs = [_refine(gw, f, bin_size) for f in coarse]
+    ys, xs = np.nonzero(support > 0.5)
+    h, w = g.shape
+    box = (0, h, 0, w) if len(ys) < 16 else (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
+    return Gratings(freqs, support, box)
+
+
+def local_frequencies(grey: np.ndarray, found: Gratings) -> tuple[np.ndarray, np.ndarray]:
+    """The families' frequencies refined in parts of the gratings' box: a 3 x 3 grid of tiles for two
+    families, five stretches along the lines' normal for one (a ruler).
+
+    Returns
+    -------
+    centres : ndarray, (n, 2)
+        Each part's weighted centre (x, y) in px.
+    freqs : ndarray, (n, 2 * families)
+        Its families' frequency vectors, end to end.
+    """
+    y0, y1, x0, x1 = found.box
+    freqs = found.freqs
+    if len(freqs) >= 2:
+        ycuts, xcuts = np.linspace(y0, y1, 4).astype(int), np.linspace(x0, x1, 4).astype(int)
+        parts = [(slice(a, b), slice(c, d)) for a, b in itertools.pairwise(ycuts)
+                 for c, d in itertools.pairwise(xcuts)]
+    elif abs(freqs[0][0]) >= abs(freqs[0][1]):  # a ruler across the image: stretches of columns
+        cuts = np.linspace(x0, x1, 6).astype(int)
+        parts = [(slice(y0, y1), slice(a, b)) for a, b in itertools.pairwise(cuts)]
+    else:
+        cuts = np.linspace(y0, y1, 6).astype(int)
+        parts = [(slice(a, b), slice(x0, x1)) for a, b in itertools.pairwise(cuts)]
+    weights = [float(found.support[ys, xs].sum()) for ys, xs in parts]
+    centres, out = [], []
+    for (ys, xs), wsum in zip(parts, weights, strict=True):
+        part = grey[ys, xs]
+        weight = found.support[ys, xs]
+        if min(part.shape) < 16 or wsum < 0.3 * max(weights):
+            continue
+        gw = _prepare(part) * _window(part.shape) * weight
+        bin_size = 0.5 / max(part.shape)
+        out.append(np.concatenate([_refine(gw, f, bin_size) for f in freqs]))
+        yy, xx = np.mgrid[ys, xs]
+        centres.append([float((xx * weight).sum() / wsum), float((yy * weight).sum() / wsum)])
+    return np.asarray(centres, dtype=float).reshape(-1, 2), np.asarray(out, dtype=float).reshape(len(out), -1)
