@@ -14,9 +14,10 @@ The public API, imported on first use so that ``import grainplug`` stays fast:
 - :func:`synthesize` and :class:`SynthConfig`: synthetic movies with known truth;
 - :func:`analyze_stability`, :func:`sweep`, :class:`ModelParams`: the paper's linear
   stability analysis (:mod:`grainplug.stability`);
-- :func:`calibrate_image` / :func:`calibrate_file` (a checkerboard or dot-grid image) giving a
-  :class:`Calibration`, :func:`save_calibration` / :func:`load_calibration`; pass it as
-  ``analyze(..., calibration=cal)``;
+- :func:`calibrate_image` / :func:`calibrate_file` (a checkerboard, dot grid, graph paper or
+  ruler) giving a :class:`Calibration`, :func:`save_calibration` / :func:`load_calibration`; pass
+  it as ``analyze(..., calibration=cal)``; :func:`read_background` (a light calibration, the
+  tube with nothing moving in it) giving a :class:`Background` for ``analyze(..., background=bg)``;
 - :func:`run_campaign`: many movies from a manifest, optionally on Dask;
 - :mod:`datasets`: the sample movie and the paper's tables.
 """
@@ -49,6 +50,8 @@ _EXPORTS = {
     "calibrate_file": "grainplug.calibration.files",
     "load_calibration": "grainplug.calibration.files",
     "save_calibration": "grainplug.calibration.files",
+    "read_background": "grainplug.calibration.files",
+    "Background": "grainplug.calibration.background",
     "GrainplugError": "grainplug.errors",
     "MovieError": "grainplug.errors",
     "ParameterError": "grainplug.errors",
@@ -56,10 +59,11 @@ _EXPORTS = {
 _SUBMODULES = ("datasets", "stability", "synthetic", "readers", "plotting")
 
 __all__ = [
-    "FLOW_DIRECTIONS", "AnalysisParams", "AnalysisResult", "Calibration", "GrainplugError", "ModelParams", "Movie",
-    "MovieError", "MovieInfo", "ParameterError", "SynthConfig", "__version__", "analyze", "analyze_stability",
-    "calibrate_file", "calibrate_image", "datasets", "load_calibration", "load_result", "open_movie", "plotting",
-    "readers", "run_campaign", "save_calibration", "stability", "sweep", "synthesize", "synthetic",
+    "FLOW_DIRECTIONS", "AnalysisParams", "AnalysisResult", "Background", "Calibration", "GrainplugError",
+    "ModelParams", "Movie", "MovieError", "MovieInfo", "ParameterError", "SynthConfig", "__version__", "analyze",
+    "analyze_stability", "calibrate_file", "calibrate_image", "datasets", "load_calibration", "load_result",
+    "open_movie", "plotting", "read_background", "readers", "run_campaign", "save_calibration", "stability", "sweep",
+    "synthesize", "synthetic",
 ]
 
 
@@ -80,7 +84,8 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the names as if imported eagerly
     from . import datasets, plotting, readers, stability, synthetic
-    from .calibration.files import calibrate_file, load_calibration, save_calibration
+    from .calibration.background import Background
+    from .calibration.files import calibrate_file, load_calibration, read_background, save_calibration
     from .calibration.pattern import Calibration, calibrate_image
     from .campaigns.batch import run_campaign
     from .errors import GrainplugError, MovieError, ParameterError

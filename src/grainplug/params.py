@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from .errors import ParameterError
 
 if TYPE_CHECKING:
+    from .calibration.background import Background
     from .calibration.pattern import Calibration
 
 #: directions of the grain flow in the image
@@ -73,6 +74,10 @@ class AnalysisParams:
     calibration : Calibration, optional
         The scale from a calibration image (:func:`grainplug.calibrate_image`, or
         ``grainplug calibrate``), taken along the tube's axis; instead of ``mm_per_px``.
+    background : Background, optional
+        A light calibration: the tube empty or full, nothing moving, with the movie's
+        camera and lamp (:func:`grainplug.read_background`); the diagram is divided by
+        its light along the tube.
 
     Examples
     --------
@@ -92,6 +97,7 @@ class AnalysisParams:
     glob: str | None = None
     allow_truncated: bool = False
     calibration: Calibration | None = None
+    background: Background | None = None
 
     def __post_init__(self) -> None:
         def check(ok: bool, param: str, message: str) -> None:
@@ -115,6 +121,13 @@ class AnalysisParams:
         check(self.sample_frames >= 4, "sample_frames", f"must be at least 4, got {self.sample_frames}")
         check(self.calibration is None or self.mm_per_px is None, "calibration",
               "give either a calibration or mm_per_px (the scale), not both")
+
+    def as_record(self) -> dict[str, object]:
+        """The parameters as plain data, for provenance and run keys: a background is recorded by its
+        identity (name, size, SHA-256), not its pixels."""
+        d = dataclasses.asdict(dataclasses.replace(self, background=None))
+        d["background"] = self.background.describe() if self.background is not None else None
+        return d
 
     def replace(self, **changes: object) -> AnalysisParams:
         """A copy with some fields changed (checked like the original)."""

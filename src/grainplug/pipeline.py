@@ -27,6 +27,7 @@ from threadpoolctl import threadpool_limits
 
 from .band import Band
 from .calibration import TubeGeometry, find_tube
+from .calibration.background import flat_field
 from .calibration.pattern import Calibration
 from .calibration.tube_model import AGREEMENT, BoreEstimate, WallMeasure, bore_from_model
 from .diagram import Diagram, Normalized, band_along_tube, normalize
@@ -95,9 +96,13 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         band, axis_px = band_along_tube(tube)
         saturation = _saturated_share(sample, band, info)
         mm_per_px, scale_source, scale_rel_sd, scale_warnings, bore = _scale(tube, params, info)
+        _check_background(params, info)
         laps("setup_s")
         values = movie.read_band(band, threads=threads,
                                  progress=(lambda k: progress(k, info.n_frames)) if progress else None)
+        light_warnings: list[str] = []
+        if params.background is not None:
+            values, light_warnings = flat_field(values, band, params.background)
         laps("stream_s")
         time_s = _frame_times(movie, info, len(values))
         identity = _identity(movie)
@@ -124,7 +129,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         statement=statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
-        warnings=[*info.warnings, *scale_warnings, *flow.warnings,
+        warnings=[*info.warnings, *scale_warnings, *light_warnings, *flow.warnings,
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
     )
 
@@ -297,6 +302,14 @@ def _calibrated_scale(cal: Calibration, tube: TubeGeometry, info: MovieInfo, fro
                         "back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
                         "the tube's plane, else check --tube-diameter-mm (and --tube-outer-diameter-mm)")
     return mm_per_px, source, rel_sd, warnings
+
+
+def _check_background(params: AnalysisParams, info: MovieInfo) -> None:
+    bg = params.background
+    if bg is not None and tuple(bg.image.shape[:2]) != (info.height, info.width):
+        raise ParameterError(f"the background is {bg.image.shape[1]} x {bg.image.shape[0]} px but the movie's frames "
+                             f"are {info.width} x {info.height}: take it with the movie's camera and settings",
+                             param="background")
 
 
 def _saturated_share(frames: list[np.ndarray], band: Band, info: MovieInfo) -> float:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import base64
 import html
 import io
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -382,7 +382,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "grainplug_version": __version__,
         "input": res.input,
         "movie": res.info.as_dict(),
-        "parameters": asdict(res.params),
+        "parameters": res.params.as_record(),
         "has_plugs": res.has_plugs,
         "statement": res.statement or None,
         "celerity_m_s": _r(m.celerity_m_s) if m else None,

@@ -24,6 +24,7 @@ RESULT_FILE = "result.npz"
 
 
 def _types() -> dict[str, type]:
+    from .calibration.background import Background
     from .calibration.pattern import Calibration
     from .calibration.tube import TubeGeometry
     from .calibration.tube_model import BoreEstimate, WallMeasure
@@ -35,7 +36,8 @@ def _types() -> dict[str, type]:
     from .result import AnalysisResult
 
     return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
-                                    Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate)}
+                                    Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate,
+                                    Background)}
 
 
 def _encode(obj: Any, path: str, arrays: dict[str, np.ndarray]) -> Any:

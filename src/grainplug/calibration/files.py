@@ -14,6 +14,7 @@ import numpy as np
 from .._atomic import atomic_file
 from .._version import __version__
 from ..errors import MovieError
+from .background import Background, grey_background
 from .pattern import Calibration, CalibrationError, calibrate_image
 
 #: frames of a movie given as a calibration image that are averaged (less noise)
@@ -55,6 +56,33 @@ def read_calibration_image(path: str | Path) -> np.ndarray:
         n = min(movie.info.n_frames, MOVIE_FRAMES_AVERAGED)
         frames = [movie.read(k).astype(np.float64) for k in range(n)]
     return np.mean(frames, axis=0)
+
+
+#: frames of a background movie that are averaged
+BACKGROUND_FRAMES_AVERAGED = 50
+
+
+def read_background(path: str | Path) -> Background:
+    """A light calibration (the tube empty or full, nothing moving): a picture, or a movie whose first
+    frames are averaged.
+
+    Raises
+    ------
+    MovieError
+        When the file cannot be read as an image or a movie.
+    """
+    from ..readers import IMAGE_SUFFIXES, open_movie
+
+    p = Path(path).expanduser()
+    if not p.is_file():
+        raise MovieError(f"no such background file: {p} — check the path")
+    identity = image_identity(p)
+    if p.suffix.lower() in IMAGE_SUFFIXES and p.suffix.lower() not in (".tif", ".tiff"):
+        return grey_background([read_calibration_image(p)], identity=identity)
+    with open_movie(p) as movie:
+        n = min(movie.info.n_frames, BACKGROUND_FRAMES_AVERAGED)
+        frames = [movie.read(k) for k in np.unique(np.linspace(0, movie.info.n_frames - 1, n).round().astype(int))]
+    return grey_background(frames, identity=identity)
 
 
 def calibrate_file(path: str | Path, *, pitch_mm: float, pattern: str = "auto") -> Calibration:

@@ -14,7 +14,6 @@ on where it ran.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import logging
@@ -49,7 +48,7 @@ def run_key(spec: RunSpec) -> str:
     """Identity of a run's result: movie identity, parameters, grainplug version."""
     ident = fingerprint(spec.movie)
     ident.pop("path", None)
-    blob = json.dumps({"input": ident, "params": dataclasses.asdict(spec.params), "version": __version__},
+    blob = json.dumps({"input": ident, "params": spec.params.as_record(), "version": __version__},
                       sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()
 

@@ -10,6 +10,8 @@ Columns (CSV header, or keys of each ``[[run]]`` table in TOML; a TOML
 ``mm_per_px``                  scale, or
 ``calibration``                a calibration.json (``grainplug calibrate``), relative to the
                                manifest's folder: the scale, e.g. one per day of experiments
+``background``                 a light calibration (the tube empty, nothing moving: a picture or
+                               short movie), relative to the manifest's folder
 ``tube_diameter_mm``           inner diameter of the tube (scale from the tube; 3 mm)
 ``tube_outer_diameter_mm``     outer diameter of the tube (scale from its silhouette)
 ``glass_index``                refractive index of the tube's glass (1.47)
@@ -35,6 +37,7 @@ from ..errors import ParameterError
 from ..params import AnalysisParams
 
 if TYPE_CHECKING:
+    from ..calibration.background import Background
     from ..calibration.pattern import Calibration
 
 ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "tube_outer_diameter_mm": float,
@@ -73,16 +76,29 @@ def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec
     kw = {k: v for k, v in kw.items() if v is not None}
     if row.get("calibration"):
         kw["calibration"] = _calibration(str(row["calibration"]), base, where)
+    if row.get("background"):
+        kw["background"] = _background(str(row["background"]), base, where)
     try:
         params = AnalysisParams(**kw)
     except ParameterError as exc:
         raise ParameterError(f"{where}: {exc}") from None
     meta: dict[str, object] = {}
     for k, v in row.items():
-        if k in ANALYSIS_KEYS or k in ("run", "movie", "calibration"):
+        if k in ANALYSIS_KEYS or k in ("run", "movie", "calibration", "background"):
             continue
         meta[k] = _convert(k, v, KNOWN_META, where) if k in KNOWN_META else v
     return RunSpec(run, movie, params, meta)
+
+
+def _background(value: str, base: Path, where: str) -> Background:
+    from ..calibration.files import read_background
+    from ..errors import GrainplugError
+
+    path = Path(value).expanduser()
+    try:
+        return read_background(path if path.is_absolute() else base / path)
+    except GrainplugError as exc:
+        raise ParameterError(f"{where}: background: {exc}") from None
 
 
 def _calibration(value: str, base: Path, where: str) -> Calibration:

@@ -169,6 +169,9 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
               help="Threads reading uncompressed frames (TIFF stacks, raw video) [default: one per core].")
 @click.option("--calibration", "calibration", type=click.Path(path_type=Path), default=None,
               help="calibration.json from `grainplug calibrate`: the scale, instead of the tube's width.")
+@click.option("--background", "background", type=click.Path(path_type=Path), default=None,
+              help="Light calibration: a picture or short movie of the tube empty (or full), nothing moving, "
+                   "to flat-field the light along the tube.")
 @click.option("--allow-truncated", is_flag=True,
               help="For camera files that end early: analyse the complete frames instead of refusing.")
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
@@ -176,7 +179,8 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
             tube_diameter_mm: float | None, tube_outer_diameter_mm: float | None, glass_index: float,
             flow_direction: str | None, min_plug_mm: float, glob_: str | None, threads: int | None,
-            calibration: Path | None, allow_truncated: bool, no_figures: bool, as_json: bool) -> None:
+            calibration: Path | None, background: Path | None, allow_truncated: bool, no_figures: bool,
+            as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -194,11 +198,16 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
         from ..calibration.files import load_calibration
 
         cal = load_calibration(calibration)
+    light = None
+    if background is not None:
+        from ..calibration.files import read_background
+
+        light = read_background(background)
     diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
                             tube_outer_diameter_mm=tube_outer_diameter_mm, glass_index=glass_index,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_,
-                            allow_truncated=allow_truncated, calibration=cal)
+                            allow_truncated=allow_truncated, calibration=cal, background=light)
     # the figures' worker starts now: it imports matplotlib while the frames stream
     with FigureWorker() if not no_figures else contextlib.nullcontext() as figure_worker:
         with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
