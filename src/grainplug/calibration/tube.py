@@ -52,6 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._filters import gaussian_filter, gaussian_filter1d
 from ..errors import MovieError
 from .tube_model import WallMeasure, measure_walls
 
@@ -288,7 +289,6 @@ def _coarse_tilt(feature: np.ndarray, *, centre: float = 0.0, span: float = MAX_
 
     Searched in ``centre +- span`` on successively finer grids.
     """
-    from scipy import ndimage
     small = _downsample(feature, 80_000)
     h, w = small.shape
     pad = h * np.tan(np.radians(MAX_TILT_DEG + 1))
@@ -296,7 +296,7 @@ def _coarse_tilt(feature: np.ndarray, *, centre: float = 0.0, span: float = MAX_
 
     def energy(deg: float) -> float:
         prof = sheared_profile(small, np.tan(np.radians(deg)), grid)
-        prof = ndimage.gaussian_filter1d(np.nan_to_num(prof, nan=float(np.nanmedian(prof))), 1.0)
+        prof = gaussian_filter1d(np.nan_to_num(prof, nan=float(np.nanmedian(prof))), 1.0)
         prof = prof - np.median(prof)
         return float(np.mean(prof * prof))
 
@@ -376,13 +376,12 @@ def _local_edge(grid: np.ndarray, sm: np.ndarray, approx: int, inward: int) -> f
 
 def _bore_in_profile(grid: np.ndarray, prof: np.ndarray) -> _Bore | None:
     """Edges of the variation plateau in a profile sampled on ``grid``."""
-    from scipy import ndimage
     ok = np.isfinite(prof)
     if ok.sum() < 10:
         return None
     prof = np.interp(grid, grid[ok], prof[ok])
     step = grid[1] - grid[0]
-    sm = ndimage.gaussian_filter1d(prof, 0.5 / step)
+    sm = gaussian_filter1d(prof, 0.5 / step)
     # the background: the lower part of the profile (in a strip cropped close to the tube most of
     # the profile is the bore, so its median would be the plateau)
     low = sm[sm <= np.percentile(sm, 25)]
@@ -420,7 +419,6 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     ``coarse``: orientation, tilt, axis and an approximate width only (no block
     refinement, a 0.25 px profile grid), for the first look at a binned frame.
     """
-    from scipy import ndimage
     # relative variation of the contents: sensor noise removed (the background's
     # variance), divided by the local mean so that any local loss of light (the
     # dark bands of refraction at the walls, vignetting) cancels out
@@ -438,7 +436,7 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
             continue
         m = mean if orient == "vertical" else np.ascontiguousarray(mean.T)
         v = var if orient == "vertical" else np.ascontiguousarray(var.T)
-        g = np.abs(np.gradient(ndimage.gaussian_filter(m, 1.0), axis=1))
+        g = np.abs(np.gradient(gaussian_filter(m, 1.0), axis=1))
         vz = np.clip(v - np.median(v), 0, None)
         gz = np.clip(g - np.median(g), 0, None)
         feat = vz / (np.percentile(vz, 99.9) + 1e-12) + 0.25 * gz / (np.percentile(gz, 99.9) + 1e-12)
@@ -454,7 +452,7 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     pad = h * abs(tan_b) + 2
     grid1 = np.arange(-pad, w + pad, 0.5)
     pf = sheared_profile(feat, tan_b, grid1)
-    pf = ndimage.gaussian_filter1d(np.nan_to_num(pf, nan=float(np.nanmin(pf))), 2.0)
+    pf = gaussian_filter1d(np.nan_to_num(pf, nan=float(np.nanmin(pf))), 2.0)
     x0 = float(grid1[int(np.argmax(pf))])
     # refine the axis from the bore's centre in blocks of rows
     half = max(0.25 * w, 40.0)
@@ -512,7 +510,7 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
         method = "walls"
         contrast = 0.0
         pm = np.interp(fine, fine[np.isfinite(prof_m)], prof_m[np.isfinite(prof_m)])
-        gm = np.abs(np.gradient(ndimage.gaussian_filter1d(pm, 10)))
+        gm = np.abs(np.gradient(gaussian_filter1d(pm, 10)))
         centre = int(np.argmin(np.abs(fine - x0)))
         lpk = int(np.argmax(gm[:centre])) if centre > 2 else 0
         rpk = centre + int(np.argmax(gm[centre:]))

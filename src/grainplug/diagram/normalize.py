@@ -78,11 +78,11 @@ class Normalized:
 
 def _otsu(values: np.ndarray) -> tuple[float, float]:
     """Otsu threshold and its effectiveness (between-class / total variance)."""
-    from skimage import filters as skimage_filters
+    from .._filters import threshold_otsu
     v = values[np.isfinite(values)]
     if v.size < 4 or np.ptp(v) == 0:
         return float(np.median(v)) if v.size else 0.0, 0.0
-    thr = float(skimage_filters.threshold_otsu(v, nbins=512))
+    thr = threshold_otsu(v, nbins=512)
     hi = v > thr
     w1 = hi.mean()
     if w1 in (0.0, 1.0):
@@ -121,7 +121,7 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
         The class levels and ``b(s)`` are fitted on at most this many frames spread
         over the record; the per-frame gains ``a(t)`` are then found for every frame.
     """
-    from scipy import ndimage
+    from .._filters import gaussian_filter1d
     d = np.asarray(values, dtype=np.float32)
     scale = max(float(np.percentile(d[:: max(1, d.shape[0] // 200)], 99)), 1e-9)
     L = np.maximum(d, np.float32(1e-3 * scale))
@@ -145,7 +145,7 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
         bound = 0.4 * abs(mu_hi - mu_lo)
         a = np.clip(a, np.median(a) - bound, np.median(a) + bound)
         b_raw = np.median(E[::2] - a[::2, None], axis=0)
-        b = ndimage.gaussian_filter1d(b_raw, sigma_s, mode="nearest").astype(np.float32)
+        b = gaussian_filter1d(b_raw, sigma_s, mode="nearest").astype(np.float32)
         b -= b.mean()
         if max(float(np.max(np.abs(a - np.median(a) - a_prev))), float(np.max(np.abs(b - b_prev)))) < tol:
             break  # converged: gains steady to 0.01%

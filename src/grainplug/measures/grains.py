@@ -51,7 +51,7 @@ def falling_grains(z: np.ndarray, *, mm_per_sample: float, fps: float, min_speed
     ``max_pairs`` pairs spread over a record longer than ``2 max_pairs`` frames
     (enough for a clear peak; a long record adds time and memory, not information).
     """
-    from scipy import ndimage
+    from .._filters import minimum_filter1d, uniform_filter1d
     n_t, n_s = z.shape
     if n_t < 3 or n_s < 16:
         return GrainMotion(None, 0.0, 0.0)
@@ -67,13 +67,12 @@ def falling_grains(z: np.ndarray, *, mm_per_sample: float, fps: float, min_speed
         rows = np.union1d(first, first + 1)
         zz = z[rows]
         # erosion along the tube by 7 samples (binary_erosion's, border 0, as a running minimum)
-        bubble = ndimage.minimum_filter1d((zz < 0.35).view(np.uint8), 7, axis=1, mode="constant",
-                                          cval=0).view(bool)
+        bubble = minimum_filter1d((zz < 0.35).view(np.uint8), 7, axis=1).view(bool)
         n_bubble += int(bubble.sum())
         n_seen += bubble.size
         x = np.where(bubble, zz, 0.0).astype(np.float32)
         # specks: what stands out of the bubble's own level along the tube
-        x -= np.where(bubble, ndimage.uniform_filter1d(x, 15, axis=1), 0.0)
+        x -= np.where(bubble, uniform_filter1d(x, 15, axis=1), 0.0)
         x = np.where(bubble, x, 0.0)
         spec = np.fft.rfft(x, n_fft, axis=1)
         acc += (np.conj(spec[np.searchsorted(rows, first)]) * spec[np.searchsorted(rows, first + 1)]).sum(axis=0)

@@ -43,13 +43,13 @@ class Lengths:
 
 
 def _mean_ci(values: np.ndarray, scale_rel_sd: float) -> tuple[float, tuple[float, float] | None, float | None]:
-    from scipy import special
+    from .._filters import t_quantile_975
     m = float(np.mean(values))
     if len(values) < 2:
         return m, None, None
     sd = float(np.std(values, ddof=1))
     se = np.hypot(sd / np.sqrt(len(values)), m * scale_rel_sd)
-    tq = float(special.stdtrit(len(values) - 1, 0.975))
+    tq = t_quantile_975(len(values) - 1)
     return m, (m - tq * se, m + tq * se), sd
 
 

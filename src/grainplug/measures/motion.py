@@ -239,7 +239,7 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     Motion or None
         None when fewer than two usable edge observations exist.
     """
-    from scipy import special
+    from .._filters import t_quantile_975
     ok = np.isfinite(top_mm)
     tr = track[ok]
     counts = np.bincount(tr) if tr.size else np.zeros(0, int)
@@ -330,7 +330,7 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     rho = float(np.clip(np.nan_to_num(rho), 0.0, 0.98))
     se_c = se * np.sqrt((1 + rho) / (1 - rho)) / 1000.0
     se_c = float(np.hypot(se_c, abs(celerity) * scale_rel_sd))
-    tq = float(special.stdtrit(max(len(tt) - 2, 1), 0.975))
+    tq = t_quantile_975(max(len(tt) - 2, 1))
     ci = (celerity - tq * se_c, celerity + tq * se_c)
     return Motion(
         celerity_m_s=celerity, celerity_ci95_m_s=ci, regime=regime,

@@ -68,18 +68,17 @@ def close_rows(mask: np.ndarray, length: int) -> np.ndarray:
     border_value=0)`` (tested), computed as a running maximum then minimum over
     8-bit rows, about four times faster.
     """
-    from scipy import ndimage
+    from .._filters import maximum_filter1d, minimum_filter1d
     m = np.ascontiguousarray(mask, dtype=bool).view(np.uint8)
-    grown = ndimage.maximum_filter1d(m, length, axis=1, mode="constant", cval=0,
-                                     origin=-1 if length % 2 == 0 else 0)
-    return ndimage.minimum_filter1d(grown, length, axis=1, mode="constant", cval=0).view(bool)
+    grown = maximum_filter1d(m, length, axis=1, origin=-1 if length % 2 == 0 else 0)
+    return minimum_filter1d(grown, length, axis=1).view(bool)
 
 
 def plug_mask(z: np.ndarray, *, mm_per_sample: float, min_plug_mm: float = 3.0,
               min_gap_mm: float = 0.6) -> np.ndarray:
     """Boolean plug mask of the diagram (frames x positions)."""
-    from scipy import ndimage
-    zs = ndimage.gaussian_filter(np.asarray(z, np.float32), (0.7, 0.7), mode="nearest")
+    from .._filters import gaussian_filter
+    zs = gaussian_filter(np.asarray(z, np.float32), (0.7, 0.7), mode="nearest")
     mask = zs > 0.5
     gap = max(1, int(round(min_gap_mm / mm_per_sample)))
     mask = close_rows(mask, gap + 1) | mask
@@ -107,8 +106,8 @@ def _crossings(zs: np.ndarray, rows: np.ndarray, i_out: np.ndarray, i_in: np.nda
 
 def find_runs(z: np.ndarray, mask: np.ndarray, position_mm: np.ndarray) -> Runs:
     """Runs of the mask with sub-pixel edges measured on ``z``."""
-    from scipy import ndimage
-    zs = ndimage.gaussian_filter1d(np.asarray(z, np.float32), 0.7, axis=1, mode="nearest")
+    from .._filters import gaussian_filter1d
+    zs = gaussian_filter1d(np.asarray(z, np.float32), 0.7, axis=1, mode="nearest")
     n_s = z.shape[1]
     ds = float(position_mm[1] - position_mm[0]) if n_s > 1 else 1.0
     s0 = float(position_mm[0])
