@@ -6,6 +6,16 @@ truth, the measurement and the error of celerity, plug length, frequency and
 regime, with the targets of the analyze issue.
 
     .venv/bin/python benchmarks/accuracy.py [--seeds 3] [--cases name,...] [--json FILE]
+
+With ``--optics``, instead: the scale from the tube (issue 16) on movies rendered by the
+independent optical renderer ``tests/tube_optics.py`` (rays traced through the glass with
+Fresnel reflections; back-lit 15-70 deg and front-lit; 15 px to 90 % of the frame; tilts,
+offsets, vignetting, flicker, 12-bit, H.264 crf 28, MJPEG; other glass and walls), each with
+the outer diameter unknown and given. A case passes when the bore is within 2 %, the celerity
+within 3 % and the plug length within 5 % of the truth, or when a warning says the scale is
+doubtful; "SILENT" marks a case off by more without a warning (the issue's "never").
+
+    .venv/bin/python benchmarks/accuracy.py --optics [--markdown]
 """
 
 from __future__ import annotations
@@ -39,7 +49,11 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--cases", default="")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--optics", action="store_true", help="the tube-model matrix on the optical renderer")
+    ap.add_argument("--markdown", action="store_true", help="with --optics: also print a Markdown table")
     args = ap.parse_args()
+    if args.optics:
+        return optics(markdown=args.markdown, names=set(filter(None, args.cases.split(","))))
     names = set(filter(None, args.cases.split(",")))
     rows = []
     failures = 0
@@ -99,6 +113,50 @@ def main() -> int:
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
     return 1 if failures else 0
+
+
+SCALE_WORDS = ("the scale", "the tube's bore", "the tube model", "the tube is only", "the tube fills")
+
+
+def optics(*, markdown: bool, names: set[str]) -> int:
+    """The tube model's accuracy on the optical renderer's matrix (see the module's docstring)."""
+    import numpy as np
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from tube_optics import CASES as OPTICS
+    from tube_optics import SUFFIX, render_movie
+
+    rows, silent = [], 0
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, kw in OPTICS.items():
+            if names and name not in names:
+                continue
+            fmt = str(kw.get("fmt", "tif"))
+            path = Path(tmp) / f"m{SUFFIX[fmt]}"
+            truth = render_movie(path, rng=np.random.default_rng(1), **kw)
+            for od in (None, float(kw.get("outer_diameter_mm", 5.5))):
+                res = analyze(path, AnalysisParams(fps=truth.fps, tube_outer_diameter_mm=od))
+                bore = res.bore.diameter_px / truth.bore_px - 1
+                c = rel(res.celerity_m_s, truth.celerity_m_s)
+                ln = rel(res.plug_length_mm, truth.plug_length_mm)
+                warned = any(any(w.startswith(k) or k in w for k in SCALE_WORDS) for w in res.warnings)
+                good = abs(bore) <= 0.02 and c is not None and abs(c) <= 0.03 and ln is not None and abs(ln) <= 0.05
+                verdict = "ok" if good else ("flagged" if warned else "SILENT")
+                silent += verdict == "SILENT"
+                rows.append((name, "given" if od else "unknown", bore, c, ln, res.bore.method, warned, verdict,
+                             truth.visible_fraction))
+                print(f"{name:32s} OD {rows[-1][1]:7s} bore {100 * bore:+6.2f} % ({res.bore.method:14s}) "
+                      f"celerity {100 * (c or float('nan')):+6.2f} % length {100 * (ln or float('nan')):+6.2f} % "
+                      f"warned {'yes' if warned else 'no ':3s} {verdict}", flush=True)
+    if markdown:
+        print("\n| case | outer diameter | bore | celerity | plug length | from | warning | verdict |")
+        print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+        for name, od, bore, c, ln, method, warned, verdict, _ in rows:
+            print(f"| {name} | {od} | {100 * bore:+.1f} % | {100 * (c or float('nan')):+.1f} % | "
+                  f"{100 * (ln or float('nan')):+.1f} % | {method} | {'yes' if warned else 'no'} | {verdict} |")
+    print(f"\n{sum(r[7] == 'ok' for r in rows)} within the targets, {sum(r[7] == 'flagged' for r in rows)} "
+          f"outside them with a warning, {silent} outside them silently (of {len(rows)})")
+    return 1 if silent else 0
 
 
 if __name__ == "__main__":

@@ -489,7 +489,14 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     lighting = "transmitted"
     if bore is not None:
         inside = np.abs(fine - 0.5 * (bore.left + bore.right)) < 0.3 * (bore.right - bore.left)
-        if np.nanmedian(prof_m[inside]) > np.nanmedian(prof_m[~inside]):
+        # the background: beyond the walls (1.8 contents widths from the axis clears a 7 mm tube of
+        # 3 mm bore against a 15 deg lamp) where the frame reaches that far, else what surrounds the bore
+        width = bore.right - bore.left
+        wide = np.arange(max(-pad, x0 - 3 * width - 6), min(w + pad, x0 + 3 * width + 6), 0.5)
+        prof_wide = sheared_profile(m, tan_b, wide)
+        far = (np.abs(wide - 0.5 * (bore.left + bore.right)) > 1.8 * width) & np.isfinite(prof_wide)
+        surround = prof_wide[far] if far.sum() >= 8 else prof_m[~inside]
+        if np.nanmedian(prof_m[inside]) > np.nanmedian(surround):
             # dark field: the bore is brighter than the background, light is scattered and
             # glare adds rather than multiplies, so the excess variation itself is measured
             lighting = "scattered"
