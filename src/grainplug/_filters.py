@@ -50,32 +50,52 @@ def _float(a: np.ndarray) -> np.ndarray:
 
 def gaussian_filter1d(a: np.ndarray, sigma: float, *, axis: int = -1, mode: str = "reflect") -> np.ndarray:
     """``scipy.ndimage.gaussian_filter1d(a, sigma, axis=axis, mode=mode)`` (truncate 4)."""
-    import cv2
-
     a = _float(a)
     if sigma <= 0:
         return a.copy()
-    k = _gauss_kernel(sigma)
-    out_dtype = a.dtype
-    # float32 data are summed in float32 (scipy sums in double: 1e-7 apart), which keeps the
-    # diagram's temporaries at their size
-    m, transposed, shape = _as_2d(a, axis)
-    if len(k) > 2 * m.shape[1] and mode == "reflect":  # kernel longer than the data: OpenCV pads once only
-        from numpy.lib.stride_tricks import sliding_window_view
-
-        r = len(k) // 2
-        padded = np.pad(m, ((0, 0), (r, r)), mode="symmetric")
-        out = (sliding_window_view(padded, len(k), axis=1) * k).sum(axis=-1)
-        return _back(out, transposed, shape).astype(out_dtype, copy=False)
-    out = cv2.sepFilter2D(m, -1, k.astype(m.dtype), np.ones(1, m.dtype), borderType=_BORDERS[mode])
-    return _back(out, transposed, shape).astype(out_dtype, copy=False)
+    if a.ndim == 2 and axis in (0, -2):
+        return _separable(a, (_gauss_kernel(sigma), None), mode)
+    return _separable(a.reshape(1, -1) if a.ndim == 1 else a, (None, _gauss_kernel(sigma)), mode).reshape(a.shape)
 
 
 def gaussian_filter(a: np.ndarray, sigma: float | tuple[float, float], *, mode: str = "reflect") -> np.ndarray:
     """``scipy.ndimage.gaussian_filter(a, sigma, mode=mode)`` of a 2-D array (truncate 4)."""
     sy, sx = (sigma, sigma) if np.isscalar(sigma) else sigma
-    out = gaussian_filter1d(a, float(sx), axis=1, mode=mode)
-    return gaussian_filter1d(out, float(sy), axis=0, mode=mode)
+    a = _float(a)
+    return _separable(a, (_gauss_kernel(float(sy)) if sy > 0 else None, _gauss_kernel(float(sx)) if sx > 0 else None),
+                      mode)
+
+
+def _separable(a: np.ndarray, kernels: tuple[np.ndarray | None, np.ndarray | None], mode: str) -> np.ndarray:
+    """``a`` (2-D, float) filtered by ``kernels`` = (along axis 0, along axis 1) in one OpenCV pass.
+
+    float32 data are summed in float32 (scipy sums in double: 1e-7 apart), which keeps the
+    diagram's temporaries at their size. Where a kernel is longer than twice the data, OpenCV
+    would pad only once: those axes are done with numpy instead.
+    """
+    import cv2
+
+    ky, kx = kernels
+    out = np.ascontiguousarray(a)
+    for axis, k in ((0, ky), (1, kx)):
+        if k is not None and mode == "reflect" and len(k) > 2 * out.shape[axis]:
+            from numpy.lib.stride_tricks import sliding_window_view
+
+            r = len(k) // 2
+            pad = [(0, 0), (0, 0)]
+            pad[axis] = (r, r)
+            padded = np.pad(out, pad, mode="symmetric")
+            out = np.ascontiguousarray((sliding_window_view(padded, len(k), axis=axis) * k).sum(axis=-1),
+                                       dtype=a.dtype)
+            if axis == 0:
+                ky = None
+            else:
+                kx = None
+    if ky is None and kx is None:
+        return out
+    one = np.ones(1, out.dtype)
+    return cv2.sepFilter2D(out, -1, (kx if kx is not None else one).astype(out.dtype),
+                           (ky if ky is not None else one).astype(out.dtype), borderType=_BORDERS[mode])
 
 
 def _running(a: np.ndarray, size: int, *, axis: int, origin: int, op: str) -> np.ndarray:
