@@ -2,56 +2,213 @@
 
 Every file grainplug writes goes through :func:`atomic_directory` (a set of files
 that belong together: an analysis, a campaign, the paper's reproduction) or
-:func:`atomic_file` (one file). Files are written under temporary names in the
-destination folder, on the same file system, and renamed into place only when all
-of them are complete, so an interrupted run (Ctrl-C, a full disk, a crash) leaves
-the previous results intact and no half-written file behind.
+:func:`atomic_file` (one file).
+
+An analysis's folder is **replaced whole** (``replace=True``): the new set is built in
+a temporary sibling folder, flushed to the disk, then swapped in by renames, so
+a reader sees the previous complete result or the new complete result, never a
+mix, and files of a previous run that this one does not write (a stale
+``spectrum.png``) go with the old folder. A campaign's folder, which also holds
+its runs, gets its own files replaced one by one (``replace=False``). A run
+killed half-way leaves a temporary folder whose name carries its process id: the
+next run into the same place removes it, and puts the previous result back if the
+kill fell between the two renames.
+
+Places that cannot be right are refused with one line before anything is
+written: a file, a path under a file, a symbolic-link loop, the input movie or
+a folder that holds it, an empty path, or a folder of someone else's files.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-__all__ = ["atomic_directory", "atomic_file"]
+from .errors import GrainplugError
+
+__all__ = ["OutputPlaceError", "atomic_directory", "atomic_file", "check_output_place"]
+
+#: a folder holding this file was written by grainplug (an analysis or a campaign)
+MARKER = ".grainplug"
+#: files that make a folder recognisably grainplug's even without the marker (older versions)
+OWN_FILES = ("summary.json", "campaign.csv", "paper_reproduction.json")
+
+
+class OutputPlaceError(GrainplugError):
+    """The output place cannot be written, or writing there would destroy something."""
+
+
+def _describe(exc: OSError, place: Path) -> str:
+    reasons = {errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota is exceeded",
+               errno.EROFS: "the file system is read-only", errno.EACCES: "permission denied",
+               errno.EPERM: "permission denied", errno.ENAMETOOLONG: "the name is too long"}
+    why = reasons.get(exc.errno or 0, exc.strerror or str(exc))
+    return f"cannot write {place}: {why} — choose another --out (the previous result, if any, is intact)"
+
+
+def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), replace: bool = True) -> Path:
+    """The output folder, checked; raises :class:`OutputPlaceError` with the fix when it cannot be used.
+
+    Parameters
+    ----------
+    out : path
+        The folder to write.
+    inputs : paths
+        Files the run reads: the folder must neither be one of them nor hold one.
+    replace : bool
+        Whether the folder will be replaced whole (then it must be new, empty or grainplug's).
+    """
+    if str(out).strip() == "" or (replace and str(out).strip() == "."):
+        what = "empty" if str(out).strip() == "" else "the current folder (it would be replaced whole)"
+        raise OutputPlaceError(f"the output folder is {what} — give a folder of its own, e.g. --out results/run1")
+    p = Path(out).expanduser()
+    try:
+        resolved = p.resolve(strict=False)
+    except (RuntimeError, OSError) as exc:  # a symbolic-link loop
+        raise OutputPlaceError(f"{p} is a loop of symbolic links ({exc}) — give another --out") from None
+    if p.is_symlink() and not p.exists():
+        raise OutputPlaceError(f"{p} is a symbolic link to nothing (or a loop of links) — give another --out")
+    for src in inputs:
+        s = Path(src).expanduser().resolve(strict=False)
+        if s == resolved:
+            raise OutputPlaceError(f"{p} is the input itself — give another --out, the movie would be lost")
+        if replace and resolved in s.parents:
+            raise OutputPlaceError(f"{p} holds the input {s.name}: replacing it would delete the movie — "
+                                   "give another --out")
+    for parent in [resolved, *resolved.parents]:
+        if parent.exists() and not parent.is_dir():
+            what = "is a file" if parent == resolved else f"is under {parent}, which is a file"
+            raise OutputPlaceError(f"{p} {what} — --out must name a folder")
+        if parent.exists():
+            break
+    if replace and resolved.is_dir():
+        entries = [e for e in resolved.iterdir() if not e.name.startswith(f".{resolved.name}.grainplug-")]
+        ours = (resolved / MARKER).exists() or any((resolved / f).exists() for f in OWN_FILES)
+        if entries and not ours:
+            raise OutputPlaceError(f"{p} holds files grainplug did not write ({entries[0].name}, ...) — give a new "
+                                   "or empty folder (grainplug replaces its output folder whole)")
+    return p
+
+
+def _fsync_tree(folder: Path) -> None:
+    for f in folder.rglob("*"):
+        if f.is_file():
+            with open(f, "rb") as fh:
+                os.fsync(fh.fileno())
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _recover(out: Path) -> None:
+    """Clean what a killed run left beside ``out``; put back a previous result caught mid-swap."""
+    parent, name = out.parent, out.name
+    if not parent.is_dir():
+        return
+    for leftover in sorted(parent.glob(f".{name}.grainplug-*")):
+        parts = leftover.name.rsplit("-", 2)
+        try:
+            pid = int(parts[-2])
+        except (ValueError, IndexError):
+            continue
+        if _alive(pid) and pid != os.getpid():
+            continue  # another run is writing here now
+        if leftover.name.startswith(f".{name}.grainplug-old-") and not out.exists():
+            os.replace(leftover, out)  # killed between the two renames: the previous result goes back
+        else:
+            shutil.rmtree(leftover, ignore_errors=True)
 
 
 @contextlib.contextmanager
-def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None) -> Iterator[Path]:
+def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None, *, replace: bool = False,
+                     inputs: Iterable[str | Path] = ()) -> Iterator[Path]:
     """Write files into a temporary folder, then move them all into ``out_dir``.
 
     Parameters
     ----------
     out_dir : str or Path
-        Destination folder, created if needed. Files already there that the block
-        does not write are left as they are.
+        Destination folder, created if needed.
     written : dict, optional
         Filled with ``{file name: final path}`` once the files are in place.
+    replace : bool
+        Replace the whole folder (an analysis's): files of a previous run that this
+        block does not write are removed with the old folder. Otherwise (a campaign's
+        folder, which holds its runs) only the files written are replaced.
+    inputs : paths
+        Files the run reads (refused as output places, see :func:`check_output_place`).
 
     Yields
     ------
     Path
-        The temporary folder to write into (inside ``out_dir``).
+        The temporary folder to write into.
 
-    Notes
-    -----
-    Each file is moved with :func:`os.replace`, atomic on POSIX and Windows. If
-    the block raises, nothing is moved and the temporary folder is removed.
+    Raises
+    ------
+    OutputPlaceError
+        When the place cannot be used or written (full disk, read-only): nothing
+        of the previous result is changed.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".grainplug-", dir=out))
+    out = check_output_place(out_dir, inputs=inputs, replace=replace)
     try:
-        yield tmp
-        for f in sorted(tmp.iterdir()):
-            dest = out / f.name
-            os.replace(f, dest)
-            if written is not None:
-                written[f.name] = dest
+        out.parent.mkdir(parents=True, exist_ok=True)
+        _recover(out)
+        if replace:
+            tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.grainplug-new-{os.getpid()}-", dir=out.parent))
+        else:
+            out.mkdir(parents=True, exist_ok=True)
+            tmp = Path(tempfile.mkdtemp(prefix=".grainplug-", dir=out))
+    except OSError as exc:
+        raise OutputPlaceError(_describe(exc, out)) from None
+    try:
+        try:
+            yield tmp
+        except OSError as exc:
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM):
+                raise OutputPlaceError(_describe(exc, out)) from None
+            raise
+        try:
+            if replace:
+                (tmp / MARKER).write_text("grainplug output folder: replaced whole by each run\n")
+                _fsync_tree(tmp)
+                old = None
+                if out.exists():
+                    old = Path(tempfile.mkdtemp(prefix=f".{out.name}.grainplug-old-{os.getpid()}-", dir=out.parent))
+                    old.rmdir()
+                    os.replace(out, old)
+                os.replace(tmp, out)
+                if old is not None:
+                    shutil.rmtree(old, ignore_errors=True)
+                if written is not None:
+                    for f in sorted(out.iterdir()):
+                        if f.name != MARKER:
+                            written[f.name] = f
+            else:
+                for f in sorted(tmp.iterdir()):
+                    dest = out / f.name
+                    os.replace(f, dest)
+                    if written is not None:
+                        written[f.name] = dest
+                (out / MARKER).touch()
+        except OSError as exc:
+            raise OutputPlaceError(_describe(exc, out)) from None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -64,12 +221,24 @@ def atomic_file(path: str | Path) -> Iterator[Path]:
     name (matplotlib, tifffile) still do.
     """
     dest = Path(path)
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{dest.stem}-", suffix=dest.suffix, dir=dest.parent)
+    if str(path).strip() == "":
+        raise OutputPlaceError("the output file name is empty — give a file name")
+    if dest.is_dir():
+        raise OutputPlaceError(f"{dest} is a folder — give a file name")
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        fd, name = tempfile.mkstemp(prefix=f".{dest.stem}-", suffix=dest.suffix, dir=dest.parent)
+    except OSError as exc:
+        raise OutputPlaceError(_describe(exc, dest)) from None
     os.close(fd)
     tmp = Path(name)
     try:
-        yield tmp
-        os.replace(tmp, dest)
+        try:
+            yield tmp
+            os.replace(tmp, dest)
+        except OSError as exc:
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.ENOTDIR):
+                raise OutputPlaceError(_describe(exc, dest)) from None
+            raise
     finally:
         tmp.unlink(missing_ok=True)

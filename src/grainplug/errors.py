@@ -13,6 +13,15 @@ from __future__ import annotations
 class GrainplugError(Exception):
     """An error caused by the input or the parameters, with a one-line message."""
 
+    #: the command line's exit status for it
+    exit_code = 2
+
+
+class PartialCampaignError(GrainplugError):
+    """Some runs of a campaign failed; the others were analysed and written."""
+
+    exit_code = 3
+
 
 class MovieError(GrainplugError):
     """A movie cannot be opened or decoded."""

@@ -107,7 +107,8 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
     """
     t_write = time.perf_counter()
     written: dict[str, Path] = {}
-    with atomic_directory(out_dir, written) as tmp:
+    source = res.input.get("path") if isinstance(res.input, dict) else None
+    with atomic_directory(out_dir, written, replace=True, inputs=[source] if source else ()) as tmp:
         summary = res.summary
         summary.update(extra or {})
         drawn = figures_of(res) if figures else []

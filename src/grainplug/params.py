@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -104,9 +105,14 @@ class AnalysisParams:
             if not ok:
                 raise ParameterError(message, param=param)
 
-        check(self.fps is None or self.fps > 0, "fps", f"must be positive, got {self.fps}")
-        check(self.mm_per_px is None or self.mm_per_px > 0, "mm_per_px", f"must be positive, got {self.mm_per_px}")
-        check(self.tube_diameter_mm > 0, "tube_diameter_mm", f"must be positive, got {self.tube_diameter_mm}")
+        def within(value: float | None, lo: float, hi: float) -> bool:
+            return value is None or (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi)
+
+        check(within(self.fps, 1, 1e7), "fps", f"must be between 1 and 1e7 frames per second, got {self.fps}")
+        check(within(self.mm_per_px, 1e-5, 100), "mm_per_px",
+              f"must be between 1e-5 and 100 mm per pixel, got {self.mm_per_px}")
+        check(within(self.tube_diameter_mm, 0.05, 1000), "tube_diameter_mm",
+              f"must be between 0.05 and 1000 mm, got {self.tube_diameter_mm}")
         check(self.tube_outer_diameter_mm is None or (
             math.isfinite(self.tube_outer_diameter_mm) and self.tube_outer_diameter_mm > self.tube_diameter_mm * 1.05),
             "tube_outer_diameter_mm",
@@ -116,9 +122,11 @@ class AnalysisParams:
               f"must be a glass's refractive index, between 1.3 and 2.0, got {self.glass_index}")
         check(self.flow_direction is None or self.flow_direction in FLOW_DIRECTIONS, "flow_direction",
               f"must be one of {', '.join(FLOW_DIRECTIONS)}, got {self.flow_direction!r}")
-        check(self.min_plug_mm > 0, "min_plug_mm", f"must be positive, got {self.min_plug_mm}")
-        check(self.min_gap_mm >= 0, "min_gap_mm", f"must be non-negative, got {self.min_gap_mm}")
-        check(self.sample_frames >= 4, "sample_frames", f"must be at least 4, got {self.sample_frames}")
+        check(within(self.min_plug_mm, 0.01, 1e4), "min_plug_mm",
+              f"must be between 0.01 and 1e4 mm, got {self.min_plug_mm}")
+        check(within(self.min_gap_mm, 0, 1e4), "min_gap_mm", f"must be between 0 and 1e4 mm, got {self.min_gap_mm}")
+        check(isinstance(self.sample_frames, numbers.Integral) and 4 <= self.sample_frames <= 10_000, "sample_frames",
+              f"must be a whole number between 4 and 10000, got {self.sample_frames}")
         check(self.calibration is None or self.mm_per_px is None, "calibration",
               "give either a calibration or mm_per_px (the scale), not both")
 

@@ -516,6 +516,8 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     else:
         method = "walls"
         contrast = 0.0
+        if np.isfinite(prof_m).sum() < 4:
+            raise MovieError("no tube found: nothing in the frames looks like a tube — is the tube in view and lit?")
         pm = np.interp(fine, fine[np.isfinite(prof_m)], prof_m[np.isfinite(prof_m)])
         gm = np.abs(np.gradient(gaussian_filter1d(pm, 10)))
         centre = int(np.argmin(np.abs(fine - x0)))
@@ -568,6 +570,13 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
     if not frames:
         raise MovieError("no frames to find the tube in")
     h, w = frames[0].shape[:2]
+    if min(h, w) < 8:
+        raise MovieError(f"the frames are {w} x {h} px: too small to hold a tube (at least 8 px each way)")
+    lo = min(float(np.min(f)) for f in frames)
+    hi = max(float(np.max(f)) for f in frames)
+    if not hi > lo:
+        raise MovieError(f"every sampled frame is uniform (all pixels {lo:g}): no tube to see — check the lamp, "
+                         "the exposure and the lens cap")
     b = 1
     while max(h, w) // b > 700:
         b *= 2

@@ -32,7 +32,7 @@ from ..jsonio import dumps
 from ..outputs import write_outputs
 from ..pipeline import analyze, fingerprint
 from .fits import fit_line, summarize_lengths
-from .manifest import RunSpec, read_manifest
+from .manifest import RunSpec, read_manifest, run_folder_name
 
 log = logging.getLogger(__name__)
 
@@ -53,10 +53,6 @@ def run_key(spec: RunSpec) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def _safe_name(run: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in run) or "run"
-
-
 def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True,
                 threads: int | None = None) -> dict[str, object]:
     """Analyse one run into ``out_dir/runs/<run>`` (or reuse it); a record for the table.
@@ -64,7 +60,7 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True,
     ``threads``: reading threads of the analysis (see :func:`grainplug.analyze`);
     1 where runs already go in parallel.
     """
-    run_dir = Path(out_dir) / "runs" / _safe_name(spec.run)
+    run_dir = Path(out_dir) / "runs" / run_folder_name(spec.run)
     record: dict[str, object] = {"run": spec.run, "movie": str(spec.movie), **spec.meta}
     try:
         key = run_key(spec)
@@ -161,9 +157,14 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     progress : callable, optional
         ``progress(done, total, run)`` after each run.
     """
+    from .._atomic import OutputPlaceError, check_output_place
+
     specs = read_manifest(manifest)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_output_place(out_dir, inputs=[manifest, *(s.movie for s in specs)], replace=False)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputPlaceError(f"cannot create {out}: {exc.strerror or exc} — choose another --out") from None
     if workers < 1:
         raise GrainplugError("--workers must be at least 1")
     records: dict[str, dict] = {}

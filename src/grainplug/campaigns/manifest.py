@@ -55,6 +55,11 @@ class RunSpec:
     meta: dict[str, object] = field(default_factory=dict)
 
 
+def run_folder_name(run: str) -> str:
+    """The folder of a run under ``runs/``: its name with anything but letters, digits, '-', '_', '.' as '_'."""
+    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in run) or "run"
+
+
 def _convert(key: str, value: object, kinds: dict[str, type], where: str) -> object:
     if value is None or (isinstance(value, str) and value.strip() == ""):
         return None
@@ -62,16 +67,24 @@ def _convert(key: str, value: object, kinds: dict[str, type], where: str) -> obj
     try:
         return kind(value)
     except (TypeError, ValueError):
-        raise ParameterError(f"{where}: {key} = {value!r} is not a {kind.__name__}") from None
+        raise ParameterError(f"{where}, column {key}: {value!r} is not a {kind.__name__}") from None
 
 
 def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec:
     if not row.get("movie"):
         raise ParameterError(f"{where}: no movie given — every run needs a 'movie' path")
-    run = str(row.get("run") or index)
+    if None in row:
+        raise ParameterError(f"{where}: more values than the header has columns — quote values that hold commas")
+    run = str(row.get("run") or index).strip()
+    if run in (".", "..") or any(sep in run for sep in ("/", "\\")) or not run:
+        raise ParameterError(f"{where}, column run: {run!r} cannot name a run's folder — use letters, digits, "
+                             "'-', '_' or '.' (no '/', not '.' or '..')")
     movie = Path(str(row["movie"])).expanduser()
     if not movie.is_absolute():
         movie = base / movie
+    if movie.exists() and not (movie.is_file() or movie.is_dir()):
+        raise ParameterError(f"{where}, column movie: {movie} is not a regular file (a pipe or a device) — "
+                             "give a movie file or an image folder")
     kw = {k: _convert(k, row.get(k), ANALYSIS_KEYS, where) for k in ANALYSIS_KEYS if k in row}
     kw = {k: v for k, v in kw.items() if v is not None}
     if row.get("calibration"):
@@ -81,7 +94,8 @@ def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec
     try:
         params = AnalysisParams(**kw)
     except ParameterError as exc:
-        raise ParameterError(f"{where}: {exc}") from None
+        column = f", column {exc.param}" if exc.param else ""
+        raise ParameterError(f"{where}{column}: {exc.message}") from None
     meta: dict[str, object] = {}
     for k, v in row.items():
         if k in ANALYSIS_KEYS or k in ("run", "movie", "calibration", "background"):
@@ -123,30 +137,54 @@ def read_manifest(path: str | Path) -> list[RunSpec]:
     p = Path(path)
     if not p.exists():
         raise ParameterError(f"no such manifest: {p} — check the path")
+    if p.is_dir():
+        raise ParameterError(f"{p} is a folder — give the manifest file (CSV or TOML)")
+    if not p.is_file():
+        raise ParameterError(f"{p} is not a regular file (a pipe or a device) — give the manifest file")
+    raw = p.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise ParameterError(f"{p}, line {line}: not UTF-8 text (byte 0x{raw[exc.start]:02x}) — save the manifest "
+                             "as UTF-8") from None
     base = p.parent
     specs: list[RunSpec] = []
     if p.suffix.lower() == ".toml":
         try:
-            data = tomllib.loads(p.read_text())
+            data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise ParameterError(f"{p} is not valid TOML ({exc})") from None
         defaults = data.get("defaults", {})
+        if not isinstance(defaults, dict):
+            raise ParameterError(f"{p}: 'defaults' must be a table ([defaults] with key = value lines)")
         rows = data.get("run", [])
-        if not isinstance(rows, list):
+        if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
             raise ParameterError(f"{p}: runs must be given as [[run]] tables")
         for i, row in enumerate(rows, 1):
             specs.append(_spec({**defaults, **row}, i, base, f"{p.name}, run {i}"))
     else:
-        with open(p, newline="") as fh:
-            reader = csv.DictReader(fh)
+        import io
+
+        reader = csv.DictReader(io.StringIO(text, newline=""), strict=True)
+        try:
             if not reader.fieldnames or "movie" not in reader.fieldnames:
                 raise ParameterError(f"{p}: the header has no 'movie' column — see `grainplug batch --help`")
-            for i, row in enumerate(reader, 1):
-                specs.append(_spec(dict(row), i, base, f"{p.name}, row {i}"))
+            for row in reader:
+                specs.append(_spec(dict(row), len(specs) + 1, base, f"{p.name}, line {reader.line_num}"))
+        except csv.Error as exc:
+            raise ParameterError(f"{p}, line {reader.line_num}: not valid CSV ({exc}) — check the quotes") from None
     if not specs:
         raise ParameterError(f"{p} lists no runs")
     names = [s.run for s in specs]
     dup = {n for n in names if names.count(n) > 1}
     if dup:
         raise ParameterError(f"{p}: run names repeat ({', '.join(sorted(dup))}) — give each run its own name")
+    folders: dict[str, str] = {}
+    for n in names:  # two names that make one folder name would overwrite each other
+        key = run_folder_name(n).lower()
+        if key in folders:
+            raise ParameterError(f"{p}: runs {folders[key]!r} and {n!r} would share the folder runs/{key} — "
+                                 "rename one")
+        folders[key] = n
     return specs

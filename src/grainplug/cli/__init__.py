@@ -1,13 +1,17 @@
 """The ``grainplug`` command line: a thin layer over the library.
 
 Errors the user can fix print one line (``error: ...``) and exit with status 2;
-``--debug`` shows the traceback instead.
+``--debug`` shows the traceback instead. Exit statuses: 0 done, 1 an internal error
+(a bug: please report it), 2 bad input or a place that cannot be written, 3 a
+campaign with failed runs, 130 interrupted. Without ``--verbose`` or ``--debug``,
+library log lines and numpy's warnings are not shown.
 """
 
 from __future__ import annotations
 
 import logging
 import sys
+import warnings
 
 log = logging.getLogger("grainplug")
 
@@ -24,8 +28,12 @@ def _main(args: list[str]) -> int:
     from .app import cli
 
     debug = "--debug" in args
+    quiet = not ({"--debug", "--verbose", "-v"} & set(args))
     try:
-        cli.main(args=args, prog_name="grainplug", standalone_mode=False)
+        with warnings.catch_warnings():
+            if quiet:  # numpy's and libraries' warnings are not the user's business; --verbose shows them
+                warnings.simplefilter("ignore")
+            cli.main(args=args, prog_name="grainplug", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return int(exc.exit_code or 0)
     except click.exceptions.Abort:
@@ -49,7 +57,7 @@ def _main(args: list[str]) -> int:
         if debug:
             raise
         click.echo(f"error: {exc}", err=True)
-        return 2
+        return exc.exit_code
     except KeyboardInterrupt:
         click.echo("error: interrupted", err=True)
         return 130

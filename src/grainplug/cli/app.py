@@ -10,8 +10,9 @@ import click
 from rich.console import Console
 
 from .._version import __version__
-from ..errors import GrainplugError, ParameterError
+from ..errors import ParameterError
 from ..params import FLOW_DIRECTIONS
+from .types import FINITE, Number
 
 err_console = Console(stderr=True)
 
@@ -43,7 +44,9 @@ def cli(debug: bool, verbose: bool) -> None:
     Positions are in mm along the tube from the top of the field of view,
     increasing with the flow; celerities in m/s, positive downstream.
     """
-    level = logging.DEBUG if debug else logging.INFO if verbose else logging.WARNING
+    # without --verbose or --debug, libraries' log lines stay quiet: what matters reaches the user
+    # as grainplug's own one-line warnings and errors
+    level = logging.DEBUG if debug else logging.INFO if verbose else logging.ERROR
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
 
 
@@ -57,7 +60,8 @@ def _echo_json(data: object) -> None:
 @cli.command()
 @click.argument("movie", type=click.Path(path_type=Path))
 @click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
-@click.option("--fps", type=float, default=None, help="Frame rate to use instead of the file's.")
+@click.option("--fps", type=Number(1, 1e7, unit="frames per second"), default=None,
+              help="Frame rate to use instead of the file's.")
 @click.option("--allow-truncated", is_flag=True,
               help="For camera files that end early: describe the complete frames instead of refusing.")
 @click.option("--json", "as_json", is_flag=True, help="Print the description as JSON.")
@@ -104,7 +108,7 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
 # ---------------------------------------------------------------------------
 @cli.command()
 @click.argument("image", type=click.Path(path_type=Path))
-@click.option("--pitch-mm", type=float, required=True,
+@click.option("--pitch-mm", type=Number(1e-3, 1e4, unit="mm"), required=True,
               help="Distance between neighbouring checkerboard corners (a square's side) or dot centres, in mm.")
 @click.option("--pattern", type=click.Choice(["auto", "checkerboard", "dots", "graph", "ruler"]), default="auto",
               show_default=True, help="The pattern in the image (graph: graph paper; ruler: a ruler's ticks).")
@@ -152,20 +156,22 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.argument("movie", type=click.Path(path_type=Path))
 @click.option("--out", "out", type=click.Path(path_type=Path), required=True,
               help="Folder for summary.json, CSV tables, diagram, figures and report.")
-@click.option("--fps", type=float, default=None, help="Frame rate (overrides the file; needed for image folders).")
-@click.option("--mm-per-px", type=float, default=None, help="Scale; by default measured from the tube's inner width.")
-@click.option("--tube-diameter-mm", type=float, default=None,
+@click.option("--fps", type=Number(1, 1e7, unit="frames per second"), default=None,
+              help="Frame rate (overrides the file; needed for image folders).")
+@click.option("--mm-per-px", type=Number(1e-5, 100, unit="mm per pixel"), default=None,
+              help="Scale; by default measured from the tube.")
+@click.option("--tube-diameter-mm", type=Number(0.05, 1000, unit="mm"), default=None,
               help="Inner diameter of the tube, for the scale measured from the tube [default: 3].")
-@click.option("--tube-outer-diameter-mm", type=float, default=None,
+@click.option("--tube-outer-diameter-mm", type=Number(0.05, 2000, unit="mm"), default=None,
               help="Outer diameter of the tube: the scale then comes from its outer silhouette (any lighting).")
-@click.option("--glass-index", type=float, default=1.47, show_default=True,
+@click.option("--glass-index", type=Number(1.3, 2.0), default=1.47, show_default=True,
               help="Refractive index of the tube's glass (1.47 borosilicate, 1.52 soda-lime), for the tube model.")
 @click.option("--flow-direction", type=click.Choice(FLOW_DIRECTIONS), default=None,
               help="Direction of the grain flow in the image [default: down for a vertical tube].")
-@click.option("--min-plug-mm", type=float, default=3.0, show_default=True,
+@click.option("--min-plug-mm", type=Number(0.01, 1e4, unit="mm"), default=3.0, show_default=True,
               help="Shortest grain region counted as a plug.")
 @click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
-@click.option("--threads", type=int, default=None,
+@click.option("--threads", type=Number(1, 1024, integer=True), default=None,
               help="Threads reading uncompressed frames (TIFF stacks, raw video) [default: one per core].")
 @click.option("--calibration", "calibration", type=click.Path(path_type=Path), default=None,
               help="calibration.json from `grainplug calibrate`: the scale, instead of the tube's width.")
@@ -184,10 +190,12 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
+    from .._atomic import check_output_place
     from ..params import AnalysisParams
     from ..pipeline import analyze as run_analysis
     from ..plotting.worker import FigureWorker
 
+    check_output_place(out, inputs=[movie], replace=True)  # before the analysis, not after it
     if mm_per_px is not None and tube_diameter_mm is not None:
         raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
                              "not both")
@@ -247,23 +255,23 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
 
 # ---------------------------------------------------------------------------
 @cli.command()
-@click.option("--diameter-mm", type=float, default=3.0, show_default=True, help="Pipe inner diameter D.")
-@click.option("--grain-diameter-um", type=float, default=225.0, show_default=True, help="Grain diameter d.")
-@click.option("--c0", type=float, default=0.55, show_default=True, help="Base-state compactness.")
-@click.option("--kappa", type=float, default=0.5, show_default=True, help="Janssen coefficient.")
-@click.option("--mu-s", type=float, default=0.6249, show_default=True, help="Friction coefficient (tan 32°).")
-@click.option("--theta-deg", type=float, default=0.0, show_default=True, help="Pipe inclination from vertical.")
-@click.option("--gamma", type=float, default=1.4, show_default=True, help="Ratio of specific heats of air.")
-@click.option("--air-viscosity-pa-s", type=float, default=1.8e-5, show_default=True)
-@click.option("--grain-density-kg-m3", type=float, default=2500.0, show_default=True)
-@click.option("--b", "b", type=float, default=1.0, show_default=True, help="Capillary factor on friction.")
-@click.option("--B1-star", "b1_star", type=float, default=None,
+@click.option("--diameter-mm", type=FINITE, default=3.0, show_default=True, help="Pipe inner diameter D.")
+@click.option("--grain-diameter-um", type=FINITE, default=225.0, show_default=True, help="Grain diameter d.")
+@click.option("--c0", type=FINITE, default=0.55, show_default=True, help="Base-state compactness.")
+@click.option("--kappa", type=FINITE, default=0.5, show_default=True, help="Janssen coefficient.")
+@click.option("--mu-s", type=FINITE, default=0.6249, show_default=True, help="Friction coefficient (tan 32°).")
+@click.option("--theta-deg", type=FINITE, default=0.0, show_default=True, help="Pipe inclination from vertical.")
+@click.option("--gamma", type=FINITE, default=1.4, show_default=True, help="Ratio of specific heats of air.")
+@click.option("--air-viscosity-pa-s", type=FINITE, default=1.8e-5, show_default=True)
+@click.option("--grain-density-kg-m3", type=FINITE, default=2500.0, show_default=True)
+@click.option("--b", "b", type=FINITE, default=1.0, show_default=True, help="Capillary factor on friction.")
+@click.option("--B1-star", "b1_star", type=FINITE, default=None,
               help="Use this B1* instead of computing it from D, d, c0, gamma, mu_a, rho_s.")
 @click.option("--variant", type=click.Choice(["printed", "frozen-friction"]), default="printed", show_default=True,
               help="printed: the paper's equations as printed; frozen-friction: wall friction not perturbed.")
-@click.option("--k-min", type=float, default=0.001, show_default=True)
-@click.option("--k-max", type=float, default=3.0, show_default=True)
-@click.option("--n-k", type=int, default=1000, show_default=True)
+@click.option("--k-min", type=Number(1e-6, 1e4), default=0.001, show_default=True)
+@click.option("--k-max", type=Number(1e-6, 1e4), default=3.0, show_default=True)
+@click.option("--n-k", type=Number(2, 1e6, unit="wavenumbers", integer=True), default=1000, show_default=True)
 @click.option("--json", "as_json", is_flag=True, help="Print roots, most unstable mode, cut-offs and inputs as JSON.")
 @click.option("--plot", "plot", type=click.Path(path_type=Path), default=None,
               help="Write the paper's Fig. 9 (growth rates against k*) to this PNG (with --sweep: lambda/D).")
@@ -279,6 +287,8 @@ def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: fl
 
     if not (0 < k_min < k_max) or n_k < 10:
         raise ParameterError("need 0 < --k-min < --k-max and --n-k >= 10")
+    if plot is not None and plot.suffix.lower() not in (".png", ".svg", ".pdf"):
+        raise ParameterError(f"--plot must name a .png, .svg or .pdf file, got {plot.name}")
     p = ModelParams(diameter_mm=diameter_mm, grain_diameter_um=grain_diameter_um, c0=c0, kappa=kappa,
                     mu_s=mu_s, theta_deg=theta_deg, gamma=gamma, air_viscosity_pa_s=air_viscosity_pa_s,
                     grain_density_kg_m3=grain_density_kg_m3, b=b, B1_star_override=b1_star, variant=variant)
@@ -380,16 +390,16 @@ def _save_figure(fig, path: Path) -> None:
 
 
 @cli.command()
-@click.option("--compactness", type=float, default=0.55, show_default=True, help="Grain volume fraction c.")
-@click.option("--grain-density-kg-m3", type=float, default=2500.0, show_default=True)
-@click.option("--grain-sound-speed-m-s", type=float, default=5000.0, show_default=True)
-@click.option("--pressure-pa", type=float, default=101325.0, show_default=True)
-@click.option("--temperature-k", type=float, default=293.15, show_default=True)
-@click.option("--gamma", type=float, default=1.4, show_default=True)
+@click.option("--compactness", type=FINITE, default=0.55, show_default=True, help="Grain volume fraction c.")
+@click.option("--grain-density-kg-m3", type=FINITE, default=2500.0, show_default=True)
+@click.option("--grain-sound-speed-m-s", type=FINITE, default=5000.0, show_default=True)
+@click.option("--pressure-pa", type=FINITE, default=101325.0, show_default=True)
+@click.option("--temperature-k", type=FINITE, default=293.15, show_default=True)
+@click.option("--gamma", type=FINITE, default=1.4, show_default=True)
 @click.option("--isothermal", is_flag=True, help="Isothermal air (default: adiabatic).")
-@click.option("--column-length-m", type=float, default=1.0, show_default=True, help="Length of the grain-air column.")
-@click.option("--plug-length-m", type=float, default=0.03, show_default=True)
-@click.option("--air-column-m", type=float, default=1.0, show_default=True,
+@click.option("--column-length-m", type=FINITE, default=1.0, show_default=True, help="Length of the grain-air column.")
+@click.option("--plug-length-m", type=FINITE, default=0.03, show_default=True)
+@click.option("--air-column-m", type=FINITE, default=1.0, show_default=True,
               help="Length of the air column under the plug (the spring).")
 @click.option("--json", "as_json", is_flag=True)
 def resonance(as_json: bool, **kwargs: object) -> None:
@@ -441,7 +451,8 @@ def paper(out: Path, no_figures: bool, as_json: bool) -> None:
 @click.argument("manifest", type=click.Path(path_type=Path))
 @click.option("--out", "out", type=click.Path(path_type=Path), required=True,
               help="Folder for campaign.csv/.parquet, fits.json, figures, report.html and runs/.")
-@click.option("--workers", type=int, default=1, show_default=True, help="Runs analysed in parallel on this machine.")
+@click.option("--workers", type=Number(1, 1024, integer=True), default=1, show_default=True,
+              help="Runs analysed in parallel on this machine.")
 @click.option("--scheduler", default=None, help="Address of a Dask distributed scheduler (tcp://host:8786).")
 @click.option("--no-figures", is_flag=True, help="Skip figures and HTML reports.")
 @click.option("--json", "as_json", is_flag=True, help="Print the fits as JSON.")
@@ -481,7 +492,9 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
     if camp.n_failed:
         failed = t[t.status == "failed"]
         first = failed.iloc[0]
-        raise GrainplugError(
+        from ..errors import PartialCampaignError
+
+        raise PartialCampaignError(
             f"{camp.n_failed} of {len(t)} runs failed (the others were analysed; see {out / 'campaign.csv'}); "
             f"first: run {first.run}: {first.error}"
         )

@@ -11,6 +11,7 @@ from ..errors import ParameterError
 from ..params import FLOW_DIRECTIONS
 from ..synthetic import FORMATS, REGIMES, SynthConfig, synthesize
 from .app import _echo_json, err_console
+from .types import FINITE, Number
 
 
 def _synth_options(f):
@@ -19,17 +20,17 @@ def _synth_options(f):
                      help="Folder to write the movie and its truth into."),
         click.option("--format", "fmt", type=click.Choice(list(FORMATS)), default="tiff", show_default=True),
         click.option("--seed", type=int, default=0, show_default=True),
-        click.option("--frames", "n_frames", type=int, default=300, show_default=True),
-        click.option("--fps", type=float, default=250.0, show_default=True),
+        click.option("--frames", "n_frames", type=Number(1, 1e6, integer=True), default=300, show_default=True),
+        click.option("--fps", type=Number(1, 1e7, unit="frames per second"), default=250.0, show_default=True),
         click.option("--width", "width_px", type=int, default=128, show_default=True,
                      help="Frame width across the tube (canonical vertical view)."),
         click.option("--height", "height_px", type=int, default=640, show_default=True,
                      help="Frame height along the tube (canonical vertical view)."),
-        click.option("--mm-per-px", type=float, default=0.185, show_default=True),
-        click.option("--tube-diameter-mm", type=float, default=3.0, show_default=True),
-        click.option("--wall-mm", type=float, default=1.0, show_default=True),
-        click.option("--tube-offset-px", type=float, default=0.0, show_default=True),
-        click.option("--tilt-deg", type=float, default=0.0, show_default=True),
+        click.option("--mm-per-px", type=FINITE, default=0.185, show_default=True),
+        click.option("--tube-diameter-mm", type=FINITE, default=3.0, show_default=True),
+        click.option("--wall-mm", type=FINITE, default=1.0, show_default=True),
+        click.option("--tube-offset-px", type=FINITE, default=0.0, show_default=True),
+        click.option("--tilt-deg", type=FINITE, default=0.0, show_default=True),
         click.option("--flow-direction", type=click.Choice(FLOW_DIRECTIONS), default="down", show_default=True),
         click.option("--polarity", type=click.Choice(["dark", "bright"]), default="dark", show_default=True,
                      help="dark plugs on a bright field, or bright plugs on a dark field"),
@@ -37,19 +38,19 @@ def _synth_options(f):
         click.option("--bit-depth", type=click.Choice(["8", "16"]), default="8", show_default=True),
         click.option("--regime", type=click.Choice(REGIMES), default="propagative", show_default=True),
         click.option("--no-plug-fill", type=click.Choice(["empty", "compact"]), default="empty", show_default=True),
-        click.option("--celerity-m-s", type=float, default=-0.05, show_default=True),
-        click.option("--frequency-hz", type=float, default=7.0, show_default=True),
-        click.option("--amplitude-mm", type=float, default=1.5, show_default=True),
-        click.option("--stick-fraction", type=float, default=0.5, show_default=True),
-        click.option("--plug-length-mm", type=float, default=30.0, show_default=True),
-        click.option("--plug-length-sd-mm", type=float, default=2.0, show_default=True),
-        click.option("--bubble-length-mm", type=float, default=25.0, show_default=True),
-        click.option("--bubble-length-sd-mm", type=float, default=4.0, show_default=True),
+        click.option("--celerity-m-s", type=FINITE, default=-0.05, show_default=True),
+        click.option("--frequency-hz", type=FINITE, default=7.0, show_default=True),
+        click.option("--amplitude-mm", type=FINITE, default=1.5, show_default=True),
+        click.option("--stick-fraction", type=FINITE, default=0.5, show_default=True),
+        click.option("--plug-length-mm", type=FINITE, default=30.0, show_default=True),
+        click.option("--plug-length-sd-mm", type=FINITE, default=2.0, show_default=True),
+        click.option("--bubble-length-mm", type=FINITE, default=25.0, show_default=True),
+        click.option("--bubble-length-sd-mm", type=FINITE, default=4.0, show_default=True),
         click.option("--merge-split", is_flag=True, help="Let some plugs merge and split again."),
-        click.option("--falling-grains-per-mm", type=float, default=0.4, show_default=True),
-        click.option("--noise-sigma", type=float, default=3.0, show_default=True),
-        click.option("--flicker", type=float, default=0.0, show_default=True),
-        click.option("--gradient", type=float, default=0.0, show_default=True),
+        click.option("--falling-grains-per-mm", type=FINITE, default=0.4, show_default=True),
+        click.option("--noise-sigma", type=FINITE, default=3.0, show_default=True),
+        click.option("--flicker", type=FINITE, default=0.0, show_default=True),
+        click.option("--gradient", type=FINITE, default=0.0, show_default=True),
     ]
     for opt in reversed(opts):
         f = opt(f)

@@ -66,7 +66,16 @@ class TiffStackMovie(Movie):
             raise MovieError(f"{path}: pages of shape {shape} are not frames — export H x W or H x W x 3")
         self._page_shape = shape
         self._contiguous: tuple[int, np.dtype] | None = None
-        n_frames = int(np.prod(series.shape[: series.ndim - len(shape)])) if series.ndim > len(shape) else 1
+        if len(self._tif.series) > 1:  # pages written one by one: they must agree on size and depth
+            for k, other in enumerate(self._tif.series[1:], start=1):
+                if tuple(other.shape) != tuple(shape) or np.dtype(other.dtype) != dtype:
+                    self._tif.close()
+                    raise MovieError(
+                        f"{path}: page {k} is {'x'.join(map(str, other.shape))} {np.dtype(other.dtype).name} but "
+                        f"page 0 is {'x'.join(map(str, shape))} {dtype.name} — a movie's frames must all have one "
+                        "size and bit depth: export them again")
+        # frames = the series' samples over one page's (a trailing axis of 1, T x H x W x 1, is no frame axis)
+        n_frames = max(1, int(np.prod(series.shape)) // max(1, int(np.prod(shape))))
         if series.dataoffset is not None and not page0.is_tiled and page0.compression == 1:
             dt = series.dtype.newbyteorder(self._tif.byteorder)
             need = series.dataoffset + n_frames * int(np.prod(shape)) * dt.itemsize

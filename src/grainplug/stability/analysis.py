@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
+from ..errors import ParameterError
 from .model import roots
 from .params import ModelParams
 
@@ -117,8 +118,14 @@ def analyze_stability(p: ModelParams, k: np.ndarray | None = None, *, k_min: flo
         Wavenumbers; by default ``n_k`` evenly spaced in ``[k_min, k_max]``.
     """
     if k is None:
-        k = np.linspace(k_min, k_max, n_k)
+        if not (np.isfinite(k_min) and np.isfinite(k_max) and 0 < k_min < k_max):
+            raise ParameterError(f"need finite 0 < k_min < k_max, got {k_min} and {k_max}", param="k_min")
+        if not 2 <= n_k <= 1_000_000:
+            raise ParameterError(f"n_k must be between 2 and 1e6 wavenumbers, got {n_k}", param="n_k")
+        k = np.linspace(k_min, k_max, int(n_k))
     k = np.asarray(k, float)
+    if not np.all(np.isfinite(k)):
+        raise ParameterError("the wavenumbers must be finite", param="k")
     w = roots(p, k)
     g = w.imag.max(axis=1)
     pos = g > 0

@@ -1,0 +1,235 @@
+"""Hostile input (issue 17): one clear line and a documented exit status, nothing written, nothing lost.
+
+Each case failed on the code before issue 17's first step (an "unexpected ... report it" line, a
+traceback, numpy warnings on stderr, a silently wrong or half-written result).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tifffile
+
+from grainplug.cli import main
+from grainplug.synthetic import SynthConfig
+from grainplug.synthetic.render import Renderer
+
+
+@pytest.fixture(scope="module")
+def frames() -> np.ndarray:
+    return np.stack(list(Renderer(SynthConfig(n_frames=60, width_px=64, height_px=300, seed=1, rgb=False)).frames()))
+
+
+@pytest.fixture
+def movie(tmp_path, frames) -> Path:
+    p = tmp_path / "movie.tif"
+    tifffile.imwrite(p, frames, metadata={"fps": 250.0})
+    return p
+
+
+def run(capsys, *args: object) -> tuple[int, str]:
+    capsys.readouterr()
+    code = main([str(a) for a in args])
+    return code, capsys.readouterr().err
+
+
+def one_line(err: str, *words: str) -> None:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    assert "report it" not in err and "Traceback" not in err and "Warning" not in err, err
+    for w in words:
+        assert w in lines[0], err
+
+
+# -- numbers at the door ------------------------------------------------------------------
+@pytest.mark.parametrize(("flag", "value", "words"), [
+    ("--fps", "inf", "must be a finite number"),
+    ("--fps", "1e12", "between 1 and 1e+07 frames per second"),
+    ("--fps", "nan", "must be a finite number"),
+    ("--mm-per-px", "inf", "must be a finite number"),
+    ("--mm-per-px", "1e300", "mm per pixel"),
+    ("--tube-diameter-mm", "inf", "must be a finite number"),
+    ("--min-plug-mm", "inf", "must be a finite number"),
+    ("--threads", "0", "between 1 and 1024"),
+])
+def test_analyze_numbers_are_checked_before_anything_runs(tmp_path, capsys, movie, flag, value, words):
+    code, err = run(capsys, "analyze", movie, "--out", tmp_path / "out", flag, value, "--no-figures")
+    assert code == 2
+    one_line(err, flag, words)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["--k-max", "inf"], "--k-max"),
+    (["--n-k", "1000000000000"], "between 2 and 1e+06 wavenumbers"),
+    (["--plot", "x.xyz"], "--plot must name a .png, .svg or .pdf file"),
+])
+def test_stability_numbers_and_plot_names(tmp_path, capsys, args, words):
+    os.chdir(tmp_path)
+    code, err = run(capsys, "stability", *args)
+    assert code == 2
+    one_line(err, words)
+
+
+def test_library_parameters_are_checked_too():
+    import grainplug as gp
+
+    for kw in ({"fps": float("inf")}, {"fps": 1e12}, {"mm_per_px": float("nan")}, {"min_plug_mm": float("inf")},
+               {"tube_diameter_mm": 0.0}, {"sample_frames": 10**9}):
+        with pytest.raises(gp.ParameterError):
+            gp.AnalysisParams(**kw)
+    with pytest.raises(gp.ParameterError, match="n_k must be between 2 and 1e6"):
+        gp.analyze_stability(gp.ModelParams(), n_k=10**12)
+
+
+# -- output places ------------------------------------------------------------------------
+def test_output_places_that_cannot_be_right(tmp_path, capsys, movie):
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "loop1").symlink_to(tmp_path / "loop2")
+    (tmp_path / "loop2").symlink_to(tmp_path / "loop1")
+    (tmp_path / "theirs").mkdir()
+    (tmp_path / "theirs" / "thesis.docx").write_text("years of work")
+    cases = [
+        (tmp_path / "afile", "is a file"),
+        (tmp_path / "afile" / "sub", "which is a file"),
+        (tmp_path / "loop1", "symbolic links"),
+        (movie, "is the input itself"),
+        (tmp_path, "holds the input movie.tif"),
+        (tmp_path / "theirs", "holds files grainplug did not write"),
+    ]
+    for out, words in cases:
+        code, err = run(capsys, "analyze", movie, "--out", out, "--no-figures")
+        assert code == 2, (out, err)
+        one_line(err, words)
+    assert (tmp_path / "theirs" / "thesis.docx").read_text() == "years of work"
+    assert movie.stat().st_size > 0 and (tmp_path / "afile").read_text() == "x"
+
+
+def test_a_rerun_replaces_the_folder_whole(tmp_path, capsys, movie):
+    out = tmp_path / "out"
+    assert main(["analyze", str(movie), "--out", str(out)]) == 0
+    assert (out / "diagram.png").exists()
+    (out / "stale.png").write_text("from an older run")
+    assert main(["analyze", str(movie), "--out", str(out), "--no-figures"]) == 0
+    assert not (out / "diagram.png").exists() and not (out / "stale.png").exists()
+    s = json.loads((out / "summary.json").read_text())
+    assert set(s["outputs"].values()) <= {p.name for p in out.iterdir()}  # what it lists, it wrote
+    assert not [p for p in tmp_path.iterdir() if ".grainplug-" in p.name]  # no temporary folder left
+
+
+def test_a_killed_run_leaves_the_previous_result_and_is_cleaned_up(tmp_path, capsys, movie):
+    out = tmp_path / "out"
+    assert main(["analyze", str(movie), "--out", str(out), "--no-figures"]) == 0
+    before = (out / "summary.json").read_text()
+    # what a run killed half-way leaves: its temporary folder (a dead process id), and one killed
+    # between the two renames: the previous result set aside and no folder in place
+    dead = 2**22 + 12345
+    (tmp_path / f".out.grainplug-new-{dead}-abc").mkdir()
+    os.replace(out, tmp_path / f".out.grainplug-old-{dead}-xyz")
+    from grainplug._atomic import atomic_directory
+
+    with atomic_directory(out, replace=True) as tmp:
+        (tmp / "summary.json").write_text(before)
+    assert (out / "summary.json").read_text() == before
+    assert not [p for p in tmp_path.iterdir() if ".grainplug-" in p.name]
+
+
+def test_a_full_disk_is_one_line_and_the_previous_result_stays(tmp_path, monkeypatch, movie):
+    import errno
+
+    import grainplug as gp
+    from grainplug._atomic import OutputPlaceError
+
+    out = tmp_path / "out"
+    res = gp.analyze(movie)
+    res.save(out, figures=False, report=False)
+    before = (out / "summary.json").read_text()
+
+    def full(*a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr("grainplug.store.write_result", full)
+    monkeypatch.setattr("grainplug.outputs.write_result", full)
+    with pytest.raises(OutputPlaceError, match=r"the disk is full .* \(the previous result, if any, is intact\)"):
+        res.save(out, figures=False, report=False)
+    assert (out / "summary.json").read_text() == before
+    assert not [p for p in tmp_path.iterdir() if ".grainplug-" in p.name]
+
+
+# -- movies -----------------------------------------------------------------------------------
+def _pages(path: Path, pages: list[np.ndarray]) -> Path:
+    with tifffile.TiffWriter(path) as t:
+        for p in pages:
+            t.write(p)
+    return path
+
+
+@pytest.mark.parametrize("kind", ["sizes", "depths", "black", "white", "line", "trailing axis"])
+def test_hostile_movies(tmp_path, capsys, frames, kind):
+    f = frames
+    if kind == "sizes":
+        path, words = _pages(tmp_path / "m.tif", [f[k] if k < 10 else f[k][:, :60] for k in range(20)]), \
+            "page 10 is 300x60 uint8 but page 0 is 300x64 uint8"
+    elif kind == "depths":
+        path, words = _pages(tmp_path / "m.tif", [f[k] if k % 2 else f[k].astype(np.uint16) * 256
+                                                  for k in range(20)]), "must all have one size and bit depth"
+    elif kind in ("black", "white"):
+        path = tmp_path / "m.tif"
+        tifffile.imwrite(path, np.full((30, 300, 64), 0 if kind == "black" else 255, np.uint8))
+        words = "every sampled frame is uniform"
+    elif kind == "line":
+        path = tmp_path / "m.tif"
+        tifffile.imwrite(path, np.random.default_rng(0).integers(0, 255, (30, 1, 5000), dtype=np.uint8))
+        words = "too small to hold a tube"
+    else:  # T x H x W x 1 is a valid grey stack, not a truncated file
+        path = tmp_path / "m.tif"
+        tifffile.imwrite(path, f[..., None])
+        code, err = run(capsys, "analyze", path, "--out", tmp_path / "out", "--fps", 250, "--no-figures")
+        assert code == 0, err
+        assert json.loads((tmp_path / "out" / "summary.json").read_text())["n_frames"] == len(f)
+        return
+    code, err = run(capsys, "analyze", path, "--out", tmp_path / "out", "--fps", 250, "--no-figures")
+    assert code == 2
+    one_line(err, words)
+    assert not (tmp_path / "out").exists()
+
+
+# -- manifests ------------------------------------------------------------------------------
+@pytest.mark.parametrize(("name", "content", "words"), [
+    ("m.csv", b"run,movie\n\xff\xfe,movie.tif\n", "m.csv, line 2: not UTF-8 text"),
+    ("m.toml", b'defaults = 3\n[[run]]\nmovie = "movie.tif"\n', "'defaults' must be a table"),
+    ("m.csv", b"run,movie\n..,movie.tif\n", "column run: '..' cannot name a run's folder"),
+    ("m.csv", b"run,movie\na/b,movie.tif\n", "column run: 'a/b' cannot name a run's folder"),
+    ("m.csv", b"run,movie\na b,movie.tif\na_b,movie.tif\n", "would share the folder runs/a_b"),
+    ("m.csv", b'run,movie\n"a,movie.tif\n', "not valid CSV"),
+    ("m.csv", b"run,movie,fps\na,movie.tif,inf\n", "m.csv, line 2, column fps"),
+    ("m.csv", b"run,movie\na,movie.tif,extra\n", "more values than the header"),
+])
+def test_bad_manifests(tmp_path, capsys, movie, name, content, words):
+    (tmp_path / name).write_bytes(content)
+    code, err = run(capsys, "batch", tmp_path / name, "--out", tmp_path / "camp")
+    assert code == 2
+    one_line(err, words)
+    assert not (tmp_path / "camp").exists()
+
+
+def test_a_folder_or_a_pipe_is_no_manifest_and_a_pipe_no_movie(tmp_path, capsys, movie):
+    code, err = run(capsys, "batch", tmp_path, "--out", tmp_path / "camp")
+    one_line(err, "is a folder — give the manifest file")
+    os.mkfifo(tmp_path / "pipe")
+    (tmp_path / "m.csv").write_text("run,movie\na,pipe\n")
+    code, err = run(capsys, "batch", tmp_path / "m.csv", "--out", tmp_path / "camp")  # used to hang
+    assert code == 2
+    one_line(err, "column movie", "is not a regular file")
+
+
+def test_failed_runs_give_exit_status_3(tmp_path, capsys, movie):
+    (tmp_path / "m.csv").write_text("run,movie\ngood,movie.tif\nbad,missing.tif\n")
+    code, err = run(capsys, "batch", tmp_path / "m.csv", "--out", tmp_path / "camp", "--no-figures")
+    assert code == 3
+    one_line(err, "1 of 2 runs failed")
+    assert (tmp_path / "camp" / "runs" / "good" / "summary.json").exists()
