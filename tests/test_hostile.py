@@ -233,3 +233,44 @@ def test_failed_runs_give_exit_status_3(tmp_path, capsys, movie):
     assert code == 3
     one_line(err, "1 of 2 runs failed")
     assert (tmp_path / "camp" / "runs" / "good" / "summary.json").exists()
+
+
+# -- doubtful frames --------------------------------------------------------------------------
+@pytest.mark.parametrize("kind", ["dark", "over-exposed", "repeated"])
+def test_doubtful_frames_are_bridged_and_counted(frames, kind):
+    import grainplug as gp
+
+    clean = gp.analyze(frames, fps=250.0)
+    bad = frames.copy()
+    if kind == "dark":
+        bad[20:25] = 0  # the lamp failed for five frames: the celerity read 85 % low before
+        idx = "frames 20, 21, 22, 23, 24"
+    elif kind == "over-exposed":
+        bad[30] = 255  # a flash: the scale and celerity moved by 5 %
+        idx = "frame 30"
+    else:
+        bad[40:43] = bad[39]  # the camera repeated a frame three times
+        idx = "frames 40, 41, 42"
+    res = gp.analyze(bad, fps=250.0)
+    assert res.celerity_m_s == pytest.approx(clean.celerity_m_s, rel=0.01)
+    assert res.plug_length_mm == pytest.approx(clean.plug_length_mm, rel=0.02)
+    assert any(f"{kind} ({idx})" in w and "bridged" in w for w in res.warnings), res.warnings
+
+
+def test_flicker_is_not_taken_for_bad_frames(rng):
+    from grainplug.diagram.frames import repair_frames
+
+    values = (100 + 50 * (rng.random((500, 300)) < 0.5)).astype(np.float32)
+    values *= (1 + 0.1 * np.sin(np.arange(500) * 0.7))[:, None].astype(np.float32)  # +-10 % lamp flicker
+    fixed, repair = repair_frames(values, top=255.0)
+    assert repair.n_bad == 0 and fixed is values
+
+
+def test_a_still_noiseless_scene_is_not_called_repeated():
+    from grainplug.diagram.frames import repair_frames
+
+    row = np.linspace(10, 200, 300, dtype=np.float32)
+    values = np.repeat(row[None], 100, axis=0)
+    values[50:] += 5  # one change half-way: every other frame repeats the one before
+    _fixed, repair = repair_frames(values, top=255.0)
+    assert repair.n_bad == 0

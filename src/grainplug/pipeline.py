@@ -31,6 +31,7 @@ from .calibration.background import flat_field
 from .calibration.pattern import Calibration
 from .calibration.tube_model import AGREEMENT, BoreEstimate, WallMeasure, bore_from_model
 from .diagram import Diagram, Normalized, band_along_tube, normalize
+from .diagram.frames import repair_frames
 from .errors import ParameterError
 from .measures import Lengths, Motion, measure_lengths, measure_motion
 from .measures.grains import GrainMotion, falling_grains
@@ -107,6 +108,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         time_s = _frame_times(movie, info, len(values))
         identity = _identity(movie)
         laps("fingerprint_s")
+    values, repair = repair_frames(values, top=_top_value(info))
     diagram = Diagram(values, time_s, axis_px * mm_per_px, mm_per_px)
     norm = normalize(diagram.values, background_level=tube.background_level)
     laps("normalize_s")
@@ -129,7 +131,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         statement=statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
-        warnings=[*info.warnings, *scale_warnings, *light_warnings, *flow.warnings,
+        warnings=[*info.warnings, *scale_warnings, *light_warnings,
+                  *filter(None, [repair.describe(diagram.n_frames)]), *flow.warnings,
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
     )
 
@@ -302,6 +305,12 @@ def _calibrated_scale(cal: Calibration, tube: TubeGeometry, info: MovieInfo, fro
                         "back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
                         "the tube's plane, else check --tube-diameter-mm (and --tube-outer-diameter-mm)")
     return mm_per_px, source, rel_sd, warnings
+
+
+def _top_value(info: MovieInfo) -> float | None:
+    """The sensor's top value in the movie's samples (None when unknown)."""
+    bits = info.bit_depth or (8 if info.dtype == "uint8" else 16 if info.dtype == "uint16" else 0)
+    return float(2**bits - 1) if bits else None
 
 
 def _check_background(params: AnalysisParams, info: MovieInfo) -> None:

@@ -577,6 +577,12 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
     if not hi > lo:
         raise MovieError(f"every sampled frame is uniform (all pixels {lo:g}): no tube to see — check the lamp, "
                          "the exposure and the lens cap")
+    # frames without the scene's structure (lamp off, a flash, all saturated) say nothing of the tube
+    spread = np.array([float(np.std(f[::4, ::4])) for f in frames])
+    keep = spread >= 0.25 * float(np.median(spread))
+    if keep.sum() >= 4 and not keep.all():
+        log.info("tube: %d of %d sampled frames without structure left out", int((~keep).sum()), len(frames))
+        frames = [f for f, k in zip(frames, keep, strict=True) if k]
     b = 1
     while max(h, w) // b > 700:
         b *= 2
