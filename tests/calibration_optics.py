@@ -40,8 +40,9 @@ class Camera:
     """A pinhole camera looking along +Z at a plane; image x right, y down, in pixels."""
 
     def __init__(self, shape: tuple[int, int], *, mm_per_px: float, distance_mm: float, roll_deg: float,
-                 tilt_deg: float, centre_px: tuple[float, float] | None) -> None:
+                 tilt_deg: float, centre_px: tuple[float, float] | None, distortion: float = 0.0) -> None:
         self.h, self.w = shape
+        self.k1 = distortion  # radial lens distortion: ray = pixel * (1 + k1 r^2), r in half-diagonals
         self.cx, self.cy = (self.w - 1) / 2, (self.h - 1) / 2
         self.f = distance_mm / mm_per_px
         r, t = math.radians(roll_deg), math.radians(tilt_deg)
@@ -58,7 +59,11 @@ class Camera:
 
     def plane_coords(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Plane coordinates (mm) seen by the rays through image points ``(x, y)``."""
-        d = np.stack([(x - self.cx) / self.f, (y - self.cy) / self.f, np.ones_like(x)], axis=-1)
+        u, v = x - self.cx, y - self.cy
+        if self.k1:  # barrel (k1 > 0: the edges see more of the plane per pixel) or pincushion
+            g = 1 + self.k1 * (u**2 + v**2) / (self.cx**2 + self.cy**2)
+            u, v = u * g, v * g
+        d = np.stack([u / self.f, v / self.f, np.ones_like(x)], axis=-1)
         t = (self.n @ self.origin) / (d @ self.n)
         p = d * t[..., None] - self.origin
         return p @ self.e1, p @ self.e2
@@ -105,10 +110,11 @@ def render(*, pattern: str = "checkerboard", pitch_mm: float = 2.0, n: tuple[int
            mm_per_px: float = 0.05, shape: tuple[int, int] = (480, 640), roll_deg: float = 0.0,
            tilt_deg: float = 0.0, centre_px: tuple[float, float] | None = None, distance_mm: float = 300.0,
            blur_px: float = 0.8, noise: float = 0.01, bit_depth: int = 8, occlusion: float = 0.0,
-           vignetting: float = 0.0, ss: int = 4, rng: np.random.Generator) -> tuple[np.ndarray, Truth]:
+           vignetting: float = 0.0, distortion: float = 0.0, ss: int = 4,
+           rng: np.random.Generator) -> tuple[np.ndarray, Truth]:
     """An image of the pattern and the exact scale where its centre lands."""
     cam = Camera(shape, mm_per_px=mm_per_px, distance_mm=distance_mm, roll_deg=roll_deg, tilt_deg=tilt_deg,
-                 centre_px=centre_px)
+                 centre_px=centre_px, distortion=distortion)
     h, w = shape
     offs = (np.arange(ss) + 0.5) / ss - 0.5
     img = np.zeros(shape)
@@ -150,6 +156,9 @@ CASES = {
     "dot grid rolled and tilted": {"pattern": "dots", "n": (11, 8), "roll_deg": -15.0, "tilt_deg": 8.0,
                                    "distance_mm": 150.0},
     "narrow strip": {"shape": (200, 1000), "n": (20, 3), "mm_per_px": 0.04},
+    # a lens's radial distortion (the scale at the corners 3 % or 8 % off the centre's)
+    "barrel distortion 3 %": {"n": (12, 9), "distortion": 0.03},
+    "pincushion distortion 8 %, dots": {"pattern": "dots", "n": (12, 9), "distortion": -0.08},
 }
 
 #: graph paper (1 mm lines, thicker every 10) and rulers (1 mm ticks, longer every 5 and 10, on a bench)

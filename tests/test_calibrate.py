@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -54,7 +55,8 @@ def test_calibrate_writes_the_scale_and_a_figure(tmp_path, capsys):
     assert data["tilt_deg"] == pytest.approx(4.0, abs=0.1)  # turned counter-clockwise on the screen
     assert data["image"]["sha256"] and data["image"]["name"] == "board.tif" and data["grainplug_version"]
     assert out.with_suffix(".png").stat().st_size > 10_000
-    assert "scale       0.0625" in printed
+    shown = re.search(r"^scale +([0-9.]+) mm/px ± ([0-9.]+) %", printed, re.M)
+    assert shown and float(shown[1]) == pytest.approx(2.0 / 32.0, rel=2e-3) and float(shown[2]) < 0.5
     cal = gp.load_calibration(out)
     assert cal.mm_per_px == data["mm_per_px"] and len(cal.points_px) == cal.n_points == 9 * 7
 

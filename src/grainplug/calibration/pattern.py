@@ -6,8 +6,11 @@ their lattice by growing from the centre (so that neither the board's size nor a
 hidden part of it needs to be known), then a plane-to-image homography is fitted to
 them by least squares (OpenCV). Its local derivative gives the mm per
 pixel along the image's axes at the pattern's centre, the spread of that derivative
-over the pattern says how much the scale varies over the field (perspective, lens
-distortion), and the fit's residuals give the scale's uncertainty.
+over the pattern says how much the scale varies over the field by perspective, and the
+fit's residuals give the scale's uncertainty. Lens distortion, which no homography
+holds, is measured between each point's lattice neighbours: a smooth surface fitted to
+the measured scale over the homography's corrects the scale at the centre and adds to
+the variation (docs/calibration.md, "Lens distortion").
 """
 
 from __future__ import annotations
@@ -179,7 +182,7 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
         raise CalibrationError(f"the pattern's pitch must be a positive length in mm, got {pitch_mm}")
     grey = _grey8(image)
     finders = {"checkerboard": _checkerboard_points, "dots": _dot_points}
-    fits = []
+    fits, rejected = [], []
     for kind in (("checkerboard", "dots") if pattern == "auto" else (pattern,)):
         if kind not in finders:
             continue
@@ -190,8 +193,20 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
         cal = _fit(index * pitch_mm, points, pitch_mm=pitch_mm, kind=kind, shape=grey.shape,
                    identity=identity or {})
         # a lattice read wrongly (the corners between dots taken for a board...) is not square
-        if abs(cal.mm_per_px_x / cal.mm_per_px_y - 1) < 0.1 and cal.rms_residual_px < 1.0:
+        # (lens distortion bends the lattice by a few per cent of its pitch: allowed, and warned of)
+        pitch_px = pitch_mm / cal.mm_per_px
+        if abs(cal.mm_per_px_x / cal.mm_per_px_y - 1) < 0.1 and cal.rms_residual_px < max(1.0, 0.06 * pitch_px):
             fits.append(cal)
+        else:
+            rejected.append(cal)
+    if not fits and rejected and (pattern != "auto" or len(rejected[0].points_px) >= 20):
+        # a lattice of points was there: reading the image as lines instead would mislead
+        cal = rejected[0]
+        raise CalibrationError(
+            f"a {'dot grid' if cal.pattern == 'dots' else cal.pattern} was found but its {cal.n_points} points "
+            f"do not fit a flat square pattern ({cal.rms_residual_px:.1f} px off, x:y scales "
+            f"{cal.mm_per_px_x / cal.mm_per_px_y:.3f}) — check that the pattern is flat and square and the "
+            "pitch is right, or give --mm-per-px")
     if not fits and pattern in ("auto", "graph", "ruler"):
         grating = _grating(grey, pitch_mm=pitch_mm, kind=pattern, identity=identity or {})
         if grating is not None:
@@ -493,11 +508,22 @@ def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str
     scale = float(math.sqrt(abs(np.linalg.det(J))))
     local = np.array([math.sqrt(abs(np.linalg.det(_inverse_jacobian(H, w)))) for w in world])
     variation = float((local.max() - local.min()) / local.mean())
+    # what a plane seen by a pinhole cannot show (lens distortion): the scale measured between
+    # each point's lattice neighbours, against the homography's at the same place
+    field = _local_scale_field(world, image_pts, proj, pitch_mm=pitch_mm)
+    if field is not None:
+        at_centre, field_sd, field_variation = field(cv2.perspectiveTransform(centre_world.reshape(1, 1, 2),
+                                                                              H).reshape(2))
+        J = J * at_centre
+        mm_x, mm_y, scale = mm_x * at_centre, mm_y * at_centre, scale * at_centre
+        variation = max(variation, field_variation)
     # pattern rows in the image: the image of the plane's X axis
     d = cv2.perspectiveTransform(np.array([[centre_world, centre_world + np.array([pitch_mm, 0.0])]]), H)[0]
     tilt = float(math.degrees(math.atan2(-(d[1, 1] - d[0, 1]), d[1, 0] - d[0, 0])))
     tilt = (tilt + 45.0) % 90.0 - 45.0  # a square grid looks the same turned by a quarter
     rel_sd = _affine_scale_rel_sd(world, image_pts, residual_mm=rms * scale)
+    if field is not None:
+        rel_sd = math.hypot(rel_sd, field_sd)
     centre = cv2.perspectiveTransform(centre_world.reshape(1, 1, 2), H).reshape(2)
     warnings = []
     if variation > SCALE_VARIATION_WARN:
@@ -519,6 +545,71 @@ def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str
         homography=tuple(tuple(float(x) for x in row) for row in H), image=dict(identity),
         warnings=tuple(warnings), points_px=tuple((float(x), float(y)) for x, y in image_pts),
     )
+
+
+def _local_scale_field(world: np.ndarray, image_pts: np.ndarray, proj: np.ndarray, *, pitch_mm: float):
+    """The measured scale over the pattern relative to the homography's, as a smooth surface.
+
+    At every point whose four lattice neighbours were found, the local scale is
+    ``sqrt|det D|`` with ``D`` the central differences of the neighbours' positions (mm per
+    px), measured on the points found and on the homography's projections of the same
+    points (so that the finite-difference error cancels in their ratio). A quadratic
+    surface in image coordinates is fitted to the ratio (a plane when the points do not
+    spread in two directions) and to the measured scale.
+
+    Returns
+    -------
+    callable or None
+        ``f(centre_xy) -> (ratio at centre, its standard error, relative range of the
+        fitted measured scale over the points)``; None when fewer than 6 points have their
+        four neighbours.
+    """
+    idx = np.rint(world / pitch_mm).astype(np.int64)
+    where = {(int(i), int(j)): k for k, (i, j) in enumerate(idx)}
+    rows = []
+    for k, (i, j) in enumerate(idx):
+        nb = [where.get(q) for q in ((i + 1, j), (i - 1, j), (i, j + 1), (i, j - 1))]
+        if None not in nb:
+            rows.append((k, *nb))
+    if len(rows) < 6:
+        return None
+    r = np.array(rows)
+
+    def scale(p: np.ndarray) -> np.ndarray:
+        a = (p[r[:, 1]] - p[r[:, 2]]) / (2 * pitch_mm)  # px per mm along the lattice's two axes
+        b = (p[r[:, 3]] - p[r[:, 4]]) / (2 * pitch_mm)
+        return 1.0 / np.sqrt(np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]))
+
+    measured = scale(image_pts.astype(np.float64))
+    ratio = measured / scale(proj.astype(np.float64))
+    xy = image_pts[r[:, 0]].astype(np.float64)
+    c0 = xy.mean(axis=0)
+    half = max(float(np.abs(xy - c0).max()), 1.0)
+
+    def basis(q: np.ndarray) -> np.ndarray:
+        u, v = ((q - c0) / half).T
+        cols = [np.ones_like(u), u, v]
+        if len(q) != len(xy) or len(xy) >= 12:
+            cols += [u * u, u * v, v * v]
+        return np.column_stack(cols)
+
+    B = basis(xy)
+    n_terms = 6 if len(xy) >= 12 else 3
+    B = B[:, :n_terms]
+    coef, *_ = np.linalg.lstsq(B, ratio, rcond=1e-6)
+    resid = ratio - B @ coef
+    sigma2 = float(resid @ resid) / max(1, len(xy) - n_terms)
+    cov = sigma2 * np.linalg.pinv(B.T @ B, rcond=1e-6)
+    mcoef, *_ = np.linalg.lstsq(B, measured, rcond=1e-6)
+    smooth = B @ mcoef
+
+    def at(centre_xy: np.ndarray) -> tuple[float, float, float]:
+        b = basis(np.asarray(centre_xy, float).reshape(1, 2))[0, :n_terms]
+        value = float(b @ coef)
+        sd = math.sqrt(max(float(b @ cov @ b), 0.0)) / value
+        return value, sd, float((smooth.max() - smooth.min()) / smooth.mean())
+
+    return at
 
 
 def _inverse_jacobian(H: np.ndarray, w: np.ndarray) -> np.ndarray:
