@@ -152,7 +152,7 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
         assert (out / name).exists(), name
     # rerun: nothing changed, nothing analysed again
     again = run_campaign(campaign_dir / "manifest.csv", out)
-    assert list(again.table.status) == ["cached"] * 5
+    assert list(again.table.status) == ["ok"] * 5 and again.n_reused == 5
     assert again.table.celerity_m_s.tolist() == t.celerity_m_s.tolist()
     # a changed parameter re-runs that run only; a missing movie fails alone
     m = (campaign_dir / "manifest.csv").read_text().splitlines()
@@ -162,7 +162,7 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
     code, _, err = run(capsys, "batch", campaign_dir / "manifest2.csv", "--out", out)
     assert_one_line_error(code, err, "1 of 6 runs failed", "missing.avi")
     t3 = pd.read_csv(out / "campaign.csv")
-    assert list(t3.status) == ["ok", "cached", "cached", "cached", "cached", "failed"]
+    assert list(t3.status) == ["ok", "ok", "ok", "ok", "ok", "failed"]
 
 
 def test_batch_workers_match_serial(campaign_dir, tmp_path):

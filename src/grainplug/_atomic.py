@@ -31,7 +31,7 @@ from pathlib import Path
 
 from .errors import GrainplugError
 
-__all__ = ["OutputPlaceError", "atomic_directory", "atomic_file", "check_output_place"]
+__all__ = ["OutputPlaceError", "atomic_directory", "atomic_file", "check_output_place", "is_complete"]
 
 #: a folder holding this file was written by grainplug (an analysis or a campaign)
 MARKER = ".grainplug"
@@ -106,6 +106,32 @@ def _fsync_tree(folder: Path) -> None:
             os.fsync(fd)
         finally:
             os.close(fd)
+
+
+def _seal(folder: Path) -> None:
+    """Write the completion marker: every file of the set with its size (see :func:`is_complete`)."""
+    import json
+
+    files = {f.relative_to(folder).as_posix(): f.stat().st_size
+             for f in sorted(folder.rglob("*")) if f.is_file() and f.name != MARKER}
+    (folder / MARKER).write_text(json.dumps({"grainplug_output": "replaced whole by each run", "complete": True,
+                                             "files": files}, indent=1) + "\n")
+
+
+def is_complete(folder: str | Path) -> bool:
+    """Whether ``folder`` holds a complete output set: its completion marker lists every file with
+    its size, and every file is there with that size (a folder damaged since, or written by a
+    version without markers, is not complete)."""
+    import json
+
+    folder = Path(folder)
+    try:
+        seal = json.loads((folder / MARKER).read_text())
+        files = seal["files"] if seal.get("complete") is True else None
+        return isinstance(files, dict) and bool(files) and all(
+            (folder / name).is_file() and (folder / name).stat().st_size == size for name, size in files.items())
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return False
 
 
 def _alive(pid: int) -> bool:
@@ -186,7 +212,7 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
             raise
         try:
             if replace:
-                (tmp / MARKER).write_text("grainplug output folder: replaced whole by each run\n")
+                _seal(tmp)
                 _fsync_tree(tmp)
                 old = None
                 if out.exists():

@@ -23,6 +23,10 @@ class PartialCampaignError(GrainplugError):
     exit_code = 3
 
 
+class CampaignInterrupted(KeyboardInterrupt):
+    """A campaign stopped by Ctrl-C: every run is done or not started; the message says how many."""
+
+
 class MovieError(GrainplugError):
     """A movie cannot be opened or decoded."""
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import os
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -25,9 +26,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .._atomic import atomic_directory
+from .._atomic import atomic_directory, is_complete
 from .._version import __version__
-from ..errors import GrainplugError
+from ..errors import CampaignInterrupted, GrainplugError
 from ..jsonio import dumps
 from ..outputs import write_outputs
 from ..pipeline import analyze, fingerprint
@@ -44,44 +45,54 @@ SUMMARY_COLUMNS = [
 ]
 
 
-def run_key(spec: RunSpec) -> str:
-    """Identity of a run's result: movie identity, parameters, grainplug version."""
-    ident = fingerprint(spec.movie)
-    ident.pop("path", None)
-    blob = json.dumps({"input": ident, "params": spec.params.as_record(), "version": __version__},
+def run_key(spec: RunSpec, *, identity: dict[str, object] | None = None) -> str:
+    """Identity of a run's result: the movie's content, the parameters, the grainplug version.
+
+    The movie enters by its size and sampled content hash (:func:`grainplug.pipeline.fingerprint`),
+    not its path or modification time: a campaign copied to another drive is still done.
+    """
+    ident = identity if identity is not None else fingerprint(spec.movie)
+    content = {k: ident.get(k) for k in ("bytes", "files", "sha256_sampled")}
+    blob = json.dumps({"input": content, "params": spec.params.as_record(), "version": __version__},
                       sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True,
-                threads: int | None = None) -> dict[str, object]:
+def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: int | None = None,
+                verify: bool = False) -> dict[str, object]:
     """Analyse one run into ``out_dir/runs/<run>`` (or reuse it); a record for the table.
 
-    ``threads``: reading threads of the analysis (see :func:`grainplug.analyze`);
-    1 where runs already go in parallel.
+    A run is reused only when its folder is complete (its completion marker lists every file,
+    :func:`grainplug._atomic.is_complete`) and its summary holds the same :func:`run_key`; with
+    ``verify``, also the same SHA-256 of every byte of the movie (a run analysed without it is
+    analysed again, once). ``threads``: reading threads of the analysis (see
+    :func:`grainplug.analyze`); 1 where runs already go in parallel. The record's ``reused``
+    says whether the run was taken from an earlier batch (it is not a column of the table).
     """
     run_dir = Path(out_dir) / "runs" / run_folder_name(spec.run)
     record: dict[str, object] = {"run": spec.run, "movie": str(spec.movie), **spec.meta}
     try:
-        key = run_key(spec)
+        ident = fingerprint(spec.movie, full=verify)
+        key = run_key(spec, identity=ident)
     except OSError as exc:
         return {**record, "status": "failed", "error": f"cannot read {spec.movie}: {exc.strerror or exc}"}
     except GrainplugError as exc:
         return {**record, "status": "failed", "error": str(exc)}
     record["run_key"] = key
-    summary_path = run_dir / "summary.json"
-    if summary_path.exists():
+    if is_complete(run_dir):
         try:
-            old = json.loads(summary_path.read_text())
+            old = json.loads((run_dir / "summary.json").read_text())
         except (OSError, json.JSONDecodeError):
             old = {}
-        if old.get("batch", {}).get("run_key") == key:
-            return {**record, "status": "cached", **_flat(old)}
+        done = old.get("batch") or {}
+        if done.get("run_key") == key and (not verify or done.get("input_sha256") == ident["sha256"]):
+            return {**record, "status": "ok", "reused": True, **_flat(old)}
     try:
         res = analyze(spec.movie, spec.params, threads=threads)
         write_outputs(res, run_dir, figures=figures, report=figures,
-                      extra={"batch": {"run": spec.run, "run_key": key, "meta": spec.meta}})
-        return {**record, "status": "ok", **_flat(res.summary)}
+                      extra={"batch": {"run": spec.run, "run_key": key, "meta": spec.meta,
+                                       "input_sha256": ident.get("sha256")}})
+        return {**record, "status": "ok", "reused": False, **_flat(res.summary)}
     except GrainplugError as exc:
         return {**record, "status": "failed", "error": str(exc)}
     except Exception as exc:  # a bug in one run must not stop the campaign
@@ -95,7 +106,7 @@ def _flat(summary: dict) -> dict[str, object]:
     lci = summary.get("plug_length_ci95_mm") or [None, None]
     out.update(celerity_ci95_low_m_s=ci[0], celerity_ci95_high_m_s=ci[1],
                plug_length_ci95_low_mm=lci[0], plug_length_ci95_high_mm=lci[1],
-               input_sha256_ends=(summary.get("input") or {}).get("sha256_ends"),
+               input_sha256_sampled=(summary.get("input") or {}).get("sha256_sampled"),
                input_bytes=(summary.get("input") or {}).get("bytes"),
                grainplug_version=summary.get("grainplug_version"),
                warnings=" | ".join(summary.get("warnings") or []) or None)
@@ -110,6 +121,7 @@ class Campaign:
     fits: dict[str, dict]
     out_dir: Path
     n_failed: int
+    n_reused: int = 0
 
 
 def _group(row: pd.Series) -> str | None:
@@ -124,7 +136,7 @@ def _group(row: pd.Series) -> str | None:
 
 def campaign_fits(table: pd.DataFrame, *, diameter_mm: float = 3.0) -> dict[str, dict]:
     """Celerity and length against mass flow rate, per group and over all runs."""
-    ok = table[table.status.isin(["ok", "cached"])].copy() if "status" in table else table.copy()
+    ok = table[table.status == "ok"].copy() if "status" in table else table.copy()
     if "mass_flow_rate_g_s" not in ok or ok.empty:
         return {}
     ok["fit_group"] = ok.apply(_group, axis=1)
@@ -140,7 +152,7 @@ def campaign_fits(table: pd.DataFrame, *, diameter_mm: float = 3.0) -> dict[str,
 
 
 def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1, scheduler: str | None = None,
-                 figures: bool = True,
+                 figures: bool = True, verify: bool = False,
                  progress: Callable[[int, int, str], None] | None = None) -> Campaign:
     """Analyse every run of ``manifest`` and write the campaign's table, fits, figures and report.
 
@@ -154,19 +166,39 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         Processes on this machine (1: in this process).
     scheduler : str, optional
         Address of a Dask distributed scheduler (``tcp://host:8786``); overrides ``workers``.
+    figures : bool
+        Figures and HTML reports, per run and for the campaign.
+    verify : bool
+        Reuse a run only if every byte of its movie hashes as when it was analysed
+        (reads every movie whole); otherwise its size and sampled content must match.
     progress : callable, optional
         ``progress(done, total, run)`` after each run.
+
+    Raises
+    ------
+    CampaignInterrupted
+        On Ctrl-C: queued runs are not started, running ones are stopped (their
+        temporary folders are removed, now or by the next batch), finished ones stay.
+
+    Notes
+    -----
+    Every run is done or not started whatever happens to the batch: a run's folder is
+    swapped in whole with a completion marker, and only a complete folder with the same
+    key is reused, so a batch killed at any point and run again gives the same table as one
+    never interrupted. Worker processes ignore Ctrl-C (the batch stops them) and end when
+    the batch's process ends, even if it was killed.
     """
     from .._atomic import OutputPlaceError, check_output_place
 
     specs = read_manifest(manifest)
     out = check_output_place(out_dir, inputs=[manifest, *(s.movie for s in specs)], replace=False)
+    if workers < 1:
+        raise GrainplugError("--workers must be at least 1")
+    client = _dask_client(scheduler) if scheduler else None  # refuse an unreachable scheduler before writing
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OutputPlaceError(f"cannot create {out}: {exc.strerror or exc} — choose another --out") from None
-    if workers < 1:
-        raise GrainplugError("--workers must be at least 1")
     records: dict[str, dict] = {}
     total = len(specs)
 
@@ -175,35 +207,116 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         if progress:
             progress(len(records), total, str(rec["run"]))
 
-    if scheduler:
-        try:
-            from dask.distributed import Client
+    kw = {"figures": figures, "verify": verify}
+    try:
+        if client is not None:
             from dask.distributed import as_completed as dask_completed
-        except ImportError:
-            raise GrainplugError("--scheduler needs Dask: pip install 'grainplug[dask]'") from None
-        try:
-            client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as exc:
-            raise GrainplugError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
-        try:
-            futures = [client.submit(process_run, s, str(out), figures=figures, threads=1, pure=False)
-                       for s in specs]
-            for fut in dask_completed(futures):
-                done(fut.result())
-        finally:
-            client.close()
-    elif workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = [pool.submit(process_run, s, str(out), figures=figures, threads=1) for s in specs]
-            for fut in as_completed(futures):
-                done(fut.result())
-    else:
-        for s in specs:
-            done(process_run(s, str(out), figures=figures))
-    table = pd.DataFrame([records[s.run] for s in specs])
+
+            try:
+                futures = [client.submit(process_run, s, str(out), threads=1, pure=False, **kw) for s in specs]
+                for fut in dask_completed(futures):
+                    done(fut.result())
+            finally:
+                client.close()
+        elif workers > 1:
+            _in_pool(specs, str(out), workers=workers, done=done, **kw)
+        else:
+            for s in specs:
+                done(process_run(s, str(out), **kw))
+    except KeyboardInterrupt:
+        n_done = sum(r["status"] == "ok" for r in records.values())
+        raise CampaignInterrupted(
+            f"interrupted: {n_done} of {total} runs are done and kept, the others were not started or were "
+            "stopped — run the same command again to finish") from None
+    n_reused = sum(bool(records[s.run].get("reused")) for s in specs)
+    table = pd.DataFrame([{k: v for k, v in records[s.run].items() if k != "reused"} for s in specs])
     fits = campaign_fits(table)
     _write_campaign(table, fits, out, manifest=Path(manifest), figures=figures)
-    return Campaign(table, fits, out, int((table.status == "failed").sum()))
+    return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused)
+
+
+#: how long to wait for a Dask scheduler before saying it cannot be reached
+SCHEDULER_TIMEOUT_S = 3
+
+
+def _dask_client(address: str):
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise GrainplugError("--scheduler needs Dask: pip install 'grainplug[dask]'") from None
+    import socket
+    from urllib.parse import urlsplit
+
+    where = urlsplit(address if "://" in address else f"tcp://{address}")
+    try:
+        if where.scheme in ("tcp", "tls") and where.hostname and where.port:
+            # dask retries a refused connection until its timeout, and waits for ever on a service
+            # that never answers (a web server): ask the port once first; a scheduler speaks first
+            with socket.create_connection((where.hostname, where.port), timeout=SCHEDULER_TIMEOUT_S) as sock:
+                if where.scheme == "tcp" and not sock.recv(1):
+                    raise ConnectionResetError("closed at once")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise GrainplugError(f"cannot reach the Dask scheduler at {address} within {SCHEDULER_TIMEOUT_S} s "
+                             f"({type(exc).__name__}) — check the address and that the scheduler is running") from None
+    try:
+        return Client(address, timeout=f"{SCHEDULER_TIMEOUT_S}s")
+    except Exception as exc:  # something answers there, but not a Dask scheduler (a web page, another service)
+        raise GrainplugError(f"no Dask scheduler answered at {address} ({type(exc).__name__}) — check the "
+                             "address and port (the scheduler's, usually 8786, not its dashboard's)") from None
+
+
+class _Stop(SystemExit):
+    """Raised in a worker by SIGTERM: unwinds (temporary folders removed), then the worker ends."""
+
+
+def _worker_start(parent_pid: int) -> None:
+    """In each worker process: ignore Ctrl-C (the batch decides), stop cleanly on SIGTERM, and
+    end when the batch's process is gone (killed: its workers must not wait for work forever)."""
+    import signal
+    import threading
+    import time
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def stop(signum: int, frame: object) -> None:
+        raise _Stop(143)
+
+    signal.signal(signal.SIGTERM, stop)
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(0.5)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=watch, name="grainplug-parent-watch", daemon=True).start()
+
+
+def _worker_run(spec: RunSpec, out_dir: str, **kw: object) -> dict[str, object]:
+    try:
+        return process_run(spec, out_dir, threads=1, **kw)
+    except _Stop:  # the run's temporary folder is gone (unwound): end the process, take no more work
+        os._exit(143)
+
+
+def _in_pool(specs: list[RunSpec], out: str, *, workers: int, done: Callable[[dict], None], **kw: object) -> None:
+    """Runs in a pool of processes; on Ctrl-C, queued runs are dropped and running ones stopped."""
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_start, initargs=(os.getpid(),))
+    try:
+        futures = [pool.submit(_worker_run, s, out, **kw) for s in specs]
+        for fut in as_completed(futures):
+            done(fut.result())
+    except BaseException:
+        for fut in futures if "futures" in locals() else []:
+            fut.cancel()
+        procs = list(getattr(pool, "_processes", {}).values())  # the executor has no public way to stop them
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+        for proc in procs:
+            proc.join(timeout=10)
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
 
 
 def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Path, figures: bool) -> None:
@@ -230,7 +343,7 @@ def _campaign_figures(table: pd.DataFrame, folder: Path) -> list[str]:
 
     from ..plotting.campaign import plot_vs_mass_flow
 
-    ok = table[table.status.isin(["ok", "cached"])].copy()
+    ok = table[table.status == "ok"].copy()
     if ok.empty or "mass_flow_rate_g_s" not in ok:
         return []
     ok["fit_group"] = ok.apply(_group, axis=1)

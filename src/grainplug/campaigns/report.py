@@ -16,7 +16,7 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
     rows = [[("" if pd.isna(v) else v) if not isinstance(v, (list, dict)) else v for v in r]
             for r in tab[cols].itertuples(index=False)]
     links = "".join(f'<li><a href="runs/{html.escape(str(r))}/report.html">{html.escape(str(r))}</a></li>'
-                    for r, s in zip(tab.run, tab.status, strict=True) if s in ("ok", "cached"))
+                    for r, s in zip(tab.run, tab.status, strict=True) if s == "ok")
     fit_rows = []
     for g, f in fits.items():
         c = f.get("celerity") or {}
@@ -24,8 +24,8 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
         fit_rows.append([g, c.get("slope_m_s_per_g_s"), c.get("slope_stderr"), c.get("intercept_m_s"),
                          c.get("intercept_stderr"), c.get("r2"), c.get("n"), ln.get("mean_mm"),
                          ln.get("sd_mm"), ln.get("mean_over_diameter")])
-    inputs = {r: {"movie": m, "sha256_ends": h} for r, m, h in
-              zip(tab.run, tab.movie, tab.get("input_sha256_ends", [None] * len(tab)), strict=True)}
+    inputs = {r: {"movie": m, "sha256_sampled": h} for r, m, h in
+              zip(tab.run, tab.movie, tab.get("input_sha256_sampled", [None] * len(tab)), strict=True)}
     body = ("<h2>Runs</h2>" + table(cols, rows) + f"<p>Per-run reports:</p><ul>{links}</ul>"
             + "<h2>Fits against mass flow rate</h2>"
             + table(["group", "slope (m/s per g/s)", "± se", "intercept (m/s)", "± se", "R²", "n",

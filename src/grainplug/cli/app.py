@@ -455,13 +455,18 @@ def paper(out: Path, no_figures: bool, as_json: bool) -> None:
               help="Runs analysed in parallel on this machine.")
 @click.option("--scheduler", default=None, help="Address of a Dask distributed scheduler (tcp://host:8786).")
 @click.option("--no-figures", is_flag=True, help="Skip figures and HTML reports.")
+@click.option("--verify", is_flag=True,
+              help="Reuse a finished run only if every byte of its movie is unchanged (reads every movie whole).")
 @click.option("--json", "as_json", is_flag=True, help="Print the fits as JSON.")
-def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_figures: bool, as_json: bool) -> None:
+def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_figures: bool, verify: bool,
+          as_json: bool) -> None:
     """Analyse every run of MANIFEST (CSV or TOML), then tabulate, fit and report.
 
     One row per run: movie (relative to the manifest), fps, mm_per_px or tube_diameter_mm,
     flow_direction, mass_flow_rate_g_s, humidity_pct, surface, group, and any metadata.
-    Runs already analysed with the same movie and parameters are skipped.
+    Runs already analysed with the same movie (size and sampled content; every byte with
+    --verify) and parameters are reused. Ctrl-C stops at once; every run is then done or not
+    started, and the same command finishes the campaign.
     """
     from rich.progress import BarColumn, Progress, TextColumn
 
@@ -475,14 +480,15 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
             bar.update(task, completed=done, total=total, description=f"run {run}")
 
         camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,
-                            progress=progress)
+                            verify=verify, progress=progress)
     t = camp.table
     if as_json:
         _echo_json({"grainplug_version": __version__, "fits": camp.fits,
-                    "runs": t[["run", "status"]].to_dict(orient="records")})
+                    "runs": t[["run", "status"]].to_dict(orient="records"), "n_reused": camp.n_reused})
     else:
         counts = t.status.value_counts().to_dict()
-        click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+        reused = f" ({camp.n_reused} reused from an earlier batch)" if camp.n_reused else ""
+        click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused)
         for g, f in camp.fits.items():
             c = f.get("celerity")
             if c:
