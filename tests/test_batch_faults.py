@@ -48,12 +48,18 @@ def campaign(tmp_path_factory) -> Path:
     return d
 
 
+def _as_in_a_terminal() -> None:
+    # a shell that starts the tests in the background ignores SIGINT for them, and children inherit
+    # that: give the batch the default disposition a terminal gives it
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def start(campaign: Path, out: Path, *args: str) -> subprocess.Popen:
     env = {**os.environ, "MPLBACKEND": "Agg"}
     return subprocess.Popen([sys.executable, "-m", "grainplug", "batch", str(campaign / "manifest.csv"),
                              "--out", str(out), "--no-figures", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_as_in_a_terminal)
 
 
 def finish(proc: subprocess.Popen, timeout: float = 120) -> tuple[int, str, str]:
@@ -75,7 +81,9 @@ def group_gone(pgid: int, within_s: float) -> bool:
 
 def runs_done(out: Path) -> list[str]:
     runs = out / "runs"
-    return sorted(p.name for p in runs.iterdir() if is_complete(p)) if runs.is_dir() else []
+    if not runs.is_dir():
+        return []
+    return sorted(p.name for p in runs.iterdir() if not p.name.startswith(".") and is_complete(p))
 
 
 def assert_whole(out: Path) -> None:
@@ -142,15 +150,17 @@ def test_ctrl_c_stops_at_once_and_keeps_what_is_done(campaign, undisturbed, tmp_
     stopped_s = time.monotonic() - t0
     lines = err.strip().splitlines()
     assert code == 130 and len(lines) == 1 and lines[0].startswith("error: interrupted: "), err
-    assert "runs are done and kept" in lines[0] and "Traceback" not in err
+    assert "runs have a complete result, kept" in lines[0] and "Traceback" not in err
     assert stopped_s < 5.0, f"took {stopped_s:.1f} s to stop"  # not after the queue
     assert len(runs_done(out)) < N_RUNS
     assert group_gone(proc.pid, within_s=5.0)
     assert_whole(out)
     assert not [p.name for p in (out / "runs").iterdir() if p.name.startswith(".")], "temporary folders left"
+    kept = runs_done(out)
+    assert kept
     code, printed, err = finish(start(campaign, out, "--workers", workers))
     assert code == 0, err
-    assert "reused from an earlier batch" in printed
+    assert f"({len(kept)} reused from an earlier batch)" in printed
     assert (out / "campaign.csv").read_bytes() == undisturbed
 
 

@@ -27,6 +27,12 @@ class CampaignInterrupted(KeyboardInterrupt):
     """A campaign stopped by Ctrl-C: every run is done or not started; the message says how many."""
 
 
+class Interrupted(GrainplugError):
+    """Ctrl-C, reported by the command line as one line with exit status 130."""
+
+    exit_code = 130
+
+
 class MovieError(GrainplugError):
     """A movie cannot be opened or decoded."""
 

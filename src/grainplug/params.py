@@ -23,6 +23,43 @@ if TYPE_CHECKING:
 FLOW_DIRECTIONS = ("down", "up", "left", "right")
 
 
+@dataclass(frozen=True)
+class Range:
+    """Where a number must lie, and its unit, for the messages that refuse it."""
+
+    lo: float
+    hi: float
+    unit: str = ""
+    integer: bool = False
+
+    def holds(self, value: object) -> bool:
+        """Whether ``value`` is a finite number within the range (and whole, for an integer)."""
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(float(value)):
+            return False
+        if self.integer and float(value) != int(value):
+            return False
+        return self.lo <= float(value) <= self.hi
+
+    def message(self, value: object) -> str:
+        whole = "a whole number " if self.integer else ""
+        unit = f" {self.unit}" if self.unit else ""
+        return f"must be {whole}between {self.lo:g} and {self.hi:g}{unit}, got {value}"
+
+
+#: the one table of ranges: :class:`AnalysisParams` checks them, the command line's options
+#: (:class:`grainplug.cli.types.Number`) and the manifests' columns take them from here
+RANGES: dict[str, Range] = {
+    "fps": Range(1, 1e7, "frames per second"),
+    "mm_per_px": Range(1e-5, 100, "mm per pixel"),
+    "tube_diameter_mm": Range(0.05, 1000, "mm"),
+    "tube_outer_diameter_mm": Range(0.05, 2000, "mm"),
+    "glass_index": Range(1.3, 2.0, "(a glass's refractive index)"),
+    "min_plug_mm": Range(0.01, 1e4, "mm"),
+    "min_gap_mm": Range(0, 1e4, "mm"),
+    "sample_frames": Range(4, 10_000, "frames", integer=True),
+}
+
+
 def tube_orientation(direction: str) -> str:
     """``"vertical"`` for a flow up or down the image, ``"horizontal"`` for left or right."""
     return "vertical" if direction in ("down", "up") else "horizontal"
@@ -105,28 +142,14 @@ class AnalysisParams:
             if not ok:
                 raise ParameterError(message, param=param)
 
-        def within(value: float | None, lo: float, hi: float) -> bool:
-            return value is None or (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi)
-
-        check(within(self.fps, 1, 1e7), "fps", f"must be between 1 and 1e7 frames per second, got {self.fps}")
-        check(within(self.mm_per_px, 1e-5, 100), "mm_per_px",
-              f"must be between 1e-5 and 100 mm per pixel, got {self.mm_per_px}")
-        check(within(self.tube_diameter_mm, 0.05, 1000), "tube_diameter_mm",
-              f"must be between 0.05 and 1000 mm, got {self.tube_diameter_mm}")
-        check(self.tube_outer_diameter_mm is None or (
-            math.isfinite(self.tube_outer_diameter_mm) and self.tube_outer_diameter_mm > self.tube_diameter_mm * 1.05),
-            "tube_outer_diameter_mm",
-            f"must exceed the inner diameter ({self.tube_diameter_mm:g} mm) by at least 5 %, "
-            f"got {self.tube_outer_diameter_mm}")
-        check(math.isfinite(self.glass_index) and 1.3 <= self.glass_index <= 2.0, "glass_index",
-              f"must be a glass's refractive index, between 1.3 and 2.0, got {self.glass_index}")
+        for name, rng in RANGES.items():
+            value = getattr(self, name)
+            check(value is None or rng.holds(value), name, rng.message(value))
+        check(self.tube_outer_diameter_mm is None or self.tube_outer_diameter_mm > self.tube_diameter_mm * 1.05,
+              "tube_outer_diameter_mm", f"must exceed the inner diameter ({self.tube_diameter_mm:g} mm) by at least "
+              f"5 %, got {self.tube_outer_diameter_mm}")
         check(self.flow_direction is None or self.flow_direction in FLOW_DIRECTIONS, "flow_direction",
               f"must be one of {', '.join(FLOW_DIRECTIONS)}, got {self.flow_direction!r}")
-        check(within(self.min_plug_mm, 0.01, 1e4), "min_plug_mm",
-              f"must be between 0.01 and 1e4 mm, got {self.min_plug_mm}")
-        check(within(self.min_gap_mm, 0, 1e4), "min_gap_mm", f"must be between 0 and 1e4 mm, got {self.min_gap_mm}")
-        check(isinstance(self.sample_frames, numbers.Integral) and 4 <= self.sample_frames <= 10_000, "sample_frames",
-              f"must be a whole number between 4 and 10000, got {self.sample_frames}")
         check(self.calibration is None or self.mm_per_px is None, "calibration",
               "give either a calibration or mm_per_px (the scale), not both")
 

@@ -224,10 +224,10 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
             for s in specs:
                 done(process_run(s, str(out), **kw))
     except KeyboardInterrupt:
-        n_done = sum(r["status"] == "ok" for r in records.values())
+        n_done = sum(is_complete(out / "runs" / run_folder_name(s.run)) for s in specs)
         raise CampaignInterrupted(
-            f"interrupted: {n_done} of {total} runs are done and kept, the others were not started or were "
-            "stopped — run the same command again to finish") from None
+            f"interrupted: {n_done} of {total} runs have a complete result, kept; the others were not started "
+            "or were stopped — run the same command again to finish (complete, current runs are reused)") from None
     n_reused = sum(bool(records[s.run].get("reused")) for s in specs)
     table = pd.DataFrame([{k: v for k, v in records[s.run].items() if k != "reused"} for s in specs])
     fits = campaign_fits(table)
@@ -283,12 +283,15 @@ def _worker_start(parent_pid: int) -> None:
 
     signal.signal(signal.SIGTERM, stop)
 
-    def watch() -> None:
-        while os.getppid() == parent_pid:
+    def watch() -> None:  # ends with the worker's main thread, or stops the worker when orphaned
+        main = threading.main_thread()
+        while main.is_alive():
+            if os.getppid() != parent_pid:
+                os.kill(os.getpid(), signal.SIGTERM)
+                return
             time.sleep(0.5)
-        os.kill(os.getpid(), signal.SIGTERM)
 
-    threading.Thread(target=watch, name="grainplug-parent-watch", daemon=True).start()
+    threading.Thread(target=watch, name="grainplug-parent-watch").start()
 
 
 def _worker_run(spec: RunSpec, out_dir: str, **kw: object) -> dict[str, object]:
@@ -306,8 +309,8 @@ def _in_pool(specs: list[RunSpec], out: str, *, workers: int, done: Callable[[di
         for fut in as_completed(futures):
             done(fut.result())
     except BaseException:
-        for fut in futures if "futures" in locals() else []:
-            fut.cancel()
+        # stop the workers first: the executor then fails the queued runs itself (cancelling them
+        # here as well races with it, and its thread prints a traceback on Python 3.11)
         procs = list(getattr(pool, "_processes", {}).values())  # the executor has no public way to stop them
         for proc in procs:
             if proc.is_alive():

@@ -12,7 +12,7 @@ from rich.console import Console
 from .._version import __version__
 from ..errors import ParameterError
 from ..params import FLOW_DIRECTIONS
-from .types import FINITE, Number
+from .types import FINITE, Number, param_number
 
 err_console = Console(stderr=True)
 
@@ -60,7 +60,7 @@ def _echo_json(data: object) -> None:
 @cli.command()
 @click.argument("movie", type=click.Path(path_type=Path))
 @click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
-@click.option("--fps", type=Number(1, 1e7, unit="frames per second"), default=None,
+@click.option("--fps", type=param_number("fps"), default=None,
               help="Frame rate to use instead of the file's.")
 @click.option("--allow-truncated", is_flag=True,
               help="For camera files that end early: describe the complete frames instead of refusing.")
@@ -156,19 +156,19 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.argument("movie", type=click.Path(path_type=Path))
 @click.option("--out", "out", type=click.Path(path_type=Path), required=True,
               help="Folder for summary.json, CSV tables, diagram, figures and report.")
-@click.option("--fps", type=Number(1, 1e7, unit="frames per second"), default=None,
+@click.option("--fps", type=param_number("fps"), default=None,
               help="Frame rate (overrides the file; needed for image folders).")
-@click.option("--mm-per-px", type=Number(1e-5, 100, unit="mm per pixel"), default=None,
+@click.option("--mm-per-px", type=param_number("mm_per_px"), default=None,
               help="Scale; by default measured from the tube.")
-@click.option("--tube-diameter-mm", type=Number(0.05, 1000, unit="mm"), default=None,
+@click.option("--tube-diameter-mm", type=param_number("tube_diameter_mm"), default=None,
               help="Inner diameter of the tube, for the scale measured from the tube [default: 3].")
-@click.option("--tube-outer-diameter-mm", type=Number(0.05, 2000, unit="mm"), default=None,
+@click.option("--tube-outer-diameter-mm", type=param_number("tube_outer_diameter_mm"), default=None,
               help="Outer diameter of the tube: the scale then comes from its outer silhouette (any lighting).")
-@click.option("--glass-index", type=Number(1.3, 2.0), default=1.47, show_default=True,
+@click.option("--glass-index", type=param_number("glass_index"), default=1.47, show_default=True,
               help="Refractive index of the tube's glass (1.47 borosilicate, 1.52 soda-lime), for the tube model.")
 @click.option("--flow-direction", type=click.Choice(FLOW_DIRECTIONS), default=None,
               help="Direction of the grain flow in the image [default: down for a vertical tube].")
-@click.option("--min-plug-mm", type=Number(0.01, 1e4, unit="mm"), default=3.0, show_default=True,
+@click.option("--min-plug-mm", type=param_number("min_plug_mm"), default=3.0, show_default=True,
               help="Shortest grain region counted as a plug.")
 @click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
 @click.option("--threads", type=Number(1, 1024, integer=True), default=None,
@@ -471,6 +471,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
     from rich.progress import BarColumn, Progress, TextColumn
 
     from ..campaigns import run_campaign
+    from ..errors import CampaignInterrupted, Interrupted
 
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} runs"),
                   console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
@@ -479,8 +480,11 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         def progress(done: int, total: int, run: str) -> None:
             bar.update(task, completed=done, total=total, description=f"run {run}")
 
-        camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,
-                            verify=verify, progress=progress)
+        try:
+            camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,
+                                verify=verify, progress=progress)
+        except CampaignInterrupted as exc:  # before click's own handler, which prints a blank line
+            raise Interrupted(str(exc)) from None
     t = camp.table
     if as_json:
         _echo_json({"grainplug_version": __version__, "fits": camp.fits,

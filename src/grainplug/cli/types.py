@@ -44,3 +44,11 @@ class Number(click.ParamType):
 
 #: any finite number
 FINITE = Number()
+
+
+def param_number(name: str) -> Number:
+    """The option type of an analysis parameter, with its range from :data:`grainplug.params.RANGES`."""
+    from ..params import RANGES
+
+    r = RANGES[name]
+    return Number(r.lo, r.hi, unit=r.unit, integer=r.integer)

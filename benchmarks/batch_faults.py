@@ -1,0 +1,126 @@
+"""Issue 17's target for batches: many short runs with a worker killed every so often.
+
+    .venv/bin/python benchmarks/batch_faults.py [--runs 200] [--workers 2] [--kill-every-s 30]
+        [--dir /tmp/grainplug-batch-faults]
+
+Renders ``--runs`` short synthetic movies (cached in ``--dir``), runs one undisturbed
+batch, then the same batch into another folder while a killer sends SIGKILL to one of
+the batch's worker processes (one that is writing a run, if any) every
+``--kill-every-s`` seconds. The batch is not restarted by hand: it must finish by
+itself. It reports how many workers were killed, whether every run is in the table once
+with status ok, and whether the campaign table equals the undisturbed one byte for
+byte. Nothing here is a test (it takes minutes); ``tests/test_batch_faults.py`` runs
+the same attack on six runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import logging
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from grainplug.synthetic import SynthConfig, synthesize
+
+log = logging.getLogger("batch_faults")
+
+
+def children(pid: int) -> list[int]:
+    """Child processes of ``pid`` (Linux /proc)."""
+    out: list[int] = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            out += [int(x) for x in (task / "children").read_text().split()]
+        except OSError:
+            pass
+    return out
+
+
+def make_campaign(folder: Path, n: int) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for i in range(n):
+        movie = folder / f"m{i:03d}" / "movie.tif"
+        if not movie.exists():
+            synthesize(SynthConfig(n_frames=60, height_px=240, width_px=48, celerity_m_s=-0.03 - 0.0003 * i,
+                                   seed=i, noise_sigma=2), movie.parent, fmt="tiff")
+        rows.append({"run": f"r{i:03d}", "movie": f"m{i:03d}/movie.tif", "mass_flow_rate_g_s": 0.3 + 0.003 * i,
+                     "mm_per_px": 0.185})
+    manifest = folder / "manifest.csv"
+    with open(manifest, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    return manifest
+
+
+def batch(manifest: Path, out: Path, workers: int) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "grainplug", "batch", str(manifest), "--out", str(out),
+                             "--workers", str(workers), "--no-figures"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "MPLBACKEND": "Agg"})
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", type=int, default=200)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--kill-every-s", type=float, default=30.0)
+    ap.add_argument("--dir", type=Path, default=Path("/tmp/grainplug-batch-faults"))
+    args = ap.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    manifest = make_campaign(args.dir / "campaign", args.runs)
+    quiet, noisy = args.dir / "undisturbed", args.dir / "attacked"
+    for d in (quiet, noisy):
+        subprocess.run(["rm", "-rf", str(d)], check=True)
+    t0 = time.monotonic()
+    p = batch(manifest, quiet, args.workers)
+    out, err = p.communicate()
+    log.info("undisturbed: exit %d in %.1f s: %s", p.returncode, time.monotonic() - t0, out.splitlines()[:1])
+    t0 = time.monotonic()
+    p = batch(manifest, noisy, args.workers)
+    kills: list[float] = []
+    stop = threading.Event()
+
+    def killer() -> None:
+        while not stop.wait(args.kill_every_s):
+            workers = children(p.pid)
+            if not workers:
+                continue
+            runs = noisy / "runs"
+            writing = [int(q.name.rsplit("-", 2)[-2]) for q in runs.glob(".*.grainplug-new-*")] if runs.is_dir() else []
+            victim = next((w for w in writing if w in workers), workers[0])
+            try:
+                os.kill(victim, signal.SIGKILL)
+                kills.append(time.monotonic() - t0)
+            except ProcessLookupError:
+                pass
+
+    th = threading.Thread(target=killer)
+    th.start()
+    out, err = p.communicate()
+    stop.set()
+    th.join()
+    elapsed = time.monotonic() - t0
+    same = (quiet / "campaign.csv").exists() and (noisy / "campaign.csv").exists() and (
+        (quiet / "campaign.csv").read_bytes() == (noisy / "campaign.csv").read_bytes())
+    import pandas as pd
+
+    table = pd.read_csv(noisy / "campaign.csv") if (noisy / "campaign.csv").exists() else None
+    once = table is not None and table.run.is_unique and len(table) == args.runs
+    all_ok = table is not None and set(table.status) == {"ok"}
+    log.info("attacked: exit %d in %.1f s, %d workers killed (at %s s)", p.returncode, elapsed, len(kills),
+             ", ".join(f"{k:.0f}" for k in kills))
+    log.info("stderr: %s", err.strip() or "(nothing)")
+    log.info("every run once: %s; all ok: %s; table equal to the undisturbed one byte for byte: %s", once, all_ok,
+             same)
+
+
+if __name__ == "__main__":
+    main()
