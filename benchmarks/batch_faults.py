@@ -1,7 +1,7 @@
 """Issue 17's target for batches: many short runs with a worker killed every so often.
 
-    .venv/bin/python benchmarks/batch_faults.py [--runs 200] [--workers 2] [--kill-every-s 30]
-        [--dir /tmp/grainplug-batch-faults]
+    .venv/bin/python benchmarks/batch_faults.py [--runs 200] [--frames 300] [--workers 2]
+        [--kill-every-s 30] [--dir /tmp/grainplug-batch-faults]
 
 Renders ``--runs`` short synthetic movies (cached in ``--dir``), runs one undisturbed
 batch, then the same batch into another folder while a killer sends SIGKILL to one of
@@ -42,16 +42,16 @@ def children(pid: int) -> list[int]:
     return out
 
 
-def make_campaign(folder: Path, n: int) -> Path:
+def make_campaign(folder: Path, n: int, n_frames: int) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
     for i in range(n):
-        movie = folder / f"m{i:03d}" / "movie.tif"
+        movie = folder / f"m{i:03d}-{n_frames}" / "movie.tif"
         if not movie.exists():
-            synthesize(SynthConfig(n_frames=60, height_px=240, width_px=48, celerity_m_s=-0.03 - 0.0003 * i,
-                                   seed=i, noise_sigma=2), movie.parent, fmt="tiff")
-        rows.append({"run": f"r{i:03d}", "movie": f"m{i:03d}/movie.tif", "mass_flow_rate_g_s": 0.3 + 0.003 * i,
-                     "mm_per_px": 0.185})
+            synthesize(SynthConfig(n_frames=n_frames, celerity_m_s=-0.03 - 0.0003 * i, seed=i, noise_sigma=2),
+                       movie.parent, fmt="tiff")
+        rows.append({"run": f"r{i:03d}", "movie": f"m{i:03d}-{n_frames}/movie.tif",
+                     "mass_flow_rate_g_s": 0.3 + 0.003 * i, "mm_per_px": 0.185})
     manifest = folder / "manifest.csv"
     with open(manifest, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
@@ -72,10 +72,11 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=200)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--kill-every-s", type=float, default=30.0)
+    ap.add_argument("--frames", type=int, default=300, help="frames per movie (the runs' length)")
     ap.add_argument("--dir", type=Path, default=Path("/tmp/grainplug-batch-faults"))
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    manifest = make_campaign(args.dir / "campaign", args.runs)
+    manifest = make_campaign(args.dir / "campaign", args.runs, args.frames)
     quiet, noisy = args.dir / "undisturbed", args.dir / "attacked"
     for d in (quiet, noisy):
         subprocess.run(["rm", "-rf", str(d)], check=True)

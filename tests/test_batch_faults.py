@@ -280,3 +280,52 @@ def test_a_dask_worker_killed_mid_run_costs_only_a_retry(campaign, undisturbed, 
     assert (out / "campaign.csv").read_bytes() == undisturbed
     assert runs_done(out) == [f"r{i}" for i in range(N_RUNS)]
     assert not [p.name for p in (out / "runs").iterdir() if p.name.startswith(".")], "temporary folders left"
+
+
+def test_a_worker_killed_in_the_local_pool_costs_only_its_run(campaign, undisturbed, tmp_path):
+    """The OOM killer takes one worker: the batch goes on with new workers (it used to stop with an
+    'unexpected BrokenProcessPool' bug line), says so, and its table is the undisturbed one."""
+    out = tmp_path / "out"
+    proc = start(campaign, out, "--workers", "2")
+    victim = None
+    end = time.monotonic() + 60
+    while victim is None and time.monotonic() < end and proc.poll() is None:
+        kids = set()
+        for task in Path(f"/proc/{proc.pid}/task").glob("*"):
+            try:
+                kids |= {int(x) for x in (task / "children").read_text().split()}
+            except OSError:
+                pass
+        busy = list((out / "runs").glob(".*.grainplug-new-*")) if (out / "runs").is_dir() else []
+        victim = next((pid for q in busy if (pid := int(q.name.rsplit("-", 2)[-2])) in kids), None)
+        time.sleep(0.005)
+    assert victim is not None, "no worker was caught writing a run"
+    os.kill(victim, signal.SIGKILL)
+    code, _, err = finish(proc)
+    assert code == 0, err
+    assert err.strip().startswith("warning: 1 worker process(es) died") and "Traceback" not in err
+    assert (out / "campaign.csv").read_bytes() == undisturbed
+    assert runs_done(out) == [f"r{i}" for i in range(N_RUNS)]
+    assert not [p.name for p in (out / "runs").iterdir() if p.name.startswith(".")], "temporary folders left"
+
+
+def test_a_run_that_kills_its_worker_fails_alone(campaign, tmp_path, monkeypatch):
+    import multiprocessing
+
+    from grainplug.campaigns import batch, run_campaign
+
+    if multiprocessing.get_start_method() != "fork":
+        pytest.skip("the worker's crash is planted in the parent, which only fork passes on")
+    real = batch.process_run
+
+    def crashes_on_r2(spec, *args, **kwargs):
+        if spec.run == "r2":
+            os._exit(9)  # a segfault in a decoder, the OOM killer: the process is gone
+        return real(spec, *args, **kwargs)
+
+    monkeypatch.setattr(batch, "process_run", crashes_on_r2)
+    camp = run_campaign(campaign / "manifest.csv", tmp_path / "out", workers=2, figures=False)
+    status = dict(zip(camp.table.run, camp.table.status, strict=True))
+    assert status == {f"r{i}": "failed" if i == 2 else "ok" for i in range(N_RUNS)}
+    assert "died twice" in camp.table.set_index("run").loc["r2", "error"]
+    assert camp.n_failed == 1 and camp.worker_deaths >= 3

@@ -273,4 +273,19 @@ def test_a_still_noiseless_scene_is_not_called_repeated():
     values = np.repeat(row[None], 100, axis=0)
     values[50:] += 5  # one change half-way: every other frame repeats the one before
     _fixed, repair = repair_frames(values, top=255.0)
-    assert repair.n_bad == 0
+    assert repair.n_bad == 0 and repair.n_still == 98
+    assert repair.describe(100).startswith("98 of 100 frames repeat the one before exactly")
+
+
+def test_a_frozen_movie_is_said_and_does_not_crash_after_writing(tmp_path, capsys, frames):
+    """Found by a held-out battery: one frame repeated 60 times crashed the summary print after the
+    outputs were written ('unexpected TypeError')."""
+    movie = tmp_path / "frozen.tif"
+    tifffile.imwrite(movie, np.repeat(frames[:1], 60, axis=0))
+    code = main(["analyze", str(movie), "--out", str(tmp_path / "o"), "--fps", "250", "--mm-per-px", "0.185",
+                 "--no-figures"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "59 of 60 frames repeat the one before exactly" in err and "unexpected" not in err
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert any("frames repeat" in w for w in summary["warnings"])

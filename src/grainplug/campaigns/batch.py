@@ -122,6 +122,8 @@ class Campaign:
     out_dir: Path
     n_failed: int
     n_reused: int = 0
+    #: worker processes of this machine's pool that died (their runs were started again)
+    worker_deaths: int = 0
 
 
 def _group(row: pd.Series) -> str | None:
@@ -208,6 +210,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
             progress(len(records), total, str(rec["run"]))
 
     kw = {"figures": figures, "verify": verify}
+    deaths = 0
     try:
         if client is not None:
             from dask.distributed import as_completed as dask_completed
@@ -219,7 +222,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
             finally:
                 client.close()
         elif workers > 1:
-            _in_pool(specs, str(out), workers=workers, done=done, **kw)
+            deaths = _in_pool(specs, str(out), workers=workers, done=done, **kw)
         else:
             for s in specs:
                 done(process_run(s, str(out), **kw))
@@ -232,7 +235,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     table = pd.DataFrame([{k: v for k, v in records[s.run].items() if k != "reused"} for s in specs])
     fits = campaign_fits(table)
     _write_campaign(table, fits, out, manifest=Path(manifest), figures=figures)
-    return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused)
+    return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused, deaths)
 
 
 #: how long to wait for a Dask scheduler before saying it cannot be reached
@@ -301,25 +304,78 @@ def _worker_run(spec: RunSpec, out_dir: str, **kw: object) -> dict[str, object]:
         os._exit(143)
 
 
-def _in_pool(specs: list[RunSpec], out: str, *, workers: int, done: Callable[[dict], None], **kw: object) -> None:
-    """Runs in a pool of processes; on Ctrl-C, queued runs are dropped and running ones stopped."""
+def _in_pool(specs: list[RunSpec], out: str, *, workers: int, done: Callable[[dict], None],
+             **kw: object) -> int:
+    """Runs in a pool of processes; returns how many worker processes died.
+
+    A worker that dies (killed, out of memory, a crash in a decoder) breaks the pool: the
+    runs not finished go to a new pool. If pools keep breaking with no run finished in
+    between, a run is taking its worker down: the rest go one process each, and a run whose
+    process dies twice is failed with the reason. On Ctrl-C, queued runs are dropped and
+    running ones stopped.
+    """
+    remaining, deaths, stalled = list(specs), 0, 0
+    while remaining:
+        if stalled >= 2:  # find the run that kills its worker: one process per run, two tries each
+            for spec in remaining:
+                for _ in range(2):
+                    finished, broken = _pool_pass([spec], out, workers=1, done=done, **kw)
+                    deaths += broken
+                    if finished:
+                        break
+                else:
+                    done({"run": spec.run, "movie": str(spec.movie), **spec.meta, "status": "failed",
+                          "error": "the process analysing this run died twice (out of memory, or a crash in a "
+                                   "reader) — try this movie alone with grainplug analyze --debug"})
+            return deaths
+        finished, broken = _pool_pass(remaining, out, workers=workers, done=done, **kw)
+        remaining = [s for s in remaining if s.run not in finished]
+        if not broken:
+            break
+        deaths += 1
+        stalled = 0 if finished else stalled + 1
+        log.warning("a worker process died; %d runs left go to new workers", len(remaining))
+    return deaths
+
+
+def _pool_pass(specs: list[RunSpec], out: str, *, workers: int, done: Callable[[dict], None],
+               **kw: object) -> tuple[set[str], bool]:
+    """One pool over ``specs``: the runs finished, and whether a worker died (the pool broke)."""
+    from concurrent.futures.process import BrokenProcessPool
+
     pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_start, initargs=(os.getpid(),))
+    finished: set[str] = set()
     try:
-        futures = [pool.submit(_worker_run, s, out, **kw) for s in specs]
+        futures = {pool.submit(_worker_run, s, out, **kw): s for s in specs}
         for fut in as_completed(futures):
-            done(fut.result())
+            try:
+                rec = fut.result()
+            except BrokenProcessPool:
+                _stop(pool)
+                return finished, True
+            finished.add(futures[fut].run)
+            done(rec)
     except BaseException:
-        # stop the workers first: the executor then fails the queued runs itself (cancelling them
-        # here as well races with it, and its thread prints a traceback on Python 3.11)
-        procs = list(getattr(pool, "_processes", {}).values())  # the executor has no public way to stop them
-        for proc in procs:
-            if proc.is_alive():
-                proc.terminate()
-        for proc in procs:
-            proc.join(timeout=10)
-        pool.shutdown(wait=False, cancel_futures=True)
+        _stop(pool)
         raise
     pool.shutdown(wait=True)
+    return finished, False
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """End a pool's workers now (SIGTERM: a run in progress removes its temporary folder).
+
+    The workers are stopped before anything else: the executor then fails the queued runs
+    itself (cancelling them here as well races with it, and its thread prints a traceback
+    on Python 3.11).
+    """
+    procs = list((getattr(pool, "_processes", None) or {}).values())  # no public way to stop them
+    for proc in procs:
+        if proc.is_alive():
+            proc.terminate()
+    for proc in procs:
+        proc.join(timeout=10)
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Path, figures: bool) -> None:

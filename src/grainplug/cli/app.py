@@ -234,13 +234,13 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
     if as_json:
         _echo_json(s)
         return
-    if not result.has_plugs:
+    if not result.has_plugs or s.get("celerity_m_s") is None:
         err_console.print(result.statement)
-    else:
+    if result.has_plugs:
         def fmt(v: object, unit: str = "", nd: int = 4) -> str:
             return "—" if v is None else f"{v:.{nd}f}{unit}" if isinstance(v, float) else f"{v}{unit}"
 
-        ci = s["celerity_ci95_m_s"]
+        ci = s.get("celerity_ci95_m_s") or [None, None]
         click.echo(f"regime          {s['regime']}")
         click.echo(f"celerity        {fmt(s['celerity_m_s'], ' m/s')}  (95% CI {fmt(ci[0])} to {fmt(ci[1])})")
         click.echo(f"plug length     {fmt(s['plug_length_mm'], ' mm', 2)}  "
@@ -486,6 +486,10 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         except CampaignInterrupted as exc:  # before click's own handler, which prints a blank line
             raise Interrupted(str(exc)) from None
     t = camp.table
+    if camp.worker_deaths:
+        err_console.print(f"[yellow]warning:[/] {camp.worker_deaths} worker process(es) died during the batch "
+                          "(killed, or out of memory); their runs were started again — if it repeats, use fewer "
+                          "--workers", highlight=False, soft_wrap=True)
     if as_json:
         _echo_json({"grainplug_version": __version__, "fits": camp.fits,
                     "runs": t[["run", "status"]].to_dict(orient="records"), "n_reused": camp.n_reused})

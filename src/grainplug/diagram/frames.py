@@ -40,6 +40,8 @@ class FrameRepair:
     dark: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     bright: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     repeated: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    #: frames that repeat the one before when so many do that the scene is still (not bridged)
+    n_still: int = 0
 
     @property
     def n_bad(self) -> int:
@@ -47,16 +49,20 @@ class FrameRepair:
 
     def describe(self, n_frames: int) -> str | None:
         """One warning line, or None when every frame was good."""
+        still = (f"{self.n_still} of {n_frames} frames repeat the one before exactly: the camera froze, or "
+                 "nothing moves in the tube — check the movie; any motion measured comes from the frames "
+                 "that change") if self.n_still else None
         if not self.n_bad:
-            return None
+            return still
         parts = []
         for name, idx in (("dark", self.dark), ("over-exposed", self.bright), ("repeated", self.repeated)):
             if len(idx):
                 shown = ", ".join(str(int(i)) for i in idx[:8]) + (", ..." if len(idx) > 8 else "")
                 parts.append(f"{len(idx)} {name} (frame{'s' if len(idx) > 1 else ''} {shown})")
         share = 100 * self.n_bad / max(n_frames, 1)
-        return (f"{self.n_bad} of {n_frames} frames ({share:.1f} %) were not usable — {'; '.join(parts)} — and were "
-                "bridged by interpolating between their neighbours: check the lamp and the camera's frame drops")
+        bad = (f"{self.n_bad} of {n_frames} frames ({share:.1f} %) were not usable — {'; '.join(parts)} — and were "
+               "bridged by interpolating between their neighbours: check the lamp and the camera's frame drops")
+        return f"{still}; also {bad}" if still else bad
 
 
 def repair_frames(values: np.ndarray, *, max_jump: float = 0.3, window: int = 11,
@@ -99,11 +105,13 @@ def repair_frames(values: np.ndarray, *, max_jump: float = 0.3, window: int = 11
         bright |= level >= 0.98 * top
     repeated = np.zeros(n, bool)
     repeated[1:] = np.all(v[1:] == v[:-1], axis=1) & (np.ptp(v[1:], axis=1) > 0)
-    if repeated.mean() > 0.2:
-        repeated[:] = False  # a still or noiseless scene (rendered movies), not dropped frames
+    n_still = 0
+    if repeated.mean() > 0.2:  # a still scene or a frozen camera, not dropped frames: said, not bridged
+        n_still = int(repeated.sum())
+        repeated[:] = False
     bad = dark | bright | repeated
     if not bad.any() or bad.all():
-        return v, FrameRepair()
+        return v, FrameRepair(n_still=n_still)
     good = np.flatnonzero(~bad)
     fixed = np.array(v, dtype=np.float32, copy=True)
     for k in np.flatnonzero(bad):
