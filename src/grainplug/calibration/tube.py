@@ -578,7 +578,9 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
         raise MovieError(f"every sampled frame is uniform (all pixels {lo:g}): no tube to see — check the lamp, "
                          "the exposure and the lens cap")
     # frames without the scene's structure (lamp off, a flash, all saturated) say nothing of the tube
-    spread = np.array([float(np.std(f[::4, ::4])) for f in frames])
+    # (one sample in 64 of one channel: the check costs ~1 ms instead of 40 on 1280 x 1024 RGB)
+    spread = np.array([float(np.std(f[::8, ::8, 0] if f.ndim == 3 else f[::8, ::8], dtype=np.float64))
+                       for f in frames])
     keep = spread >= 0.25 * float(np.median(spread))
     if keep.sum() >= 4 and not keep.all():
         log.info("tube: %d of %d sampled frames without structure left out", int((~keep).sum()), len(frames))
