@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 
 import numpy as np
 import pandas as pd
@@ -145,7 +146,10 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
     assert set(camp.fits) == {"propagative/rough", "propagative/smooth", "all"}
     assert camp.fits["propagative/rough"]["celerity"]["n"] == 3
     assert list(t.scale_source) == ["user"] * 5 and list(t.scale_rel_sd) == [0.0] * 5
-    assert "warnings" in t and "scale_source" in (out / "report.html").read_text()
+    report = (out / "report.html").read_text()
+    assert "warnings" in t and "scale from" in report and "celerity (m/s)" in report
+    tables = report.split("<h2>Figures")[0]  # (the figures are base64 text, the provenance raw JSON)
+    assert "nan" not in tables.lower() and not re.search(r"\d\.\d{6,}", tables)  # rounded, "—" when missing
     assert pd.read_parquet(out / "campaign.parquet").shape[0] == 5
     for name in ("campaign.csv", "fits.json", "report.html", "celerity_vs_mass_flow.png",
                  "length_vs_mass_flow.png", "runs/a/summary.json", "runs/a/report.html"):

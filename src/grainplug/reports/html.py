@@ -46,6 +46,22 @@ def images(folder: Path, names: list[str]) -> str:
     return "".join(_img(folder / n) for n in names if (folder / n).exists())
 
 
+def number(value: object, decimals: int = 3) -> str:
+    """A number as people read it in a table: fixed decimals, a minus sign, "—" when missing."""
+    import math
+
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return str(value)
+    if isinstance(value, int):
+        return str(value)
+    text = f"{value:.{decimals}f}"
+    if float(text) == 0:
+        text = text.lstrip("-")  # no "−0.0000"
+    return text.replace("-", "−")
+
+
 def table(header: list[str], rows: list[list[object]]) -> str:
     """An HTML table with a header row."""
     head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
