@@ -243,3 +243,116 @@ def test_cli_sweep(tmp_path, capsys):
     assert fig.stat().st_size > 5000
     assert main(["stability", "--sweep", "c0=0.5"]) == 2
     assert main(["stability", "--sweep", "size=1:2:3"]) == 2
+
+
+# -- set-ups: every switch derived symbolically ------------------------------------
+def _general_linearisation(law: str):
+    """sympy: the dimensionless equations with friction law ``law`` linearised about (c0, v0, P0);
+    the matrix M(k, omega) and the O(1) residual of the momentum equation, as functions of symbols."""
+    z, t, eps = sp.symbols("z t epsilon")
+    w, k, c0, kap, mu, B1, g, th = _printed_symbols()
+    v0, P0, b = sp.symbols("v0 P0 b", positive=True)
+    ch, vh, ph = sp.symbols("chat vhat phat")
+    e = sp.exp(sp.I * (k * z - w * t))
+    c = c0 + eps * ch * e
+    v = v0 + eps * vh * e
+    P = P0 + eps * ph * e
+    F0 = 2 * b * mu * v0**2  # the base friction the Coulomb laws hold or scale
+    # |v| = v sign(v0) near the base state (the perturbation is a complex normal mode: Abs would
+    # take its modulus)
+    F = {"v2": 2 * b * mu * v**2, "v|v|": 2 * b * mu * v * (v * sp.sign(v0)), "coulomb-frozen": F0,
+         "coulomb-weight": F0 * c / c0}[law]
+    # B is proportional to P and to (1 - c)^2 / c^2 (Carman-Kozeny); B1 is its value at P* = 1, c = c0
+    B = B1 * P * ((1 - c) / c) ** 2 / ((1 - c0) / c0) ** 2
+    mass = sp.diff(c, t) + c * sp.diff(v, z) + v * sp.diff(c, z)
+    motion = (c * sp.diff(v, t) + c * v * sp.diff(v, z) - c * sp.cos(th) + sp.diff(P, z)
+              + v / kap * sp.diff(v, z) + F)
+    pressure = sp.diff(P, t) + v * sp.diff(P, z) + g * P / (1 - c) * sp.diff(v, z) - B * sp.diff(P, z, 2)
+    rows = []
+    for eq in (mass, motion, pressure):
+        lin = sp.simplify(sp.diff(eq, eps).subs(eps, 0) / e)
+        rows.append([sp.expand(lin).coeff(x) for x in (ch, vh, ph)])
+    residual = sp.simplify(motion.subs(eps, 0))
+    return sp.Matrix(rows), residual, (w, k, c0, kap, mu, B1, g, th, v0, P0, b)
+
+
+SETUPS = [(law, vel, pres) for law in ("v2", "v|v|", "coulomb-frozen", "coulomb-weight")
+          for vel in ("printed", "balanced") for pres in (None, 101_325.0, 2_000.0)
+          if not (vel == "balanced" and law.startswith("coulomb"))]
+
+
+@pytest.mark.parametrize("law", ["v2", "v|v|", "coulomb-frozen", "coulomb-weight"])
+def test_every_setup_is_the_symbolic_linearisation(law):
+    """The matrix solved for each friction law, base velocity and base pressure equals sympy's
+    linearisation of the equations with that set-up, at random (k, omega); so does the residual."""
+    M, residual, syms = _general_linearisation(law)
+    w, k, c0, kap, mu, B1, g, th, v0, P0, b = syms
+    f = sp.lambdify((w, k, c0, kap, mu, B1, g, th, v0, P0, b), M, "numpy")
+    fr = sp.lambdify((c0, th, mu, v0, b), residual, "numpy")
+    rng = np.random.default_rng(3)
+    for l_, vel, pres in SETUPS:
+        if l_ != law:
+            continue
+        p = ModelParams(friction_law=law, base_velocity=vel, base_pressure_pa=pres, theta_deg=3.0, b=1.2)
+        for _ in range(3):
+            kk = float(rng.uniform(0.01, 3))
+            ww = complex(rng.normal(), rng.normal())
+            expected = np.array(f(ww, kk, p.c0, p.kappa, p.mu_s, p.B1_star, p.gamma, math.radians(p.theta_deg),
+                                  p.v0_star, p.P0_star, p.b), complex)
+            assert np.allclose(normal_mode_matrix(p, kk, ww), expected, rtol=1e-12, atol=1e-12), (law, vel, pres)
+        assert p.base_state_residual == pytest.approx(
+            float(fr(p.c0, math.radians(p.theta_deg), p.mu_s, p.v0_star, p.b)), abs=1e-12)
+
+
+def test_balanced_base_velocity_is_steady_and_stays_stable():
+    p = ModelParams(base_velocity="balanced")
+    assert p.base_state_residual == pytest.approx(0.0, abs=1e-12)
+    assert p.v0_star == pytest.approx(math.sqrt(0.55 / (2 * math.tan(math.radians(32)))), rel=1e-12)
+    assert analyze_stability(p, k_min=1e-4, k_max=3.0, n_k=4000).stable
+
+
+def test_atmospheric_base_pressure_sends_the_frozen_variant_beyond_the_pipe():
+    """With the air at atmospheric pressure (1377 P_c), the frozen-friction variant's unstable
+    band moves to wavelengths beyond 3000 D (9 m in a 3 mm pipe)."""
+    printed = analyze_stability(ModelParams(variant="frozen-friction"), k_min=1e-5, k_max=3.0, n_k=20_000)
+    atm = ModelParams(variant="frozen-friction", base_pressure_pa=101_325.0)
+    assert atm.P0_star == pytest.approx(101_325.0 / atm.P_c_pa) and 1370 < atm.P0_star < 1385
+    r = analyze_stability(atm, k_min=1e-5, k_max=3.0, n_k=20_000)
+    assert r.most_unstable is not None and printed.most_unstable is not None
+    assert min(r.cutoff_wavelength_over_diameter) > 3000 > 10 * printed.most_unstable.wavelength_over_diameter
+
+
+def test_setup_switches_are_checked():
+    with pytest.raises(ParameterError, match="no velocity balances"):
+        ModelParams(friction_law="coulomb-frozen", base_velocity="balanced")
+    with pytest.raises(ParameterError, match="one or the other"):
+        ModelParams(variant="frozen-friction", friction_law="v2")
+    with pytest.raises(ParameterError, match="base pressure"):
+        ModelParams(base_pressure_pa=-5.0)
+    with pytest.raises(ParameterError, match="printed cubic"):
+        dispersion_coefficients(ModelParams(base_pressure_pa=101_325.0), np.array([0.1]))
+    caveats = " ".join(ModelParams(variant="frozen-friction").caveats())
+    assert "not steady" in caveats and "74 Pa" in caveats and "contradicts" in caveats
+
+
+def test_cli_setup_switches(capsys):
+    from grainplug.cli import main
+
+    code = main(["stability", "--variant", "frozen-friction", "--base-pressure", "atmospheric", "--k-min", "1e-5",
+                 "--n-k", "20000", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    d = json.loads(out)
+    setup = d["setup"]
+    assert setup["friction_law"] == "coulomb-frozen" and setup["base_pressure_pa"] == pytest.approx(101_325.0)
+    assert setup["B_star"] == pytest.approx(2883, rel=2e-3)  # the issue's "about 2880"
+    assert min(d["cutoff_wavelength_over_diameter"]) > 3000
+    assert any("contradicts" in c for c in setup["caveats"])
+    code = main(["stability", "--base-velocity", "balanced"])
+    out = capsys.readouterr()[0]
+    assert code == 0 and "= +0.0000 (0 if the base state were steady)" in out and "every k*" in out
+    for bad, word in ((["--base-pressure", "lots"], "--base-pressure"),
+                      (["--friction-law", "coulomb-weight", "--base-velocity", "balanced"], "no velocity")):
+        code = main(["stability", *bad])
+        err = capsys.readouterr()[1]
+        assert code == 2 and err.startswith("error: ") and word in err and len(err.strip().splitlines()) == 1

@@ -268,7 +268,17 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
 @click.option("--B1-star", "b1_star", type=FINITE, default=None,
               help="Use this B1* instead of computing it from D, d, c0, gamma, mu_a, rho_s.")
 @click.option("--variant", type=click.Choice(["printed", "frozen-friction"]), default="printed", show_default=True,
-              help="printed: the paper's equations as printed; frozen-friction: wall friction not perturbed.")
+              help="printed: the paper's equations as printed; frozen-friction: wall friction not perturbed "
+                   "(= --friction-law coulomb-frozen).")
+@click.option("--friction-law", type=click.Choice(["v2", "v|v|", "coulomb-frozen", "coulomb-weight"]), default=None,
+              help="Wall friction F(c, v): v2 as printed (2 b mu_s v^2), v|v| (signed), coulomb-frozen (held at "
+                   "its base value), coulomb-weight (following the local weight) [default: v2, or the variant's].")
+@click.option("--base-pressure", "base_pressure", default="printed", show_default=True,
+              metavar="printed|atmospheric|PA",
+              help="Absolute air pressure of the base state: as printed (P* = 1, i.e. rho_s g D = 74 Pa), the "
+                   "atmosphere (101325 Pa), or a value in Pa; B1* and the compressibility term follow it.")
+@click.option("--base-velocity", type=click.Choice(["printed", "balanced"]), default="printed", show_default=True,
+              help="printed: v* = 1; balanced: the velocity at which wall friction carries the weight.")
 @click.option("--k-min", type=Number(1e-6, 1e4), default=0.001, show_default=True)
 @click.option("--k-max", type=Number(1e-6, 1e4), default=3.0, show_default=True)
 @click.option("--n-k", type=Number(2, 1e6, unit="wavenumbers", integer=True), default=1000, show_default=True)
@@ -280,10 +290,27 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
                    "the most unstable and cut-off wavelengths for each value.")
 def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: float, mu_s: float,
               theta_deg: float, gamma: float, air_viscosity_pa_s: float, grain_density_kg_m3: float,
-              b: float, b1_star: float | None, variant: str, k_min: float, k_max: float, n_k: int,
+              b: float, b1_star: float | None, variant: str, friction_law: str | None, base_pressure: str,
+              base_velocity: str, k_min: float, k_max: float, n_k: int,
               as_json: bool, plot: Path | None, sweep_spec: str | None) -> None:
-    """Linear stability of the paper's 1D model: the three roots omega*(k*)."""
-    from ..stability import ModelParams, analyze_stability
+    """Linear stability of the paper's 1D model: the three roots omega*(k*).
+
+    Every set-up choice is a switch whose default is the paper as printed: the friction law,
+    the base pressure and the base velocity; the output states the base state's residual,
+    its absolute pressure and the caveats of the set-up.
+    """
+    from ..stability import P_ATM_PA, ModelParams, analyze_stability
+
+    if base_pressure == "printed":
+        base_pressure_pa = None
+    elif base_pressure == "atmospheric":
+        base_pressure_pa = P_ATM_PA
+    else:
+        try:
+            base_pressure_pa = float(base_pressure)
+        except ValueError:
+            raise ParameterError(f"--base-pressure must be printed, atmospheric or a pressure in Pa, "
+                                 f"got {base_pressure!r}") from None
 
     if not (0 < k_min < k_max) or n_k < 10:
         raise ParameterError("need 0 < --k-min < --k-max and --n-k >= 10")
@@ -291,7 +318,8 @@ def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: fl
         raise ParameterError(f"--plot must name a .png, .svg or .pdf file, got {plot.name}")
     p = ModelParams(diameter_mm=diameter_mm, grain_diameter_um=grain_diameter_um, c0=c0, kappa=kappa,
                     mu_s=mu_s, theta_deg=theta_deg, gamma=gamma, air_viscosity_pa_s=air_viscosity_pa_s,
-                    grain_density_kg_m3=grain_density_kg_m3, b=b, B1_star_override=b1_star, variant=variant)
+                    grain_density_kg_m3=grain_density_kg_m3, b=b, B1_star_override=b1_star, variant=variant,
+                    friction_law=friction_law, base_pressure_pa=base_pressure_pa, base_velocity=base_velocity)
     if sweep_spec:
         _stability_sweep(p, sweep_spec, k_min=k_min, k_max=k_max, n_k=n_k, as_json=as_json, plot=plot)
         return
@@ -308,14 +336,20 @@ def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: fl
         _echo_json({"grainplug_version": __version__, **res.as_dict()})
         return
     m = res.most_unstable
-    click.echo(f"variant            {variant}")
+    click.echo(f"variant            {variant}" + ("" if p.is_printed else
+                                                      f"   (set-up: friction {p.law}, base pressure "
+                                                      f"{base_pressure}, base velocity {base_velocity})"))
     click.echo(f"B1*                {p.B1_star:.6g}   (P_c = {p.P_c_pa:.4g} Pa, t_c = {p.t_c_s:.4g} s, "
                f"v_c = {p.v_c_m_s:.4g} m/s)")
-    click.echo(f"base-state balance -c0 cos(theta) + 2 b mu_s = {p.base_state_residual:+.4f} "
+    click.echo(f"base state         c0 = {p.c0:g}, v0* = {p.v0_star:.4g} ({p.v0_star * p.v_c_m_s:.3g} m/s), "
+               f"P0 = {p.base_pressure_abs_pa:.4g} Pa (P0* = {p.P0_star:.4g}; B* = B1* P0* = {p.B_star:.4g})")
+    click.echo(f"base-state balance -c0 cos(theta) + F(c0, v0) = {p.base_state_residual:+.4f} "
                "(0 if the base state were steady)")
+    for line in p.caveats():
+        click.echo(f"caveat             {line}")
     if m is None:
         click.echo(f"most unstable      none: every k* in [{k_min:g}, {k_max:g}] is stable")
-        if variant == "printed":
+        if p.is_printed:
             click.echo("note               the printed model does not give the paper's long-wave instability "
                        "(k* ~ 0.2, cut-off ~ 0.6); --variant frozen-friction does — see docs/stability.md")
     else:

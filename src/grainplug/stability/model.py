@@ -14,7 +14,20 @@ matrix printed in the paper (eq. "eigenvalue"),
         0 & \\frac{\\gamma}{1 - c_0} i k & -i\\omega + i k + B_1^* k^2
     \\end{pmatrix}
 
-(stars dropped). ``M = A(k) - i omega E`` with ``E = diag(1, c0, 1)``, so the
+(stars dropped). For another set-up (:class:`ModelParams`: base pressure ``P0*``,
+base velocity ``v0*``, friction law ``F(c, v)``) the same linearisation gives
+
+.. math::
+
+    M = \\begin{pmatrix}
+        i k v_0 - i\\omega & i k c_0 & 0 \\\\
+        -\\cos\\theta + F_c & -i\\omega c_0 + i k c_0 v_0 + i k v_0/\\kappa + F_v & i k \\\\
+        0 & \\frac{\\gamma P_0}{1 - c_0} i k & -i\\omega + i k v_0 + B_1^* P_0 k^2
+    \\end{pmatrix}
+
+with ``F_c, F_v`` the derivatives of ``F`` at the base state (printed: ``F = 2 b mu_s v^2``,
+``F_v = 4 b mu_s``, ``F_c = 0``); ``tests/test_stability.py`` derives it with sympy for
+every set-up. ``M = A(k) - i omega E`` with ``E = diag(1, c0, 1)``, so the
 three roots of ``det M = 0`` (the cubic of eq. "det") are
 ``omega = -i lambda`` for the eigenvalues ``lambda`` of ``E^-1 A(k)``: this is how
 they are computed, for all wavenumbers at once. ``omega = omega_r + i omega_i``;
@@ -54,13 +67,14 @@ def system_matrices(p: ModelParams, k: np.ndarray) -> tuple[np.ndarray, np.ndarr
     n = k.size
     A = np.zeros((n, 3, 3), complex)
     ik = 1j * k
-    A[:, 0, 0] = ik
+    v0, P0 = p.v0_star, p.P0_star
+    A[:, 0, 0] = ik * v0
     A[:, 0, 1] = ik * p.c0
-    A[:, 1, 0] = -math.cos(_theta(p))
-    A[:, 1, 1] = ik * p.c0 + ik / p.kappa + p.friction
+    A[:, 1, 0] = -math.cos(_theta(p)) + p.friction_c
+    A[:, 1, 1] = ik * p.c0 * v0 + ik * v0 / p.kappa + p.friction
     A[:, 1, 2] = ik
-    A[:, 2, 1] = p.gamma / (1 - p.c0) * ik
-    A[:, 2, 2] = ik + p.B1_star * k**2
+    A[:, 2, 1] = p.gamma * P0 / (1 - p.c0) * ik
+    A[:, 2, 2] = ik * v0 + p.B_star * k**2
     E = np.diag([1.0, p.c0, 1.0]).astype(complex)
     return A, E
 
@@ -77,8 +91,14 @@ def dispersion_coefficients(p: ModelParams, k: float | np.ndarray) -> np.ndarray
     """Coefficients ``(a3, a2, a1, a0)`` of the cubic ``a3 w^3 + a2 w^2 + a1 w + a0 = 0``, eq. "det".
 
     Transcribed from the printed equation (with ``4 mu_s`` read as the friction
-    coefficient of the variant, ``4 b mu_s`` or 0).
+    coefficient of the variant, ``4 b mu_s`` or 0). It holds for the printed base state
+    (``v* = 1, P* = 1``, no friction on ``c~``); other set-ups' roots come from the matrix.
     """
+    if p.v0_star != 1.0 or p.P0_star != 1.0 or p.friction_c != 0.0:
+        from ..errors import ParameterError
+
+        raise ParameterError("the printed cubic holds for the printed base state only (v* = 1, P* = 1, friction "
+                             "not following c): use roots(), which solves the matrix of any set-up")
     k = np.asarray(k, dtype=float)
     c0, kinv, B, g = p.c0, 1.0 / p.kappa, p.B1_star, p.gamma
     cos = math.cos(_theta(p))

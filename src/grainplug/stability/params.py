@@ -20,6 +20,22 @@ VARIANTS = {
 }
 
 
+#: wall-friction laws ``F(c, v)`` in the momentum equation (dimensionless, per unit volume)
+FRICTION_LAWS = {
+    "v2": "as printed: F = 2 b mu_s v^2 (the paper's sigma_zr = rho_s mu_s v^2 / 2; no sign for upward flow)",
+    "v|v|": "F = 2 b mu_s v |v|: the printed law with the sign of the velocity (same as v2 for a downward base "
+            "flow in the linear analysis; differs for climbing grains)",
+    "coulomb-frozen": "Coulomb friction held at its base value F0 = 2 b mu_s v0^2: it does not respond to "
+                      "perturbations (the frozen-friction variant)",
+    "coulomb-weight": "Coulomb friction following the local weight: F = F0 c / c0 (a Janssen normal stress "
+                      "proportional to the grains' weight), F0 = 2 b mu_s v0^2",
+}
+#: base velocities: the printed v* = 1, or the one at which friction carries the weight
+BASE_VELOCITIES = ("printed", "balanced")
+#: atmospheric pressure, Pa
+P_ATM_PA = 101_325.0
+
+
 @dataclass(frozen=True)
 class ModelParams:
     """Inputs of the model of Alvarez & Franklin (2017), in SI-friendly units.
@@ -51,7 +67,24 @@ class ModelParams:
     B1_star_override : float, optional
         Use this ``B1*`` instead of computing it from the inputs.
     variant : str
-        One of :data:`VARIANTS`.
+        One of :data:`VARIANTS`; ``"frozen-friction"`` is ``friction_law="coulomb-frozen"``.
+    friction_law : str, optional
+        One of :data:`FRICTION_LAWS` (default: ``"v2"`` as printed, or the variant's).
+    base_pressure_pa : float, optional
+        Absolute air pressure of the base state, Pa. Default (None): as printed,
+        ``P* = 1``, i.e. ``P_c = rho_s g D`` (74 Pa with the paper's inputs);
+        :data:`P_ATM_PA` for the atmosphere. The compressibility term ``gamma P / (1 - c)``
+        and the diffusivity ``B`` (proportional to ``P``) are both taken at this pressure.
+    base_velocity : str
+        ``"printed"`` (``v* = 1``) or ``"balanced"``: ``v0*`` such that the wall friction
+        carries the weight, ``F(c0, v0) = c0 cos(theta)`` (velocity-dependent laws only).
+
+    Notes
+    -----
+    The base state ``c = c0, v* = v0, P* = P0*`` is uniform; the linear analysis drops
+    the O(1) residual ``-c0 cos(theta) + F(c0, v0)`` of the momentum equation (as the
+    paper does) and reports it (:attr:`base_state_residual`). Linearised, the friction
+    enters through ``F_c = dF/dc`` and ``F_v = dF/dv`` at the base state.
     """
 
     diameter_mm: float = 3.0
@@ -67,6 +100,9 @@ class ModelParams:
     b: float = 1.0
     B1_star_override: float | None = None
     variant: str = "printed"
+    friction_law: str | None = None
+    base_pressure_pa: float | None = None
+    base_velocity: str = "printed"
 
     def __post_init__(self) -> None:
         checks = [
@@ -83,6 +119,16 @@ class ModelParams:
             (self.b > 0, "b must be positive"),
             (self.B1_star_override is None or self.B1_star_override >= 0, "B1* must be non-negative"),
             (self.variant in VARIANTS, f"variant must be one of {', '.join(VARIANTS)}"),
+            (self.friction_law is None or self.friction_law in FRICTION_LAWS,
+             f"friction law must be one of {', '.join(FRICTION_LAWS)}"),
+            (self.variant != "frozen-friction" or self.friction_law in (None, "coulomb-frozen"),
+             "the frozen-friction variant is the coulomb-frozen friction law: give one or the other"),
+            (self.base_pressure_pa is None or (math.isfinite(self.base_pressure_pa) and 0 < self.base_pressure_pa
+                                               <= 1e8), "the base pressure must be between 0 and 1e8 Pa"),
+            (self.base_velocity in BASE_VELOCITIES, f"base velocity must be one of {', '.join(BASE_VELOCITIES)}"),
+            (self.base_velocity != "balanced" or not self.law.startswith("coulomb"),
+             "with Coulomb friction the velocity does not set the friction: no velocity balances the weight "
+             "(use the v2 or v|v| law, or the printed base velocity)"),
         ]
         for ok, msg in checks:
             if not ok:
@@ -133,23 +179,93 @@ class ModelParams:
         """The ``B1*`` in use (override, or computed)."""
         return self.B1_star_override if self.B1_star_override is not None else self.B1_star_computed
 
+    # -- the set-up -----------------------------------------------------------------
+    @property
+    def law(self) -> str:
+        """The friction law in use (:data:`FRICTION_LAWS`)."""
+        if self.friction_law is not None:
+            return self.friction_law
+        return "coulomb-frozen" if self.variant == "frozen-friction" else "v2"
+
+    @property
+    def is_printed(self) -> bool:
+        """Whether the set-up is the paper's as printed (friction law, base pressure and velocity)."""
+        return self.law == "v2" and self.base_pressure_pa is None and self.base_velocity == "printed"
+
+    @property
+    def P0_star(self) -> float:
+        """Base pressure in units of ``P_c`` (1 as printed)."""
+        return 1.0 if self.base_pressure_pa is None else self.base_pressure_pa / self.P_c_pa
+
+    @property
+    def base_pressure_abs_pa(self) -> float:
+        """The base state's absolute air pressure, Pa."""
+        return self.P_c_pa * self.P0_star
+
+    @property
+    def v0_star(self) -> float:
+        """Base velocity in units of ``v_c`` (1 as printed; balanced: ``sqrt(c0 cos(theta) / (2 b mu_s))``)."""
+        if self.base_velocity == "printed":
+            return 1.0
+        if self.mu_s == 0:
+            raise ParameterError("without friction (mu_s = 0) no velocity balances the weight")
+        return math.sqrt(self.c0 * math.cos(math.radians(self.theta_deg)) / (2.0 * self.b * self.mu_s))
+
+    @property
+    def base_friction(self) -> float:
+        """``F0 = F(c0, v0)``: the wall friction of the base state."""
+        v0 = self.v0_star
+        return 2.0 * self.b * self.mu_s * v0 * abs(v0)
+
     @property
     def friction(self) -> float:
-        """Coefficient of ``v~`` from the wall friction in the perturbed momentum equation."""
-        return 0.0 if self.variant == "frozen-friction" else 4.0 * self.b * self.mu_s
+        """``F_v = dF/dv`` at the base state: the coefficient of ``v~`` in the perturbed momentum equation."""
+        return 0.0 if self.law.startswith("coulomb") else 4.0 * self.b * self.mu_s * abs(self.v0_star)
+
+    @property
+    def friction_c(self) -> float:
+        """``F_c = dF/dc`` at the base state: the coefficient of ``c~`` from the friction."""
+        return self.base_friction / self.c0 if self.law == "coulomb-weight" else 0.0
+
+    @property
+    def B_star(self) -> float:
+        """Dimensionless diffusivity of the air pressure at the base pressure, ``B1* P0*``."""
+        return self.B1_star * self.P0_star
 
     @property
     def base_state_residual(self) -> float:
-        """Steady uniform momentum balance at the base state, ``-c0 cos(theta) + 2 b mu_s``.
+        """Steady uniform momentum balance at the base state, ``-c0 cos(theta) + F(c0, v0)``.
 
-        Zero if the base state (v* = 1, c = c0) were a solution of the momentum
-        equation; the paper's values give 0.70, i.e. friction exceeds gravity.
+        Zero if the base state were a solution of the momentum equation; the paper's
+        set-up gives ``-c0 cos(theta) + 2 b mu_s`` = +0.70: friction exceeds gravity.
         """
-        return -self.c0 * math.cos(math.radians(self.theta_deg)) + 2.0 * self.b * self.mu_s
+        return -self.c0 * math.cos(math.radians(self.theta_deg)) + self.base_friction
+
+    def caveats(self) -> list[str]:
+        """What the reader of a result for this set-up must know, one sentence each."""
+        out = []
+        if abs(self.base_state_residual) > 1e-9:
+            out.append(f"the base state is not steady: friction minus weight is {self.base_state_residual:+.3f} "
+                       "(in units of rho_s g); the linear analysis drops this imbalance, as the paper does")
+        if self.base_pressure_pa is None:
+            out.append(f"P* = 1 means an absolute air pressure of {self.P_c_pa:.0f} Pa, 1/{P_ATM_PA / self.P_c_pa:.0f} "
+                       "of the atmosphere (as printed; --base-pressure atmospheric for the real one)")
+        if self.law == "coulomb-frozen":
+            out.append("frozen friction is a change of wall-friction law (a Coulomb stress held at its base value, "
+                       "not the paper's closure rho_s mu_s v^2 / 2, which it contradicts); its long-wave "
+                       "instability needs the printed 74 Pa base pressure")
+        if self.law == "coulomb-weight":
+            out.append("Coulomb friction following the local weight is not the paper's closure")
+        if self.law == "v|v|":
+            out.append("v|v| differs from the printed v^2 only for climbing grains; for this downward base flow "
+                       "their linear analyses are the same")
+        return out
 
     def as_dict(self) -> dict[str, object]:
         d = asdict(self)
         d.update(B1_star=self.B1_star, B1_star_computed=self.B1_star_computed, P_c_pa=self.P_c_pa,
                  t_c_s=self.t_c_s, v_c_m_s=self.v_c_m_s, L_c_m=self.L_c_m,
-                 base_state_residual=self.base_state_residual)
+                 base_state_residual=self.base_state_residual, friction_law_used=self.law,
+                 base_pressure_abs_pa=self.base_pressure_abs_pa, P0_star=self.P0_star, v0_star=self.v0_star,
+                 v0_m_s=self.v0_star * self.v_c_m_s, B_star=self.B_star, printed_setup=self.is_printed)
         return d
