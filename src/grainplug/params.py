@@ -116,6 +116,12 @@ class AnalysisParams:
         A light calibration: the tube empty or full, nothing moving, with the movie's
         camera and lamp (:func:`grainplug.read_background`); the diagram is divided by
         its light along the tube.
+    start_frame, end_frame : int, optional
+        Analyse frames ``start_frame`` (included) to ``end_frame`` (excluded) only, e.g. to
+        leave out the start-up transient; counted from 0.
+    start_s, end_s : float, optional
+        The same window in seconds from the first frame (instead of frames; one of each pair).
+        Frame times in the result stay those of the movie.
 
     Examples
     --------
@@ -136,6 +142,10 @@ class AnalysisParams:
     allow_truncated: bool = False
     calibration: Calibration | None = None
     background: Background | None = None
+    start_frame: int | None = None
+    end_frame: int | None = None
+    start_s: float | None = None
+    end_s: float | None = None
 
     def __post_init__(self) -> None:
         def check(ok: bool, param: str, message: str) -> None:
@@ -148,6 +158,18 @@ class AnalysisParams:
         check(self.tube_outer_diameter_mm is None or self.tube_outer_diameter_mm > self.tube_diameter_mm * 1.05,
               "tube_outer_diameter_mm", f"must exceed the inner diameter ({self.tube_diameter_mm:g} mm) by at least "
               f"5 %, got {self.tube_outer_diameter_mm}")
+        for name in ("start_frame", "end_frame"):
+            value = getattr(self, name)
+            check(value is None or (isinstance(value, numbers.Integral) and 0 <= value <= 10**9), name,
+                  f"must be a frame number, 0 or more, got {value}")
+        for name in ("start_s", "end_s"):
+            value = getattr(self, name)
+            check(value is None or (isinstance(value, numbers.Real) and math.isfinite(value) and 0 <= value <= 1e7),
+                  name, f"must be a time in seconds, 0 or more, got {value}")
+        check(self.start_frame is None or self.start_s is None, "start_frame", "give the start in frames or in "
+              "seconds, not both")
+        check(self.end_frame is None or self.end_s is None, "end_frame", "give the end in frames or in seconds, "
+              "not both")
         check(self.flow_direction is None or self.flow_direction in FLOW_DIRECTIONS, "flow_direction",
               f"must be one of {', '.join(FLOW_DIRECTIONS)}, got {self.flow_direction!r}")
         check(self.calibration is None or self.mm_per_px is None, "calibration",

@@ -84,6 +84,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         raise ParameterError(f"give at least 1 (or None for one per core), got {threads}", param="threads")
     laps = _Laps()
     with _opened(source, params) as movie:
+        movie = _window(movie, params)
         info = _movie_info(movie, params)
         _check_movie(info)
         laps("open_s")
@@ -171,6 +172,28 @@ def _keep_for_figure(indices: np.ndarray, frames: list[np.ndarray]) -> tuple[np.
     others are let go: 32 full frames of a 1280 x 1024 RGB movie are 126 MB)."""
     keep = np.unique(np.linspace(0, len(frames) - 1, min(len(frames), KEPT_SAMPLE_FRAMES)).round().astype(int))
     return np.asarray(indices)[keep], [frames[k] for k in keep]
+
+
+def _window(movie: Movie, params: AnalysisParams) -> Movie:
+    """The frames to analyse: the movie, or the window ``params`` asks for (:class:`FrameWindow`)."""
+    if all(v is None for v in (params.start_frame, params.end_frame, params.start_s, params.end_s)):
+        return movie
+    from .readers.window import FrameWindow
+
+    n = movie.info.n_frames
+    fps = params.fps or movie.info.fps
+    if (params.start_s is not None or params.end_s is not None) and not fps:
+        raise ParameterError("a window in seconds needs the frame rate — give fps, or the window in frames",
+                             param="start_s" if params.start_s is not None else "end_s")
+    start = params.start_frame if params.start_frame is not None else (
+        math.ceil(params.start_s * fps - 1e-6) if params.start_s is not None else 0)
+    stop = params.end_frame if params.end_frame is not None else (
+        math.ceil(params.end_s * fps - 1e-6) if params.end_s is not None else n)
+    stop = min(stop, n)
+    if stop - start < 8:
+        raise ParameterError(f"the window holds {max(stop - start, 0)} of the movie's {n} frames (frames {start} to "
+                             f"{stop}); at least 8 are needed — move its start or its end", param="start_frame")
+    return movie if (start, stop) == (0, n) else FrameWindow(movie, start, stop)
 
 
 def _movie_info(movie: Movie, params: AnalysisParams) -> MovieInfo:
@@ -352,7 +375,7 @@ def _frame_times(movie: Movie, info: MovieInfo, n: int) -> np.ndarray:
         stamps = movie.timestamps_s()  # recorded while streaming, for video
         if len(stamps) == n:
             return np.asarray(stamps, float)
-    return np.arange(n) / info.fps
+    return (np.arange(n) + movie.first_frame_index) / info.fps
 
 
 def _falling(norm: Normalized, diagram: Diagram, fps: float) -> GrainMotion | None:

@@ -17,6 +17,7 @@ Columns (CSV header, or keys of each ``[[run]]`` table in TOML; a TOML
 ``glass_index``                refractive index of the tube's glass (1.47)
 ``flow_direction``             down, up, left or right
 ``glob``                       for image folders
+``start_frame``, ``end_frame``  analyse these frames only (or ``start_s``, ``end_s`` in seconds)
 ``mass_flow_rate_g_s``         mass flow rate
 ``humidity_pct``               relative humidity
 ``surface``                    grain surface state (e.g. rough, smooth)
@@ -41,7 +42,8 @@ if TYPE_CHECKING:
     from ..calibration.pattern import Calibration
 
 ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "tube_outer_diameter_mm": float,
-                 "glass_index": float, "flow_direction": str, "glob": str, "min_plug_mm": float}
+                 "glass_index": float, "flow_direction": str, "glob": str, "min_plug_mm": float,
+                 "start_frame": int, "end_frame": int, "start_s": float, "end_s": float}
 KNOWN_META = {"mass_flow_rate_g_s": float, "humidity_pct": float, "surface": str, "group": str}
 
 

@@ -16,6 +16,10 @@ import warnings
 log = logging.getLogger("grainplug")
 
 
+#: library parameters whose command-line flag has another name
+_FLAGS = {"start_frame": "start", "start_s": "start", "end_frame": "end", "end_s": "end"}
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit status."""
     return _main(list(sys.argv[1:] if argv is None else argv))
@@ -52,7 +56,8 @@ def _main(args: list[str]) -> int:
         if debug:
             raise
         # the library names its own parameters; say which flag that is
-        where = f"--{exc.param.replace('_', '-')}: " if exc.param and exc.param != "source" else ""
+        flag = _FLAGS.get(exc.param or "", exc.param)
+        where = f"--{flag.replace('_', '-')}: " if flag and flag != "source" else ""
         click.echo(f"error: {where}{exc.message}", err=True)
         return 2
     except GrainplugError as exc:

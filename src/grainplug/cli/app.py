@@ -12,7 +12,7 @@ from rich.console import Console
 from .._version import __version__
 from ..errors import ParameterError
 from ..params import FLOW_DIRECTIONS
-from .types import FINITE, Number, param_number
+from .types import FINITE, FRAME_OR_TIME, Number, param_number
 
 err_console = Console(stderr=True)
 
@@ -180,12 +180,17 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
                    "to flat-field the light along the tube.")
 @click.option("--allow-truncated", is_flag=True,
               help="For camera files that end early: analyse the complete frames instead of refusing.")
+@click.option("--start", "start", type=FRAME_OR_TIME, default=None,
+              help="Analyse from this frame (e.g. 120) or time (e.g. 2.5s) on: leave out the start-up transient.")
+@click.option("--end", "end", type=FRAME_OR_TIME, default=None,
+              help="Analyse up to this frame (excluded) or time.")
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
             tube_diameter_mm: float | None, tube_outer_diameter_mm: float | None, glass_index: float,
             flow_direction: str | None, min_plug_mm: float, glob_: str | None, threads: int | None,
-            calibration: Path | None, background: Path | None, allow_truncated: bool, no_figures: bool,
+            calibration: Path | None, background: Path | None, allow_truncated: bool,
+            start: tuple[str, float] | None, end: tuple[str, float] | None, no_figures: bool,
             as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -215,7 +220,8 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
                             tube_outer_diameter_mm=tube_outer_diameter_mm, glass_index=glass_index,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_,
-                            allow_truncated=allow_truncated, calibration=cal, background=light)
+                            allow_truncated=allow_truncated, calibration=cal, background=light,
+                            **_window_params(start, end))
     # the figures' worker starts now: it imports matplotlib while the frames stream
     with FigureWorker() if not no_figures else contextlib.nullcontext() as figure_worker:
         with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
@@ -251,6 +257,16 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
                        f"amplitude {fmt(s['oscillation_amplitude_mm'], ' mm', 2)}")
         click.echo(f"scale           {fmt(s['mm_per_px'], ' mm/px', 5)} from {s['scale_source']}")
     click.echo(f"outputs in      {out}")
+
+
+def _window_params(start: tuple[str, float] | None, end: tuple[str, float] | None) -> dict[str, float | int]:
+    """``--start/--end`` as :class:`AnalysisParams` fields (``start_frame`` or ``start_s``...)."""
+    out: dict[str, float | int] = {}
+    for name, point in (("start", start), ("end", end)):
+        if point is not None:
+            kind, value = point
+            out[f"{name}_frame" if kind == "frame" else f"{name}_s"] = int(value) if kind == "frame" else value
+    return out
 
 
 # ---------------------------------------------------------------------------

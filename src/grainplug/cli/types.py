@@ -52,3 +52,32 @@ def param_number(name: str) -> Number:
 
     r = RANGES[name]
     return Number(r.lo, r.hi, unit=r.unit, integer=r.integer)
+
+
+class FrameOrTime(click.ParamType):
+    """A point of a movie: a frame number (``120``) or a time in seconds (``2.5s``).
+
+    Converts to ``("frame", int)`` or ``("s", float)``.
+    """
+
+    name = "frame|seconds"
+
+    def convert(self, value: object, param: click.Parameter | None, ctx: click.Context | None) -> tuple[str, float]:
+        if isinstance(value, tuple):
+            return value
+        text = str(value).strip().lower()
+        try:
+            if text.endswith("s"):
+                x = float(text[:-1])
+                if not (math.isfinite(x) and x >= 0):
+                    raise ValueError
+                return ("s", x)
+            k = int(text)
+            if k < 0:
+                raise ValueError
+            return ("frame", k)
+        except ValueError:
+            self.fail(f"{value!r} is neither a frame number (e.g. 120) nor a time in seconds (e.g. 2.5s)", param, ctx)
+
+
+FRAME_OR_TIME = FrameOrTime()

@@ -360,6 +360,11 @@ class Movie(abc.ABC):
         window around it, do so."""
         return self.read(index)
 
+    @property
+    def first_frame_index(self) -> int:
+        """Index, in the recording, of this movie's first frame (0; a :class:`FrameWindow` later)."""
+        return 0
+
     def timestamps_s(self) -> np.ndarray:
         """Per-frame time stamps in seconds from the first frame.
 

@@ -1,0 +1,80 @@
+"""A time window of a movie: frames ``start`` to ``stop`` of another movie, as a movie.
+
+The analysis's ``--start/--end`` (:attr:`grainplug.AnalysisParams.start`) wraps the
+opened movie in a :class:`FrameWindow`: every streaming call is served by the movie
+itself with frame numbers shifted, so each reader's fast path (memory-mapped blocks,
+restricted read-ahead) still applies. Frame times stay those of the movie (a window
+that starts at 2 s has its first frame at 2 s).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from collections.abc import Callable, Iterator
+
+import numpy as np
+
+from .base import Movie
+
+
+class FrameWindow(Movie):
+    """Frames ``[start, stop)`` of ``movie`` (which stays open; closing the window does not close it)."""
+
+    def __init__(self, movie: Movie, start: int, stop: int) -> None:
+        n = movie.info.n_frames
+        if not 0 <= start < stop <= n:
+            raise ValueError(f"the window {start}..{stop} is not within the movie's {n} frames")
+        self.inner, self.start, self.stop = movie, int(start), int(stop)
+        details = {**movie.info.details, "window_frames": [self.start, self.stop],
+                   "movie_n_frames": movie.info.n_frames}
+        info = dataclasses.replace(movie.info, n_frames=self.stop - self.start, details=details)
+        super().__init__(movie.path, info)
+
+    @property
+    def first_frame_index(self) -> int:
+        return self.start + self.inner.first_frame_index
+
+    def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
+        return self.inner.frames(start + self.start, stop + self.start, step)
+
+    def prefetch(self) -> None:
+        self.inner.prefetch()
+
+    def _block_reader(self) -> Callable[[int, int], np.ndarray] | None:
+        read = self.inner._block_reader()
+        if read is None:
+            return None
+        offset = self.start
+        return lambda start, count: read(start + offset, count)
+
+    def _frame_offsets(self) -> np.ndarray | None:
+        offsets = self.inner._frame_offsets()
+        return None if offsets is None else offsets[self.start:self.stop]
+
+    def _prefetch_only(self, lo: int, hi: int) -> bool:
+        return self.inner._prefetch_only(lo, hi)
+
+    @property
+    def _sparse(self) -> bool:
+        return self.inner._sparse
+
+    def _analysis_frames(self) -> Iterator[np.ndarray]:
+        # frames before the window are decoded and dropped (compressed video has no cheaper way)
+        return itertools.islice(self.inner._analysis_frames(), self.start, self.stop)
+
+    def _read_sampled(self, index: int) -> np.ndarray:
+        return self.inner._read_sampled(index + self.start)
+
+    def timestamps_s(self) -> np.ndarray:
+        stamps = np.asarray(self.inner.timestamps_s(), float)
+        if len(stamps) >= self.stop:
+            return stamps[self.start:self.stop]
+        return (np.arange(self.start, self.stop) + self.inner.first_frame_index) / self.info.fps
+
+    @property
+    def has_file_timestamps(self) -> bool:
+        return self.inner.has_file_timestamps
+
+    def _stop_prefetch(self) -> None:  # the movie's own read-ahead is the movie's to stop
+        pass

@@ -1,0 +1,99 @@
+"""A time window (--start/--end): the same numbers as the movie cut to those frames, on every reader path."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import tifffile
+
+import grainplug as gp
+from grainplug.calibration.tube import find_tube
+from grainplug.cli import main
+from grainplug.diagram.extract import band_along_tube
+from grainplug.readers.window import FrameWindow
+from grainplug.synthetic import SynthConfig, synthesize
+
+START, STOP = 100, 250
+
+
+@pytest.fixture(scope="module")
+def movies(tmp_path_factory):
+    d = tmp_path_factory.mktemp("window")
+    cfg = SynthConfig(n_frames=300, seed=3, noise_sigma=2, celerity_m_s=-0.05)
+    return {fmt: synthesize(cfg, d / fmt, fmt=fmt).movie for fmt in ("tiff", "avi")}
+
+
+@pytest.mark.parametrize("fmt", ["tiff", "avi"])
+def test_a_window_reads_what_the_movie_holds_there(movies, fmt):
+    """The reader contract through the window: frames, samples, band profiles and times are the
+    movie's own, shifted (the TIFF takes the memory-mapped block path, the AVI the decoded one)."""
+    with gp.open_movie(movies[fmt]) as movie:
+        frames = list(movie.frames())
+        tube = find_tube([frames[k] for k in range(0, 300, 10)])
+        band, _ = band_along_tube(tube)
+        whole = movie.read_band(band)
+    with gp.open_movie(movies[fmt]) as movie:
+        win = FrameWindow(movie, START, STOP)
+        assert win.info.n_frames == STOP - START and win.first_frame_index == START
+        assert win.info.details["window_frames"] == [START, STOP]
+        np.testing.assert_array_equal(win.read(0), frames[START])
+        np.testing.assert_array_equal(win.read(STOP - START - 1), frames[STOP - 1])
+        idx, sample = win.sample(5)
+        for i, f in zip(idx, sample, strict=True):
+            np.testing.assert_array_equal(f, frames[START + int(i)])
+        np.testing.assert_array_equal(win.read_band(band), whole[START:STOP])
+    with pytest.raises(ValueError, match="not within"):
+        FrameWindow(movie, 250, 400)
+
+
+def test_a_window_gives_the_numbers_of_the_cut_movie(movies):
+    frames = tifffile.imread(movies["tiff"])
+    full = gp.analyze(movies["tiff"])
+    fps = full.info.fps
+    cut = gp.analyze(frames[START:STOP], fps=fps)
+    for win in (gp.analyze(movies["tiff"], start_frame=START, end_frame=STOP),
+                gp.analyze(movies["tiff"], start_s=START / fps, end_s=STOP / fps)):
+        assert win.info.n_frames == STOP - START
+        # (to round-off: the fits see times shifted by the window's start)
+        assert win.celerity_m_s == pytest.approx(cut.celerity_m_s, rel=1e-12)
+        assert win.plug_length_mm == pytest.approx(cut.plug_length_mm, rel=1e-12)
+        np.testing.assert_allclose(win.diagram.time_s, cut.diagram.time_s + START / fps)  # the movie's times
+        assert win.summary["parameters"]["start_frame"] in (START, None)
+
+
+def test_a_window_in_a_compressed_video(movies):
+    truth = json.loads((movies["avi"].parent / "truth.json").read_text())
+    win = gp.analyze(movies["avi"], start_frame=START, end_frame=STOP, mm_per_px=truth["mm_per_px"])
+    assert win.info.n_frames == STOP - START
+    assert win.diagram.time_s[0] == pytest.approx(START / win.info.fps)
+    assert win.celerity_m_s == pytest.approx(truth["celerity_m_s"], rel=0.03)
+
+
+def test_window_options_and_their_errors(movies, tmp_path, capsys):
+    out = tmp_path / "o"
+    code = main(["analyze", str(movies["tiff"]), "--out", str(out), "--start", "100", "--end", "1.0s",
+                 "--no-figures", "--json"])
+    printed, err = capsys.readouterr()
+    assert code == 0, err
+    summary = json.loads(printed)
+    assert summary["n_frames"] == 150 and summary["parameters"]["start_frame"] == 100
+    assert summary["parameters"]["end_s"] == 1.0
+    for args, words in ((["--start", "2x"], "neither a frame number"), (["--start", "295"], "--start: the window "
+                                                                        "holds 5 of the movie's 300 frames"),
+                        (["--start", "2s", "--end", "1s"], "holds 0")):
+        code = main(["analyze", str(movies["tiff"]), "--out", str(tmp_path / "bad"), *args])
+        err = capsys.readouterr().err
+        assert code == 2 and words in err and len(err.strip().splitlines()) == 1, err
+        assert not (tmp_path / "bad").exists()
+    with pytest.raises(gp.ParameterError, match="not both"):
+        gp.AnalysisParams(start_frame=3, start_s=0.1)
+
+
+def test_manifest_window_columns(movies, tmp_path):
+    from grainplug.campaigns import read_manifest
+
+    (tmp_path / "m.csv").write_text(f"run,movie,start_frame,end_s\na,{movies['tiff']},100,1.0\n")
+    spec = read_manifest(tmp_path / "m.csv")[0]
+    assert spec.params.start_frame == 100 and spec.params.end_s == 1.0
