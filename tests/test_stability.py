@@ -247,11 +247,13 @@ def test_cli_sweep(tmp_path, capsys):
 
 # -- set-ups: every switch derived symbolically ------------------------------------
 def _general_linearisation(law: str):
-    """sympy: the dimensionless equations with friction law ``law`` linearised about (c0, v0, P0);
-    the matrix M(k, omega) and the O(1) residual of the momentum equation, as functions of symbols."""
+    """sympy: the dimensionless equations with friction law ``law`` and a jamming pressure
+    linearised about (c0, v0, P0); the matrix M(k, omega) and the O(1) residual of the momentum
+    equation, as functions of symbols (``Fr = 0``: no jamming)."""
     z, t, eps = sp.symbols("z t epsilon")
     w, k, c0, kap, mu, B1, g, th = _printed_symbols()
     v0, P0, b = sp.symbols("v0 P0 b", positive=True)
+    Fr, cmin, cmax = sp.symbols("Fr c_min c_max", positive=True)
     ch, vh, ph = sp.symbols("chat vhat phat")
     e = sp.exp(sp.I * (k * z - w * t))
     c = c0 + eps * ch * e
@@ -265,15 +267,18 @@ def _general_linearisation(law: str):
     # B is proportional to P and to (1 - c)^2 / c^2 (Carman-Kozeny); B1 is its value at P* = 1, c = c0
     B = B1 * P * ((1 - c) / c) ** 2 / ((1 - c0) / c0) ** 2
     mass = sp.diff(c, t) + c * sp.diff(v, z) + v * sp.diff(c, z)
+    p_jam = Fr * (c - cmin) ** 2 / (cmax - c) ** 5  # Johnson & Jackson, above c_min (dimensionless Fr)
     motion = (c * sp.diff(v, t) + c * v * sp.diff(v, z) - c * sp.cos(th) + sp.diff(P, z)
-              + v / kap * sp.diff(v, z) + F)
+              + v / kap * sp.diff(v, z) + F + sp.diff(p_jam, z))
     pressure = sp.diff(P, t) + v * sp.diff(P, z) + g * P / (1 - c) * sp.diff(v, z) - B * sp.diff(P, z, 2)
     rows = []
     for eq in (mass, motion, pressure):
-        lin = sp.simplify(sp.diff(eq, eps).subs(eps, 0) / e)
-        rows.append([sp.expand(lin).coeff(x) for x in (ch, vh, ph)])
-    residual = sp.simplify(motion.subs(eps, 0))
-    return sp.Matrix(rows), residual, (w, k, c0, kap, mu, B1, g, th, v0, P0, b)
+        # first order in epsilon, at z = t = 0 (the mode's factor is then 1): linear in the amplitudes
+        # (coefficients by differentiation: expanding would lose digits near c_max)
+        lin = sp.diff(eq, eps).subs(eps, 0).subs({z: 0, t: 0})
+        rows.append([sp.diff(lin, x) for x in (ch, vh, ph)])
+    residual = motion.subs(eps, 0)
+    return sp.Matrix(rows), residual, (w, k, c0, kap, mu, B1, g, th, v0, P0, b, Fr, cmin, cmax)
 
 
 SETUPS = [(law, vel, pres) for law in ("v2", "v|v|", "coulomb-frozen", "coulomb-weight")
@@ -286,22 +291,26 @@ def test_every_setup_is_the_symbolic_linearisation(law):
     """The matrix solved for each friction law, base velocity and base pressure equals sympy's
     linearisation of the equations with that set-up, at random (k, omega); so does the residual."""
     M, residual, syms = _general_linearisation(law)
-    w, k, c0, kap, mu, B1, g, th, v0, P0, b = syms
-    f = sp.lambdify((w, k, c0, kap, mu, B1, g, th, v0, P0, b), M, "numpy")
-    fr = sp.lambdify((c0, th, mu, v0, b), residual, "numpy")
+    c0, mu, th, v0, b, Fr, cmin, cmax = (syms[i] for i in (2, 4, 7, 8, 10, 11, 12, 13))
+    f = sp.lambdify(syms, M, "numpy")
+    fr = sp.lambdify((c0, th, mu, v0, b, Fr, cmin, cmax), residual, "numpy")
     rng = np.random.default_rng(3)
     for l_, vel, pres in SETUPS:
         if l_ != law:
             continue
-        p = ModelParams(friction_law=law, base_velocity=vel, base_pressure_pa=pres, theta_deg=3.0, b=1.2)
-        for _ in range(3):
-            kk = float(rng.uniform(0.01, 3))
-            ww = complex(rng.normal(), rng.normal())
-            expected = np.array(f(ww, kk, p.c0, p.kappa, p.mu_s, p.B1_star, p.gamma, math.radians(p.theta_deg),
-                                  p.v0_star, p.P0_star, p.b), complex)
-            assert np.allclose(normal_mode_matrix(p, kk, ww), expected, rtol=1e-12, atol=1e-12), (law, vel, pres)
-        assert p.base_state_residual == pytest.approx(
-            float(fr(p.c0, math.radians(p.theta_deg), p.mu_s, p.v0_star, p.b)), abs=1e-12)
+        for jam in (False, True):
+            p = ModelParams(friction_law=law, base_velocity=vel, base_pressure_pa=pres, theta_deg=3.0, b=1.2,
+                            jamming=jam, jamming_fr_pa=0.07, jamming_c_max=0.63)
+            fr_star = 0.07 / p.P_c_pa if jam else 0.0
+            for _ in range(3):
+                kk = float(rng.uniform(0.01, 3))
+                ww = complex(rng.normal(), rng.normal())
+                expected = np.array(f(ww, kk, p.c0, p.kappa, p.mu_s, p.B1_star, p.gamma, math.radians(p.theta_deg),
+                                      p.v0_star, p.P0_star, p.b, fr_star, 0.50, 0.63), complex)
+                assert np.allclose(normal_mode_matrix(p, kk, ww), expected, rtol=1e-12, atol=1e-12), (
+                    law, vel, pres, jam)
+            assert p.base_state_residual == pytest.approx(
+                float(fr(p.c0, math.radians(p.theta_deg), p.mu_s, p.v0_star, p.b, fr_star, 0.50, 0.63)), abs=1e-12)
 
 
 def test_balanced_base_velocity_is_steady_and_stays_stable():
@@ -351,8 +360,23 @@ def test_cli_setup_switches(capsys):
     code = main(["stability", "--base-velocity", "balanced"])
     out = capsys.readouterr()[0]
     assert code == 0 and "= +0.0000 (0 if the base state were steady)" in out and "every k*" in out
+    code = main(["stability", "--jamming", "--variant", "frozen-friction", "--json", "--n-k", "3000"])
+    d = json.loads(capsys.readouterr()[0])
+    assert code == 0 and d["setup"]["jamming"] and d["setup"]["jamming_slope"] == pytest.approx(27.49, rel=1e-3)
+    assert d["most_unstable"]["wavelength_over_diameter"] == pytest.approx(71.9, rel=0.01)
     for bad, word in ((["--base-pressure", "lots"], "--base-pressure"),
                       (["--friction-law", "coulomb-weight", "--base-velocity", "balanced"], "no velocity")):
         code = main(["stability", *bad])
         err = capsys.readouterr()[1]
         assert code == 2 and err.startswith("error: ") and word in err and len(err.strip().splitlines()) == 1
+
+
+def test_jamming_pressure_switch():
+    """Off by default; on, it adds its slope at c0 (steep near random close packing) and is stated."""
+    off, on = ModelParams(), ModelParams(jamming=True)
+    assert off.jamming_slope == 0.0 and off.is_printed and not on.is_printed
+    assert on.jamming_slope == pytest.approx(0.05 * (2 * 0.05 / 0.09**5 + 5 * 0.05**2 / 0.09**6) / on.P_c_pa)
+    assert ModelParams(jamming=True, c0=0.45).jamming_slope == 0.0  # below c_min: no lasting contacts
+    assert any("Johnson & Jackson" in c for c in on.caveats())
+    with pytest.raises(ParameterError, match="c_max"):
+        ModelParams(jamming=True, c0=0.66)

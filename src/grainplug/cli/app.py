@@ -295,6 +295,13 @@ def _window_params(start: tuple[str, float] | None, end: tuple[str, float] | Non
                    "atmosphere (101325 Pa), or a value in Pa; B1* and the compressibility term follow it.")
 @click.option("--base-velocity", type=click.Choice(["printed", "balanced"]), default="printed", show_default=True,
               help="printed: v* = 1; balanced: the velocity at which wall friction carries the weight.")
+@click.option("--jamming", is_flag=True,
+              help="Add a jamming pressure Fr (c - c_min)^2 / (c_max - c)^5 (Johnson & Jackson) to the grains' "
+                   "momentum: it diverges at random close packing (not in the paper).")
+@click.option("--jamming-fr-pa", type=Number(0, 1e6, unit="Pa"), default=0.05, show_default=True,
+              help="Its constant Fr.")
+@click.option("--jamming-c-max", type=Number(0.01, 0.99), default=0.64, show_default=True,
+              help="Its random close packing c_max (it starts at c_min = 0.50).")
 @click.option("--k-min", type=Number(1e-6, 1e4), default=0.001, show_default=True)
 @click.option("--k-max", type=Number(1e-6, 1e4), default=3.0, show_default=True)
 @click.option("--n-k", type=Number(2, 1e6, unit="wavenumbers", integer=True), default=1000, show_default=True)
@@ -307,7 +314,8 @@ def _window_params(start: tuple[str, float] | None, end: tuple[str, float] | Non
 def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: float, mu_s: float,
               theta_deg: float, gamma: float, air_viscosity_pa_s: float, grain_density_kg_m3: float,
               b: float, b1_star: float | None, variant: str, friction_law: str | None, base_pressure: str,
-              base_velocity: str, k_min: float, k_max: float, n_k: int,
+              base_velocity: str, jamming: bool, jamming_fr_pa: float, jamming_c_max: float,
+              k_min: float, k_max: float, n_k: int,
               as_json: bool, plot: Path | None, sweep_spec: str | None) -> None:
     """Linear stability of the paper's 1D model: the three roots omega*(k*).
 
@@ -335,7 +343,8 @@ def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: fl
     p = ModelParams(diameter_mm=diameter_mm, grain_diameter_um=grain_diameter_um, c0=c0, kappa=kappa,
                     mu_s=mu_s, theta_deg=theta_deg, gamma=gamma, air_viscosity_pa_s=air_viscosity_pa_s,
                     grain_density_kg_m3=grain_density_kg_m3, b=b, B1_star_override=b1_star, variant=variant,
-                    friction_law=friction_law, base_pressure_pa=base_pressure_pa, base_velocity=base_velocity)
+                    friction_law=friction_law, base_pressure_pa=base_pressure_pa, base_velocity=base_velocity,
+                    jamming=jamming, jamming_fr_pa=jamming_fr_pa, jamming_c_max=jamming_c_max)
     if sweep_spec:
         _stability_sweep(p, sweep_spec, k_min=k_min, k_max=k_max, n_k=n_k, as_json=as_json, plot=plot)
         return
@@ -354,7 +363,8 @@ def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: fl
     m = res.most_unstable
     click.echo(f"variant            {variant}" + ("" if p.is_printed else
                                                       f"   (set-up: friction {p.law}, base pressure "
-                                                      f"{base_pressure}, base velocity {base_velocity})"))
+                                                      f"{base_pressure}, base velocity {base_velocity}"
+                                                      + (", jamming pressure" if jamming else "") + ")"))
     click.echo(f"B1*                {p.B1_star:.6g}   (P_c = {p.P_c_pa:.4g} Pa, t_c = {p.t_c_s:.4g} s, "
                f"v_c = {p.v_c_m_s:.4g} m/s)")
     click.echo(f"base state         c0 = {p.c0:g}, v0* = {p.v0_star:.4g} ({p.v0_star * p.v_c_m_s:.3g} m/s), "

@@ -86,6 +86,7 @@ class StabilityResult:
             "setup": {"friction_law": p.law, "base_pressure_pa": p.base_pressure_abs_pa, "P0_star": p.P0_star,
                       "base_velocity": p.base_velocity, "v0_star": p.v0_star, "B_star": p.B_star,
                       "base_state_residual": p.base_state_residual, "printed": p.is_printed,
+                      "jamming": p.jamming, "jamming_slope": p.jamming_slope,
                       "caveats": p.caveats()},
             "B1_star": p.B1_star,
             "inputs": p.as_dict(),

@@ -21,12 +21,13 @@ base velocity ``v0*``, friction law ``F(c, v)``) the same linearisation gives
 
     M = \\begin{pmatrix}
         i k v_0 - i\\omega & i k c_0 & 0 \\\\
-        -\\cos\\theta + F_c & -i\\omega c_0 + i k c_0 v_0 + i k v_0/\\kappa + F_v & i k \\\\
+        -\\cos\\theta + F_c + i k p_j' & -i\\omega c_0 + i k c_0 v_0 + i k v_0/\\kappa + F_v & i k \\\\
         0 & \\frac{\\gamma P_0}{1 - c_0} i k & -i\\omega + i k v_0 + B_1^* P_0 k^2
     \\end{pmatrix}
 
 with ``F_c, F_v`` the derivatives of ``F`` at the base state (printed: ``F = 2 b mu_s v^2``,
-``F_v = 4 b mu_s``, ``F_c = 0``); ``tests/test_stability.py`` derives it with sympy for
+``F_v = 4 b mu_s``, ``F_c = 0``) and ``p_j'`` the slope of the optional jamming pressure;
+``tests/test_stability.py`` derives it with sympy for
 every set-up. ``M = A(k) - i omega E`` with ``E = diag(1, c0, 1)``, so the
 three roots of ``det M = 0`` (the cubic of eq. "det") are
 ``omega = -i lambda`` for the eigenvalues ``lambda`` of ``E^-1 A(k)``: this is how
@@ -70,7 +71,7 @@ def system_matrices(p: ModelParams, k: np.ndarray) -> tuple[np.ndarray, np.ndarr
     v0, P0 = p.v0_star, p.P0_star
     A[:, 0, 0] = ik * v0
     A[:, 0, 1] = ik * p.c0
-    A[:, 1, 0] = -math.cos(_theta(p)) + p.friction_c
+    A[:, 1, 0] = -math.cos(_theta(p)) + p.friction_c + ik * p.jamming_slope
     A[:, 1, 1] = ik * p.c0 * v0 + ik * v0 / p.kappa + p.friction
     A[:, 1, 2] = ik
     A[:, 2, 1] = p.gamma * P0 / (1 - p.c0) * ik
@@ -94,7 +95,7 @@ def dispersion_coefficients(p: ModelParams, k: float | np.ndarray) -> np.ndarray
     coefficient of the variant, ``4 b mu_s`` or 0). It holds for the printed base state
     (``v* = 1, P* = 1``, no friction on ``c~``); other set-ups' roots come from the matrix.
     """
-    if p.v0_star != 1.0 or p.P0_star != 1.0 or p.friction_c != 0.0:
+    if p.v0_star != 1.0 or p.P0_star != 1.0 or p.friction_c != 0.0 or p.jamming_slope != 0.0:
         from ..errors import ParameterError
 
         raise ParameterError("the printed cubic holds for the printed base state only (v* = 1, P* = 1, friction "

@@ -78,6 +78,14 @@ class ModelParams:
     base_velocity : str
         ``"printed"`` (``v* = 1``) or ``"balanced"``: ``v0*`` such that the wall friction
         carries the weight, ``F(c0, v0) = c0 cos(theta)`` (velocity-dependent laws only).
+    jamming : bool
+        Add a jamming (frictional contact) pressure ``p_j(c)`` to the grains' momentum
+        equation, which diverges at ``jamming_c_max`` and so caps the compactness below
+        random close packing (not in the paper). The form of Johnson & Jackson (1987):
+        ``p_j = Fr (c - c_min)^2 / (c_max - c)^5`` for ``c > c_min``, else 0.
+    jamming_fr_pa, jamming_c_min, jamming_c_max : float
+        Its constants: ``Fr`` in Pa (0.05 Pa, Johnson & Jackson's glass beads), the
+        compactness where contacts start to last (0.50) and random close packing (0.64).
 
     Notes
     -----
@@ -103,6 +111,10 @@ class ModelParams:
     friction_law: str | None = None
     base_pressure_pa: float | None = None
     base_velocity: str = "printed"
+    jamming: bool = False
+    jamming_fr_pa: float = 0.05
+    jamming_c_min: float = 0.50
+    jamming_c_max: float = 0.64
 
     def __post_init__(self) -> None:
         checks = [
@@ -126,6 +138,10 @@ class ModelParams:
             (self.base_pressure_pa is None or (math.isfinite(self.base_pressure_pa) and 0 < self.base_pressure_pa
                                                <= 1e8), "the base pressure must be between 0 and 1e8 Pa"),
             (self.base_velocity in BASE_VELOCITIES, f"base velocity must be one of {', '.join(BASE_VELOCITIES)}"),
+            (math.isfinite(self.jamming_fr_pa) and self.jamming_fr_pa >= 0, "the jamming constant Fr must be >= 0 Pa"),
+            (0 <= self.jamming_c_min < self.jamming_c_max < 1, "need 0 <= jamming c_min < c_max < 1"),
+            (not self.jamming or self.c0 < self.jamming_c_max,
+             "c0 must be below the jamming compactness c_max (random close packing)"),
             (self.base_velocity != "balanced" or not self.law.startswith("coulomb"),
              "with Coulomb friction the velocity does not set the friction: no velocity balances the weight "
              "(use the v2 or v|v| law, or the printed base velocity)"),
@@ -190,7 +206,8 @@ class ModelParams:
     @property
     def is_printed(self) -> bool:
         """Whether the set-up is the paper's as printed (friction law, base pressure and velocity)."""
-        return self.law == "v2" and self.base_pressure_pa is None and self.base_velocity == "printed"
+        return (self.law == "v2" and self.base_pressure_pa is None and self.base_velocity == "printed"
+                and not self.jamming)
 
     @property
     def P0_star(self) -> float:
@@ -228,6 +245,15 @@ class ModelParams:
         return self.base_friction / self.c0 if self.law == "coulomb-weight" else 0.0
 
     @property
+    def jamming_slope(self) -> float:
+        """``d p_j* / dc`` at ``c0`` (``p_j* = p_j / P_c``): the jamming pressure's coefficient of
+        ``i k c~`` in the perturbed momentum equation; 0 without jamming or below ``c_min``."""
+        if not self.jamming or self.c0 <= self.jamming_c_min:
+            return 0.0
+        x, y = self.c0 - self.jamming_c_min, self.jamming_c_max - self.c0
+        return self.jamming_fr_pa * (2 * x / y**5 + 5 * x**2 / y**6) / self.P_c_pa
+
+    @property
     def B_star(self) -> float:
         """Dimensionless diffusivity of the air pressure at the base pressure, ``B1* P0*``."""
         return self.B1_star * self.P0_star
@@ -256,6 +282,10 @@ class ModelParams:
                        "instability needs the printed 74 Pa base pressure")
         if self.law == "coulomb-weight":
             out.append("Coulomb friction following the local weight is not the paper's closure")
+        if self.jamming:
+            out.append(f"the jamming pressure (Johnson & Jackson's form, Fr = {self.jamming_fr_pa:g} Pa, c_max = "
+                       f"{self.jamming_c_max:g}) is not in the paper; its slope at c0, "
+                       f"{self.jamming_slope:.3g} P_c, depends steeply on c_max")
         if self.law == "v|v|":
             out.append("v|v| differs from the printed v^2 only for climbing grains; for this downward base flow "
                        "their linear analyses are the same")
@@ -267,5 +297,6 @@ class ModelParams:
                  t_c_s=self.t_c_s, v_c_m_s=self.v_c_m_s, L_c_m=self.L_c_m,
                  base_state_residual=self.base_state_residual, friction_law_used=self.law,
                  base_pressure_abs_pa=self.base_pressure_abs_pa, P0_star=self.P0_star, v0_star=self.v0_star,
-                 v0_m_s=self.v0_star * self.v_c_m_s, B_star=self.B_star, printed_setup=self.is_printed)
+                 v0_m_s=self.v0_star * self.v_c_m_s, B_star=self.B_star, printed_setup=self.is_printed,
+                 jamming_slope=self.jamming_slope)
         return d
