@@ -12,6 +12,7 @@ from rich.console import Console
 from .._version import __version__
 from ..errors import ParameterError
 from ..params import FLOW_DIRECTIONS
+from .config import ConfigCommand
 from .types import FINITE, FRAME_OR_TIME, Number, param_number
 
 err_console = Console(stderr=True)
@@ -152,10 +153,13 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 
 
 # ---------------------------------------------------------------------------
-@cli.command()
+@cli.command(cls=ConfigCommand)
 @click.argument("movie", type=click.Path(path_type=Path))
 @click.option("--out", "out", type=click.Path(path_type=Path), required=True,
               help="Folder for summary.json, CSV tables, diagram, figures and report.")
+@click.option("--config", "config", type=click.Path(path_type=Path), default=None,
+              help="Settings file (TOML, [analyze] table of these options); default: grainplug.toml beside the "
+                   "movie, if there is one. Options given here win over it.")
 @click.option("--fps", type=param_number("fps"), default=None,
               help="Frame rate (overrides the file; needed for image folders).")
 @click.option("--mm-per-px", type=param_number("mm_per_px"), default=None,
@@ -186,7 +190,7 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
               help="Analyse up to this frame (excluded) or time.")
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
-def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
+def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_per_px: float | None,
             tube_diameter_mm: float | None, tube_outer_diameter_mm: float | None, glass_index: float,
             flow_direction: str | None, min_plug_mm: float, glob_: str | None, threads: int | None,
             calibration: Path | None, background: Path | None, allow_truncated: bool,
@@ -235,6 +239,9 @@ def analyze(movie: Path, out: Path, fps: float | None, mm_per_px: float | None,
             result = run_analysis(movie, params, progress=progress, threads=threads)
         result.save(out, figures=not no_figures, report=not no_figures, figure_worker=figure_worker)
     s = result.summary
+    settings = click.get_current_context().meta.get("grainplug.config")
+    if settings is not None:  # said once the run is done: a refusal stays one line
+        err_console.print(f"settings from {settings}", highlight=False, soft_wrap=True)
     for line in result.warnings:
         err_console.print(f"[yellow]warning:[/] {line}", highlight=False, soft_wrap=True)
     if as_json:

@@ -1,0 +1,60 @@
+"""grainplug.toml: a lab's settings for analyze, beside the movie or with --config; the command line wins."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from grainplug.cli import main
+from grainplug.synthetic import SynthConfig, synthesize
+
+
+@pytest.fixture(scope="module")
+def movie(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cfg")
+    return synthesize(SynthConfig(n_frames=120, seed=4, noise_sigma=2), d / "run", fmt="tiff").movie
+
+
+def analyze(capsys, *args):
+    code = main(["analyze", *map(str, args), "--no-figures", "--json"])
+    out, err = capsys.readouterr()
+    return code, (json.loads(out) if code == 0 else None), err
+
+
+def test_settings_beside_the_movie_and_the_command_line_wins(movie, tmp_path, capsys):
+    folder = tmp_path / "day1"
+    folder.mkdir()
+    local = folder / movie.name
+    shutil.copy(movie, local)
+    (folder / "grainplug.toml").write_text('[analyze]\nmm-per-px = 0.2\nstart = "20"\nmin_plug_mm = 4.0\n')
+    code, s, err = analyze(capsys, local, "--out", tmp_path / "a")
+    assert code == 0, err
+    assert s["mm_per_px"] == 0.2 and s["n_frames"] == 100 and s["parameters"]["min_plug_mm"] == 4.0
+    assert "settings from" in err and "grainplug.toml" in err
+    code, s, err = analyze(capsys, local, "--out", tmp_path / "b", "--mm-per-px", "0.18", "--start", "0")
+    assert code == 0 and s["mm_per_px"] == 0.18 and s["n_frames"] == 120
+
+
+def test_explicit_settings_file_with_a_relative_path(movie, tmp_path, capsys):
+    (tmp_path / "lab").mkdir()
+    (tmp_path / "lab" / "settings.toml").write_text('[analyze]\ncalibration = "missing/day1.json"\n')
+    code, _, err = analyze(capsys, movie, "--out", tmp_path / "o", "--config", tmp_path / "lab" / "settings.toml")
+    # the path is taken relative to the settings file, and its absence said in one line
+    assert code == 2 and str(tmp_path / "lab" / "missing" / "day1.json") in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("text,words", [("[analyze\nfps = 3", "not a readable TOML"),
+                                        ("[analyze]\nfpss = 3\n", "unknown setting 'fpss'"),
+                                        ("[analyze]\nfps = 'fast'\n", "fps: Invalid value for '--fps'"),
+                                        ("[analyze]\nfps = 1e12\n", "must be between 1 and 1e+07"),
+                                        ("analyze = 3\n", "must be a table")])
+def test_bad_settings_are_one_line(movie, tmp_path, capsys, text, words):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text(text)
+    code, _, err = analyze(capsys, movie, "--out", tmp_path / "o", "--config", cfg)
+    assert code == 2 and words in err and str(cfg) in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "o").exists()
+    code, _, err = analyze(capsys, movie, "--out", tmp_path / "o", "--config", tmp_path / "none.toml")
+    assert code == 2 and "no such settings file" in err
