@@ -200,6 +200,8 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
+        if client is not None:
+            client.close()
         raise OutputPlaceError(f"cannot create {out}: {exc.strerror or exc} — choose another --out") from None
     records: dict[str, dict] = {}
     total = len(specs)
