@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import json
 import os
 import shutil
 import tempfile
@@ -110,8 +111,6 @@ def _fsync_tree(folder: Path) -> None:
 
 def _seal(folder: Path) -> None:
     """Write the completion marker: every file of the set with its size (see :func:`is_complete`)."""
-    import json
-
     files = {f.relative_to(folder).as_posix(): f.stat().st_size
              for f in sorted(folder.rglob("*")) if f.is_file() and f.name != MARKER}
     (folder / MARKER).write_text(json.dumps({"grainplug_output": "replaced whole by each run", "complete": True,
@@ -122,8 +121,6 @@ def is_complete(folder: str | Path) -> bool:
     """Whether ``folder`` holds a complete output set: its completion marker lists every file with
     its size, and every file is there with that size (a folder damaged since, or written by a
     version without markers, is not complete)."""
-    import json
-
     folder = Path(folder)
     try:
         seal = json.loads((folder / MARKER).read_text())

@@ -586,16 +586,13 @@ def _local_scale_field(world: np.ndarray, image_pts: np.ndarray, proj: np.ndarra
     c0 = xy.mean(axis=0)
     half = max(float(np.abs(xy - c0).max()), 1.0)
 
+    n_terms = 6 if len(xy) >= 12 else 3  # quadratic, or a plane for few points
+
     def basis(q: np.ndarray) -> np.ndarray:
         u, v = ((q - c0) / half).T
-        cols = [np.ones_like(u), u, v]
-        if len(q) != len(xy) or len(xy) >= 12:
-            cols += [u * u, u * v, v * v]
-        return np.column_stack(cols)
+        return np.column_stack([np.ones_like(u), u, v, u * u, u * v, v * v])[:, :n_terms]
 
     B = basis(xy)
-    n_terms = 6 if len(xy) >= 12 else 3
-    B = B[:, :n_terms]
     coef, *_ = np.linalg.lstsq(B, ratio, rcond=1e-6)
     resid = ratio - B @ coef
     sigma2 = float(resid @ resid) / max(1, len(xy) - n_terms)
@@ -604,7 +601,7 @@ def _local_scale_field(world: np.ndarray, image_pts: np.ndarray, proj: np.ndarra
     smooth = B @ mcoef
 
     def at(centre_xy: np.ndarray) -> tuple[float, float, float]:
-        b = basis(np.asarray(centre_xy, float).reshape(1, 2))[0, :n_terms]
+        b = basis(np.asarray(centre_xy, float).reshape(1, 2))[0]
         value = float(b @ coef)
         sd = math.sqrt(max(float(b @ cov @ b), 0.0)) / value
         return value, sd, float((smooth.max() - smooth.min()) / smooth.mean())

@@ -21,9 +21,9 @@ RUN_COLUMNS = (
 
 
 def _cell(value: object, decimals: int | None) -> str:
-    if value is None or (isinstance(value, float) and pd.isna(value)):
-        return "—"
-    return number(value, decimals) if decimals is not None else str(value)
+    if decimals is not None:
+        return number(value, decimals)  # "—" when missing
+    return "—" if value is None or (isinstance(value, float) and pd.isna(value)) else str(value)
 
 
 def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[str], meta: dict) -> str:

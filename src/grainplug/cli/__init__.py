@@ -40,10 +40,8 @@ def _main(args: list[str]) -> int:
             cli.main(args=args, prog_name="grainplug", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return int(exc.exit_code or 0)
-    except click.exceptions.Abort as exc:  # click turns Ctrl-C into Abort; a campaign says what it kept
-        cause = exc.__cause__
-        click.echo(f"error: {cause}" if isinstance(cause, KeyboardInterrupt) and str(cause) else "error: interrupted",
-                   err=True)
+    except click.exceptions.Abort:
+        click.echo("error: interrupted", err=True)
         return 130
     except click.UsageError as exc:
         if debug:
@@ -65,8 +63,8 @@ def _main(args: list[str]) -> int:
             raise
         click.echo(f"error: {exc}", err=True)
         return exc.exit_code
-    except KeyboardInterrupt as exc:
-        click.echo(f"error: {exc}" if str(exc) else "error: interrupted", err=True)
+    except KeyboardInterrupt:
+        click.echo("error: interrupted", err=True)
         return 130
     except Exception as exc:  # a bug: say so in one line, traceback with --debug
         if debug:
