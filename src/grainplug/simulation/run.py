@@ -1,0 +1,275 @@
+"""Run a simulation: initial state, time loop, outputs and the checks a user needs.
+
+Notes
+-----
+:func:`simulate` integrates the conservative 1D model (:mod:`.equations`) with the
+finite-volume scheme of :mod:`.scheme` and returns a :class:`SimulationResult` of
+fields on the grid at regular output times, with its checks: grain and air mass
+drift (periodic box), compactness above random close packing, cells emptied, and
+coarsening (the number of dense segments still changing at the end of the run).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..stability.params import ModelParams
+from .equations import C_FLOOR, Closure
+from .scheme import Boundary, Integrator
+
+log = logging.getLogger(__name__)
+
+#: random close packing of monodisperse spheres: compactness above it is unphysical
+RANDOM_CLOSE_PACKING = 0.64
+#: relative drift of a conserved total that is reported
+DRIFT_WARN = 1e-10
+BOUNDARIES = ("periodic", "open")
+
+
+@dataclass(frozen=True)
+class SimulationParams:
+    """How to run a simulation (lengths in pipe diameters ``D``, times in ``t_c``).
+
+    Attributes
+    ----------
+    boundary : str
+        ``"periodic"`` (a box that repeats) or ``"open"`` (a pipe fed at the top).
+    length_D : float
+        Box or pipe length.
+    n_cells : int
+        Number of finite-volume cells.
+    duration_tc : float
+        Simulated time.
+    output_interval_tc : float
+        Time between saved fields.
+    cfl : float
+        Courant number of the explicit fluxes (at most 0.5).
+    noise : float
+        Standard deviation of the initial compactness perturbation (white noise, zero
+        mean: the grain content is exactly ``c0`` times the box).
+    balance : bool, optional
+        Add the uniform force that makes the base state steady (see
+        :class:`~grainplug.simulation.equations.Closure`). Default: on in a periodic box
+        (as the linear analysis assumes), off in an open pipe.
+    feed_c : float, optional
+        Open pipe: compactness of the grains fed at the top (default ``c0``).
+    feed_v : float, optional
+        Open pipe: their velocity in units of ``v_c`` (default: the base velocity).
+    """
+
+    boundary: str = "periodic"
+    length_D: float = 251.0
+    n_cells: int = 1024
+    duration_tc: float = 600.0
+    output_interval_tc: float = 0.5
+    cfl: float = 0.4
+    noise: float = 1e-9
+    balance: bool | None = None
+    feed_c: float | None = None
+    feed_v: float | None = None
+
+    def __post_init__(self) -> None:
+        checks = [
+            (self.boundary in BOUNDARIES, f"boundary must be one of {', '.join(BOUNDARIES)}"),
+            (math.isfinite(self.length_D) and self.length_D > 0, "the length must be positive (in D)"),
+            (16 <= self.n_cells <= 1_000_000, "n_cells must be between 16 and 1e6"),
+            (math.isfinite(self.duration_tc) and self.duration_tc > 0, "the duration must be positive (in t_c)"),
+            (math.isfinite(self.output_interval_tc) and 0 < self.output_interval_tc <= self.duration_tc,
+             "the output interval must be positive and at most the duration"),
+            (0 < self.cfl <= 0.5, "cfl must be in (0, 0.5]"),
+            (math.isfinite(self.noise) and 0 <= self.noise < 0.1, "noise must be in [0, 0.1)"),
+            (self.feed_c is None or 0 < self.feed_c < 1, "the feed compactness must be in (0, 1)"),
+            (self.feed_v is None or (math.isfinite(self.feed_v) and self.feed_v > 0),
+             "the feed velocity must be positive (downward)"),
+        ]
+        for ok, msg in checks:
+            if not ok:
+                raise ParameterError(msg)
+
+    @property
+    def dx(self) -> float:
+        return self.length_D / self.n_cells
+
+    @property
+    def balanced(self) -> bool:
+        return self.boundary == "periodic" if self.balance is None else self.balance
+
+    def replace(self, **kw: object) -> SimulationParams:
+        return dataclasses.replace(self, **kw)
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Fields of one simulation at the output times, dimensionless.
+
+    Attributes
+    ----------
+    model, params : ModelParams, SimulationParams
+    z : ndarray, shape (n_cells,)
+        Cell centres, units of ``D``, increasing downward (with the flow).
+    time : ndarray, shape (n_out,)
+        Output times, units of ``t_c`` (the first is 0, the initial state).
+    c, v, P : ndarray, shape (n_out, n_cells)
+        Compactness, grain velocity (``v_c``, positive downward) and absolute air
+        pressure (``P_c``).
+    grain_total, air_total : ndarray, shape (n_out,)
+        ``sum(c) dx`` and ``sum(m) dx`` (grain and air content per pipe section).
+    n_steps : int
+    wall_s : float
+    warnings : tuple of str
+    """
+
+    model: ModelParams
+    params: SimulationParams
+    z: np.ndarray
+    time: np.ndarray
+    c: np.ndarray
+    v: np.ndarray
+    P: np.ndarray
+    grain_total: np.ndarray
+    air_total: np.ndarray
+    n_steps: int
+    wall_s: float
+    warnings: tuple[str, ...] = field(default=())
+
+    @property
+    def grain_drift(self) -> float:
+        """Relative change of the grain content over the run (periodic: round-off)."""
+        return float(abs(self.grain_total[-1] - self.grain_total[0]) / abs(self.grain_total[0]))
+
+    @property
+    def air_drift(self) -> float:
+        """Relative change of the air content over the run."""
+        return float(abs(self.air_total[-1] - self.air_total[0]) / abs(self.air_total[0]))
+
+    def __repr__(self) -> str:
+        p = self.params
+        return (f"<SimulationResult {p.boundary} L={p.length_D:g} D, {p.n_cells} cells, t={self.time[-1]:g} t_c, "
+                f"{len(self.time)} outputs, c in [{self.c.min():.3f}, {self.c.max():.3f}], "
+                f"{len(self.warnings)} warnings>")
+
+
+def initial_state(closure: Closure, params: SimulationParams, rng: np.random.Generator) -> np.ndarray:
+    """The uniform base state with zero-mean white noise of std ``params.noise`` on ``c``."""
+    n = params.n_cells
+    c = np.full(n, closure.c0)
+    if params.noise > 0:
+        e = rng.standard_normal(n)
+        c = c + params.noise * (e - e.mean())
+    return closure.conserved(c, np.full(n, closure.v0), np.full(n, closure.P0))
+
+
+def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng: np.random.Generator | None = None,
+             initial: np.ndarray | None = None, progress: object = None) -> SimulationResult:
+    """Integrate the nonlinear 1D model in time.
+
+    Parameters
+    ----------
+    model : ModelParams
+        The set-up (every switch of :class:`~grainplug.stability.ModelParams` applies).
+    params : SimulationParams
+    rng : numpy.random.Generator
+        Source of the initial noise (default: a fresh generator seeded with 0).
+    initial : ndarray, shape (3, n_cells), optional
+        The conserved variables ``(c, c v, m)`` to start from, instead of the noisy base state.
+    progress : callable, optional
+        Called as ``progress(t, duration)`` at each output.
+
+    Returns
+    -------
+    SimulationResult
+    """
+    params = params or SimulationParams()
+    closure = Closure.from_params(model, balance=params.balanced)
+    bc = Boundary()
+    if params.boundary == "open":
+        feed_c = model.c0 if params.feed_c is None else params.feed_c
+        feed_v = closure.v0 if params.feed_v is None else params.feed_v
+        bc = Boundary("open", inlet_c=feed_c, inlet_v=feed_v, P_end=closure.P0)
+    integ = Integrator(closure, params.n_cells, params.dx, bc)
+    rng = rng if rng is not None else np.random.default_rng(0)
+    U = initial_state(closure, params, rng) if initial is None else np.array(initial, dtype=float)
+    if U.shape != (3, params.n_cells):
+        raise ParameterError(f"the initial state must have shape (3, {params.n_cells})")
+    n_out = int(round(params.duration_tc / params.output_interval_tc)) + 1
+    times = np.linspace(0.0, params.output_interval_tc * (n_out - 1), n_out)
+    fields = np.empty((n_out, 3, params.n_cells))
+    totals = np.empty((n_out, 2))
+    fields[0] = np.stack(closure.primitive(U))
+    totals[0] = U[0].sum() * params.dx, U[2].sum() * params.dx
+    t, steps, t0 = 0.0, 0, time.perf_counter()
+    c_peak = float(U[0].max())
+    for j in range(1, n_out):
+        while t < times[j] - 1e-12:
+            speed = integ.max_speed(U)
+            if not math.isfinite(speed):
+                raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (non-finite wave speed): "
+                                     "try more cells or a smaller --cfl")
+            dt = min(params.cfl * params.dx / speed, times[j] - t)
+            U = integ.step(U, dt)
+            t += dt
+            steps += 1
+        fields[j] = np.stack(closure.primitive(U))
+        totals[j] = U[0].sum() * params.dx, U[2].sum() * params.dx
+        c_peak = max(c_peak, float(U[0].max()))
+        if callable(progress):
+            progress(t, params.duration_tc)
+    wall = time.perf_counter() - t0
+    res = SimulationResult(model=model, params=params, z=(np.arange(params.n_cells) + 0.5) * params.dx,
+                           time=times, c=fields[:, 0], v=fields[:, 1], P=fields[:, 2], grain_total=totals[:, 0],
+                           air_total=totals[:, 1], n_steps=steps, wall_s=wall)
+    log.info("simulated %g t_c in %d steps, %.1f s", params.duration_tc, steps, wall)
+    return dataclasses.replace(res, warnings=tuple(_checks(res, closure, c_peak)))
+
+
+def _checks(res: SimulationResult, closure: Closure, c_peak: float) -> list[str]:
+    out = []
+    p = res.params
+    if p.boundary == "periodic":
+        for name, drift in (("grain", res.grain_drift), ("air", res.air_drift)):
+            if drift > DRIFT_WARN:
+                out.append(f"{name} mass drifted by {drift:.2g} (relative) in a periodic box: the scheme should "
+                           "conserve it to round-off; report this with the parameters")
+    if c_peak > RANDOM_CLOSE_PACKING:
+        fix = ("add --jamming to cap it" if not res.model.jamming else
+               "the jamming pressure did not hold it: use more cells")
+        out.append(f"the compactness reached {c_peak:.3f}, above random close packing ({RANDOM_CLOSE_PACKING}): "
+                   f"the model lets grains pack tighter than spheres can; {fix}")
+    if np.any(res.c[-1] <= C_FLOOR * 10):
+        out.append("some cells emptied completely: the model is written for a compact flow and does not describe "
+                   "free-falling grains there")
+    if closure.law == "coulomb-weight":
+        out.append("Coulomb friction following the local weight has no short-wave cut-off (growth 0.35/t_c as k -> "
+                   "infinity): its simulation picks the grid scale, and changes with the number of cells")
+    if closure.law == "v2":
+        out.append("the simulation gives the printed v^2 friction the sign of the velocity (v|v|), so that friction "
+                   "never pushes grains; identical while grains fall")
+    n_seg = segment_counts(res)
+    if len(n_seg) >= 8 and n_seg[-1] > 0:
+        tail = n_seg[-max(len(n_seg) // 5, 2):]
+        if tail.max() != tail.min():
+            out.append(f"still coarsening: the number of dense segments changed from {tail.max()} to {tail.min()} "
+                       "over the last fifth of the run; its wavelengths are not settled (run longer)")
+    return out
+
+
+def segment_counts(res: SimulationResult, *, threshold: float | None = None) -> np.ndarray:
+    """Number of dense segments (``c`` above ``threshold``, default halfway between min and max) at each output."""
+    c = res.c
+    lo, hi = float(c[-1].min()), float(c[-1].max())
+    if hi - lo < 1e-3:
+        return np.zeros(len(c), int)
+    thr = 0.5 * (lo + hi) if threshold is None else threshold
+    dense = c > thr
+    if res.params.boundary == "periodic":
+        starts = dense & ~np.roll(dense, 1, axis=1)
+    else:
+        starts = dense & ~np.concatenate([np.zeros((len(c), 1), bool), dense[:, :-1]], axis=1)
+    return starts.sum(axis=1)
