@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -18,10 +19,12 @@ import pytest
 import sympy as sp
 
 from grainplug.errors import ParameterError
-from grainplug.simulation import SimulationParams, segment_counts, simulate
+from grainplug.simulation import SimulationParams, SimulationResult, segment_counts, simulate
 from grainplug.simulation.equations import Closure
+from grainplug.simulation.measure import measure
 from grainplug.simulation.scheme import Boundary, Integrator
 from grainplug.simulation.validation import fit_modes
+from grainplug.simulation.waves import wave_state
 from grainplug.stability import ModelParams, roots
 
 FROZEN = ModelParams(variant="frozen-friction")
@@ -259,11 +262,101 @@ def test_bad_parameters_are_refused_in_one_line():
         SimulationParams(cfl=0.9)
 
 
-def test_frozen_friction_box_steepens_and_coarsens():
-    """The nonlinear state of the frozen variant: one sawtooth compaction wave per box, c above close packing."""
-    res = simulate(FROZEN, SimulationParams(length_D=125.0, n_cells=256, duration_tc=300.0, output_interval_tc=5.0,
-                                            noise=1e-6), rng=np.random.default_rng(4))
-    counts = segment_counts(res)
-    assert counts[-1] == 1
-    assert res.c[-1].max() > 0.64
-    assert res.v[-1].min() >= 0.0
+def test_nonlinear_state_converges_between_grids():
+    """The frozen variant's end state: one sawtooth wave per box; its dense segment and front speed agree
+    within 2 % between 256 and 512 cells, and the compactness goes above random close packing."""
+    states = []
+    for n in (256, 512):
+        res = simulate(FROZEN, SimulationParams(length_D=125.0, n_cells=n, duration_tc=300.0, output_interval_tc=0.25,
+                                                noise=1e-6), rng=np.random.default_rng(4))
+        assert segment_counts(res)[-1] == 1
+        assert res.v[-1].min() >= 0.0  # friction never pushes grains upward
+        states.append(wave_state(res))
+    a, b = states
+    assert a.n_waves == b.n_waves == 1
+    assert abs(a.dense_length_D - b.dense_length_D) < 0.02 * b.dense_length_D, (a, b)
+    assert abs(a.front_speed - b.front_speed) < 0.02 * b.front_speed, (a, b)
+    assert b.c_max > 0.64
+    assert 5.0 < b.front_speed < 15.0  # faster than the linear phase speed, 5.9 v_c
+
+
+# -- the diagram measured like a movie -------------------------------------------------------
+def _moving_train(speed: float, *, plug_D: float = 12.0, period_D: float = 30.0) -> SimulationResult:
+    """Fields of a plug train (c = 0.55 plugs, 0.05 bubbles, fronts 0.4 D wide) moving at ``speed`` v_c."""
+    p = ModelParams()
+    L, n, nt = 120.0, 480, 401
+    sim = SimulationParams(length_D=L, n_cells=n, duration_tc=200.0, output_interval_tc=0.5)
+    z = (np.arange(n) + 0.5) * L / n
+    t = np.arange(nt) * 0.5
+    ph = (z[None, :] - speed * t[:, None]) % period_D
+    c = (0.05 + 0.25 * (np.tanh(ph / 0.4) - np.tanh((ph - plug_D) / 0.4))
+         + 0.25 * (1 + np.tanh((ph - period_D) / 0.4)))
+    ones = np.ones_like(c)
+    return SimulationResult(model=p, params=sim, z=z, time=t, c=c, v=ones, P=ones, grain_total=np.ones(nt),
+                            air_total=np.ones(nt), n_steps=0, wall_s=0.0)
+
+
+@pytest.mark.parametrize("speed", [-0.3, 0.8])
+def test_a_simulated_plug_train_is_measured_like_a_movie(speed):
+    """Known fields through the movie analysis' stages: celerity (sign: downstream positive), plug and
+    bubble lengths, regime."""
+    res = _moving_train(speed)
+    m = measure(res, t_from_tc=0.0)
+    assert m.regime == "propagative"
+    assert m.celerity_m_s == pytest.approx(speed * res.model.v_c_m_s, rel=5e-3)
+    assert m.plug_length_mm == pytest.approx(12.0 * 3.0, rel=0.01)
+    assert m.bubble_length_mm == pytest.approx(18.0 * 3.0, rel=0.01)
+
+
+@pytest.mark.parametrize("ripple", [0.0, 1e-7])
+def test_a_uniform_flow_has_no_plugs(ripple):
+    """A uniform flow (exactly, or up to rounding-level ripples) is a single phase, not a failure."""
+    res = _moving_train(0.5)
+    c = 0.55 + ripple * np.sin(np.arange(res.c.size)).reshape(res.c.shape)
+    flat = SimulationResult(**{**res.__dict__, "c": c})
+    m = measure(flat, t_from_tc=0.0)
+    assert m.regime == "none" and m.celerity_m_s is None
+    assert "no plugs" in m.measures.statement
+
+
+# -- outputs and the command line ---------------------------------------------------------------
+def test_simulate_command_writes_fields_summary_and_figure(tmp_path, capsys):
+    import xarray as xr
+
+    from grainplug import __version__
+    from grainplug.cli import main
+
+    out = tmp_path / "sim"
+    code = main(["simulate", "--variant", "frozen-friction", "--length-D", "60", "--cells", "96", "--duration-tc", "40",
+                 "--output-interval-tc", "1", "--noise", "1e-6", "--out", str(out)])
+    stdout, err = capsys.readouterr()
+    assert code == 0, err
+    assert "linear theory      most unstable lambda/D = 42.6" in stdout
+    assert "conservation       grain" in stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["grainplug_version"] == __version__
+    assert summary["run"]["n_cells"] == 96 and summary["seed"] == 0
+    assert summary["model"]["friction_law_used"] == "coulomb-frozen"
+    assert summary["run"]["grain_drift"] < 1e-12
+    with xr.open_dataset(out / "fields.nc", engine="scipy") as ds:
+        assert ds["c"].shape == (41, 96)
+        np.testing.assert_allclose(ds["position_mm"].values[:2], [0.9375, 2.8125])
+        assert ds["time_s"].values[-1] == pytest.approx(40 * summary["model"]["t_c_s"])
+        assert ds.attrs["grainplug_version"] == __version__
+    assert (out / "diagram.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--cells", "4"], "--cells"),
+    (["--boundary", "closed"], "--boundary"),
+    (["--base-pressure", "lots"], "--base-pressure"),
+])
+def test_simulate_refuses_bad_input_in_one_line(tmp_path, capsys, args, needle):
+    from grainplug.cli import main
+
+    out = tmp_path / "sim"
+    code = main(["simulate", *args, "--out", str(out)])
+    _, err = capsys.readouterr()
+    assert code == 2
+    assert needle in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()

@@ -118,10 +118,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     diagram, norm, grains = _orient(diagram, norm, grains, tube, flow.direction)
     runs, links = _plugs(norm, diagram, params)
     laps("plugs_s")
-    # small least-squares problems: a BLAS thread pool would only add wake-up latency
-    with threadpool_limits(limits=1, user_api="blas"):
-        motion, lengths, statement = _measures(norm, diagram, runs, links, tube, fps=info.fps,
-                                               mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
+    motion, lengths, statement = _measures(norm, diagram, runs, links, tube.background_level, fps=info.fps,
+                                           mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
     timings = dict(laps.timings, stream_fps=round(diagram.n_frames / max(laps.timings["stream_s"], 1e-9), 1))
@@ -450,18 +448,48 @@ def _plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams) -> tuple[
     return runs, link(runs, diagram.n_frames)
 
 
-def _measures(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, tube: TubeGeometry, *, fps: float,
+def _measures(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, background_level: float, *, fps: float,
               mm_per_px: float, scale_rel_sd: float) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity and oscillation of the plug train, plug and bubble lengths; or why there are none."""
     if not (norm.two_phase and len(runs) > 0):
         return None, None, (f"no plugs: the tube holds a single phase over the whole record "
-                            f"({_single_phase(norm, tube.background_level)}); "
+                            f"({_single_phase(norm, background_level)}); "
                             "no celerity, length or frequency is measured")
-    motion = measure_motion(diagram.time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
-                            mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
-    lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd)
+    # small least-squares problems: a BLAS thread pool would only add wake-up latency
+    with threadpool_limits(limits=1, user_api="blas"):
+        motion = measure_motion(diagram.time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
+                                mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
+        lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd)
     statement = "" if motion is not None else "plugs were seen but no plug edge could be followed over time"
     return motion, lengths, statement
+
+
+@dataclass(frozen=True)
+class DiagramMeasures:
+    """What :func:`measure_diagram` finds in a spatiotemporal diagram."""
+
+    normalized: Normalized
+    runs: Runs
+    links: Tracks
+    motion: Motion | None
+    lengths: Lengths | None
+    statement: str
+
+
+def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, fps: float,
+                    background_level: float = 0.0) -> DiagramMeasures:
+    """The analysis from the diagram on: plugs, tracks, celerity, regime, plug and bubble lengths.
+
+    The stages :func:`analyze` runs after streaming the movie, for a diagram from
+    elsewhere (a simulation, :mod:`grainplug.simulation.measure`). ``diagram.values``
+    are grey levels with grains dark, rows in time, positions increasing downstream.
+    """
+    params = params or AnalysisParams()
+    norm = normalize(diagram.values, background_level=background_level or None)
+    runs, links = _plugs(norm, diagram, params)
+    motion, lengths, statement = _measures(norm, diagram, runs, links, background_level, fps=fps,
+                                           mm_per_px=diagram.mm_per_px, scale_rel_sd=0.0)
+    return DiagramMeasures(norm, runs, links, motion, lengths, statement)
 
 
 def _single_phase(norm: Normalized, background: float) -> str:

@@ -277,60 +277,54 @@ def _window_params(start: tuple[str, float] | None, end: tuple[str, float] | Non
 
 
 # ---------------------------------------------------------------------------
-@cli.command()
-@click.option("--diameter-mm", type=FINITE, default=3.0, show_default=True, help="Pipe inner diameter D.")
-@click.option("--grain-diameter-um", type=FINITE, default=225.0, show_default=True, help="Grain diameter d.")
-@click.option("--c0", type=FINITE, default=0.55, show_default=True, help="Base-state compactness.")
-@click.option("--kappa", type=FINITE, default=0.5, show_default=True, help="Janssen coefficient.")
-@click.option("--mu-s", type=FINITE, default=0.6249, show_default=True, help="Friction coefficient (tan 32°).")
-@click.option("--theta-deg", type=FINITE, default=0.0, show_default=True, help="Pipe inclination from vertical.")
-@click.option("--gamma", type=FINITE, default=1.4, show_default=True, help="Ratio of specific heats of air.")
-@click.option("--air-viscosity-pa-s", type=FINITE, default=1.8e-5, show_default=True)
-@click.option("--grain-density-kg-m3", type=FINITE, default=2500.0, show_default=True)
-@click.option("--b", "b", type=FINITE, default=1.0, show_default=True, help="Capillary factor on friction.")
-@click.option("--B1-star", "b1_star", type=FINITE, default=None,
-              help="Use this B1* instead of computing it from D, d, c0, gamma, mu_a, rho_s.")
-@click.option("--variant", type=click.Choice(["printed", "frozen-friction"]), default="printed", show_default=True,
+#: the set-up of the paper's model (each default the paper as printed), shared by stability and simulate
+_MODEL_OPTIONS = [
+    click.option("--diameter-mm", type=FINITE, default=3.0, show_default=True, help="Pipe inner diameter D."),
+    click.option("--grain-diameter-um", type=FINITE, default=225.0, show_default=True, help="Grain diameter d."),
+    click.option("--c0", type=FINITE, default=0.55, show_default=True, help="Base-state compactness."),
+    click.option("--kappa", type=FINITE, default=0.5, show_default=True, help="Janssen coefficient."),
+    click.option("--mu-s", type=FINITE, default=0.6249, show_default=True, help="Friction coefficient (tan 32°)."),
+    click.option("--theta-deg", type=FINITE, default=0.0, show_default=True, help="Pipe inclination from vertical."),
+    click.option("--gamma", type=FINITE, default=1.4, show_default=True, help="Ratio of specific heats of air."),
+    click.option("--air-viscosity-pa-s", type=FINITE, default=1.8e-5, show_default=True),
+    click.option("--grain-density-kg-m3", type=FINITE, default=2500.0, show_default=True),
+    click.option("--b", "b", type=FINITE, default=1.0, show_default=True, help="Capillary factor on friction."),
+    click.option("--B1-star", "b1_star", type=FINITE, default=None,
+              help="Use this B1* instead of computing it from D, d, c0, gamma, mu_a, rho_s."),
+    click.option("--variant", type=click.Choice(["printed", "frozen-friction"]), default="printed", show_default=True,
               help="printed: the paper's equations as printed; frozen-friction: wall friction not perturbed "
-                   "(= --friction-law coulomb-frozen).")
-@click.option("--friction-law", type=click.Choice(["v2", "v|v|", "coulomb-frozen", "coulomb-weight"]), default=None,
+                   "(= --friction-law coulomb-frozen)."),
+    click.option("--friction-law", type=click.Choice(["v2", "v|v|", "coulomb-frozen", "coulomb-weight"]), default=None,
               help="Wall friction F(c, v): v2 as printed (2 b mu_s v^2), v|v| (signed), coulomb-frozen (held at "
-                   "its base value), coulomb-weight (following the local weight) [default: v2, or the variant's].")
-@click.option("--base-pressure", "base_pressure", default="printed", show_default=True,
+                   "its base value), coulomb-weight (following the local weight) [default: v2, or the variant's]."),
+    click.option("--base-pressure", "base_pressure", default="printed", show_default=True,
               metavar="printed|atmospheric|PA",
               help="Absolute air pressure of the base state: as printed (P* = 1, i.e. rho_s g D = 74 Pa), the "
-                   "atmosphere (101325 Pa), or a value in Pa; B1* and the compressibility term follow it.")
-@click.option("--base-velocity", type=click.Choice(["printed", "balanced"]), default="printed", show_default=True,
-              help="printed: v* = 1; balanced: the velocity at which wall friction carries the weight.")
-@click.option("--jamming", is_flag=True,
+                   "atmosphere (101325 Pa), or a value in Pa; B1* and the compressibility term follow it."),
+    click.option("--base-velocity", type=click.Choice(["printed", "balanced"]), default="printed", show_default=True,
+              help="printed: v* = 1; balanced: the velocity at which wall friction carries the weight."),
+    click.option("--jamming", is_flag=True,
               help="Add a jamming pressure Fr (c - c_min)^2 / (c_max - c)^5 (Johnson & Jackson) to the grains' "
-                   "momentum: it diverges at random close packing (not in the paper).")
-@click.option("--jamming-fr-pa", type=Number(0, 1e6, unit="Pa"), default=0.05, show_default=True,
-              help="Its constant Fr.")
-@click.option("--jamming-c-max", type=Number(0.01, 0.99), default=0.64, show_default=True,
-              help="Its random close packing c_max (it starts at c_min = 0.50).")
-@click.option("--k-min", type=Number(1e-6, 1e4), default=0.001, show_default=True)
-@click.option("--k-max", type=Number(1e-6, 1e4), default=3.0, show_default=True)
-@click.option("--n-k", type=Number(2, 1e6, unit="wavenumbers", integer=True), default=1000, show_default=True)
-@click.option("--json", "as_json", is_flag=True, help="Print roots, most unstable mode, cut-offs and inputs as JSON.")
-@click.option("--plot", "plot", type=click.Path(path_type=Path), default=None,
-              help="Write the paper's Fig. 9 (growth rates against k*) to this PNG (with --sweep: lambda/D).")
-@click.option("--sweep", "sweep_spec", default=None, metavar="NAME=START:STOP:N",
-              help="Vary one input (e.g. grain_diameter_um=50:400:15 or c0=0.45:0.62:10) and report "
-                   "the most unstable and cut-off wavelengths for each value.")
-def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: float, mu_s: float,
-              theta_deg: float, gamma: float, air_viscosity_pa_s: float, grain_density_kg_m3: float,
-              b: float, b1_star: float | None, variant: str, friction_law: str | None, base_pressure: str,
-              base_velocity: str, jamming: bool, jamming_fr_pa: float, jamming_c_max: float,
-              k_min: float, k_max: float, n_k: int,
-              as_json: bool, plot: Path | None, sweep_spec: str | None) -> None:
-    """Linear stability of the paper's 1D model: the three roots omega*(k*).
+                   "momentum: it diverges at random close packing (not in the paper)."),
+    click.option("--jamming-fr-pa", type=Number(0, 1e6, unit="Pa"), default=0.05, show_default=True,
+              help="Its constant Fr."),
+    click.option("--jamming-c-max", type=Number(0.01, 0.99), default=0.64, show_default=True,
+              help="Its random close packing c_max (it starts at c_min = 0.50)."),
+]
 
-    Every set-up choice is a switch whose default is the paper as printed: the friction law,
-    the base pressure and the base velocity; the output states the base state's residual,
-    its absolute pressure and the caveats of the set-up.
-    """
-    from ..stability import P_ATM_PA, ModelParams, analyze_stability
+
+def _model_options(f):
+    for option in reversed(_MODEL_OPTIONS):
+        f = option(f)
+    return f
+
+
+def _model_params(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: float, mu_s: float,
+                  theta_deg: float, gamma: float, air_viscosity_pa_s: float, grain_density_kg_m3: float,
+                  b: float, b1_star: float | None, variant: str, friction_law: str | None, base_pressure: str,
+                  base_velocity: str, jamming: bool, jamming_fr_pa: float, jamming_c_max: float):
+    """The :class:`ModelParams` of the model options."""
+    from ..stability import P_ATM_PA, ModelParams
 
     if base_pressure == "printed":
         base_pressure_pa = None
@@ -342,16 +336,41 @@ def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: fl
         except ValueError:
             raise ParameterError(f"--base-pressure must be printed, atmospheric or a pressure in Pa, "
                                  f"got {base_pressure!r}") from None
+    return ModelParams(diameter_mm=diameter_mm, grain_diameter_um=grain_diameter_um, c0=c0, kappa=kappa,
+                       mu_s=mu_s, theta_deg=theta_deg, gamma=gamma, air_viscosity_pa_s=air_viscosity_pa_s,
+                       grain_density_kg_m3=grain_density_kg_m3, b=b, B1_star_override=b1_star, variant=variant,
+                       friction_law=friction_law, base_pressure_pa=base_pressure_pa, base_velocity=base_velocity,
+                       jamming=jamming, jamming_fr_pa=jamming_fr_pa, jamming_c_max=jamming_c_max)
 
+
+@cli.command()
+@_model_options
+@click.option("--k-min", type=Number(1e-6, 1e4), default=0.001, show_default=True)
+@click.option("--k-max", type=Number(1e-6, 1e4), default=3.0, show_default=True)
+@click.option("--n-k", type=Number(2, 1e6, unit="wavenumbers", integer=True), default=1000, show_default=True)
+@click.option("--json", "as_json", is_flag=True, help="Print roots, most unstable mode, cut-offs and inputs as JSON.")
+@click.option("--plot", "plot", type=click.Path(path_type=Path), default=None,
+              help="Write the paper's Fig. 9 (growth rates against k*) to this PNG (with --sweep: lambda/D).")
+@click.option("--sweep", "sweep_spec", default=None, metavar="NAME=START:STOP:N",
+              help="Vary one input (e.g. grain_diameter_um=50:400:15 or c0=0.45:0.62:10) and report "
+                   "the most unstable and cut-off wavelengths for each value.")
+def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | None, sweep_spec: str | None,
+              **model: object) -> None:
+    """Linear stability of the paper's 1D model: the three roots omega*(k*).
+
+    Every set-up choice is a switch whose default is the paper as printed: the friction law,
+    the base pressure and the base velocity; the output states the base state's residual,
+    its absolute pressure and the caveats of the set-up.
+    """
+    from ..stability import analyze_stability
+
+    p = _model_params(**model)
+    variant, base_pressure, base_velocity, jamming = (model["variant"], model["base_pressure"],
+                                                      model["base_velocity"], model["jamming"])
     if not (0 < k_min < k_max) or n_k < 10:
         raise ParameterError("need 0 < --k-min < --k-max and --n-k >= 10")
     if plot is not None and plot.suffix.lower() not in (".png", ".svg", ".pdf"):
         raise ParameterError(f"--plot must name a .png, .svg or .pdf file, got {plot.name}")
-    p = ModelParams(diameter_mm=diameter_mm, grain_diameter_um=grain_diameter_um, c0=c0, kappa=kappa,
-                    mu_s=mu_s, theta_deg=theta_deg, gamma=gamma, air_viscosity_pa_s=air_viscosity_pa_s,
-                    grain_density_kg_m3=grain_density_kg_m3, b=b, B1_star_override=b1_star, variant=variant,
-                    friction_law=friction_law, base_pressure_pa=base_pressure_pa, base_velocity=base_velocity,
-                    jamming=jamming, jamming_fr_pa=jamming_fr_pa, jamming_c_max=jamming_c_max)
     if sweep_spec:
         _stability_sweep(p, sweep_spec, k_min=k_min, k_max=k_max, n_k=n_k, as_json=as_json, plot=plot)
         return
@@ -392,6 +411,110 @@ def stability(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: fl
         click.echo(f"cut-off            k* = {kc:.5f}  lambda/D = {2 * 3.141592653589793 / kc:.3f}")
     if plot is not None:
         click.echo(f"figure             {plot}")
+
+
+@cli.command()
+@_model_options
+@click.option("--boundary", type=click.Choice(["periodic", "open"]), default="periodic", show_default=True,
+              help="periodic: a box that repeats (the linear analysis' set-up); open: a pipe fed at the top, "
+                   "the base pressure held at both ends, free outflow at the bottom.")
+@click.option("--length-D", "length_D", type=Number(1, 1e6, unit="D"), default=251.0, show_default=True,
+              help="Box or pipe length in pipe diameters.")
+@click.option("--cells", "n_cells", type=Number(16, 1e6, unit="cells", integer=True), default=1024,
+              show_default=True, help="Finite-volume cells.")
+@click.option("--duration-tc", type=Number(1e-3, 1e7, unit="t_c"), default=600.0, show_default=True,
+              help="Simulated time in units of t_c = sqrt(D/g).")
+@click.option("--output-interval-tc", type=Number(1e-4, 1e7, unit="t_c"), default=0.5, show_default=True,
+              help="Time between saved fields.")
+@click.option("--cfl", type=Number(0.01, 0.5), default=0.4, show_default=True, help="Courant number.")
+@click.option("--noise", type=Number(0, 0.099), default=1e-9, show_default=True,
+              help="Standard deviation of the initial compactness noise.")
+@click.option("--seed", type=Number(0, 2**32 - 1, integer=True), default=0, show_default=True,
+              help="Seed of the initial noise.")
+@click.option("--feed-c", type=Number(0.001, 0.999), default=None, help="Open pipe: compactness fed at the top "
+              "[default: c0].")
+@click.option("--feed-v", type=Number(1e-6, 1e3, unit="v_c"), default=None,
+              help="Open pipe: velocity of the fed grains in units of v_c [default: the base velocity].")
+@click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
+              help="Folder for fields.nc, summary.json and diagram.png (replaced as a whole).")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, output_interval_tc: float, cfl: float,
+             noise: float, seed: int, feed_c: float | None, feed_v: float | None, out_dir: Path, as_json: bool,
+             **model: object) -> None:
+    """Integrate the paper's 1D model in time (finite volumes) and measure what it forms.
+
+    Conservative in grain and air mass (the air's mass balance replaces the printed
+    pressure equation, to which it linearises). The compactness diagram goes through
+    the same plug detection and measures as a movie, beside the linear prediction and
+    the waves measured on the fields. See docs/model.md.
+    """
+    import numpy as np
+
+    from ..simulation import SimulationParams, simulate_and_measure
+    from ..simulation.store import save_simulation
+
+    p = _model_params(**model)
+    sim = SimulationParams(boundary=boundary, length_D=length_D, n_cells=n_cells, duration_tc=duration_tc,
+                           output_interval_tc=output_interval_tc, cfl=cfl, noise=noise, feed_c=feed_c, feed_v=feed_v)
+    from .._atomic import check_output_place
+
+    check_output_place(out_dir)  # refuse a bad place before the run, not after
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:g} t_c"),
+                  TimeRemainingColumn(), console=err_console, transient=True,
+                  disable=not err_console.is_terminal) as bar:
+        task = bar.add_task("simulating", total=duration_tc)
+        res, summary = simulate_and_measure(p, sim, rng=np.random.default_rng(seed),
+                                            progress=lambda t, total: bar.update(task, completed=t))
+    summary["seed"] = seed
+    import matplotlib.pyplot as plt
+
+    from ..plotting.simulation import plot_simulation
+
+    fig = plot_simulation(res)
+    try:
+        save_simulation(res, out_dir, summary, figure=fig)
+    finally:
+        plt.close(fig)
+    if as_json:
+        _echo_json(summary)
+        return
+    for line in simulation_lines(summary):
+        click.echo(line)
+    click.echo(f"outputs            {out_dir}/ (fields.nc, summary.json, diagram.png)")
+
+
+def simulation_lines(summary: dict) -> list[str]:
+    """The terminal report of ``grainplug simulate``."""
+    r, w, m, lin = summary["run"], summary["waves"], summary["measured_as_movie"], summary["linear"]
+    out = [f"run                {r['boundary']} {r['length_D']:g} D, {r['n_cells']} cells, {r['duration_tc']:g} t_c "
+           f"({r['duration_s']:.3g} s) in {r['n_steps']} steps, {r['wall_s']:.1f} s",
+           f"conservation       grain {r['grain_drift']:.1e}, air {r['air_drift']:.1e} (relative change)"]
+    if lin["most_unstable_lambda_D"] is None:
+        out.append("linear theory      stable: no wavelength grows")
+    else:
+        out.append(f"linear theory      most unstable lambda/D = {lin['most_unstable_lambda_D']:.1f}, growth "
+                   f"{lin['growth_rate_per_tc']:.4f}/t_c, phase speed {lin['phase_speed_m_s']:+.3f} m/s")
+    if w["n_waves"]:
+        out.append(f"waves at the end   {w['n_waves']} in the box, dense segment {w['dense_length_D']:.1f} D "
+                   f"({w['dense_fraction']:.2f} of the box), fronts {w['front_speed_m_s']:+.3f} m/s, "
+                   f"c {w['c_min']:.3f}..{w['c_max']:.3f}")
+    else:
+        out.append("waves at the end   none: the flow stayed uniform")
+    if m["regime"] == "none":
+        out.append(f"as a movie         {m['statement']}")
+        if w["n_waves"]:
+            out.append(f"                   (c stays within {w['c_min']:.2f}..{w['c_max']:.2f}: no air bubble forms, "
+                       "so a camera would see a compact flow)")
+    else:
+        cel = "-" if m["celerity_m_s"] is None else f"{m['celerity_m_s']:+.3f} m/s"
+        plug = "-" if m["plug_length_mm"] is None else f"{m['plug_length_mm']:.1f} mm"
+        bub = "-" if m["bubble_length_mm"] is None else f"{m['bubble_length_mm']:.1f} mm"
+        out.append(f"as a movie         {m['regime']}: celerity {cel}, plugs {plug}, bubbles {bub}")
+    for warning in summary["warnings"]:
+        out.append(f"warning            {warning}")
+    return out
 
 
 _SWEEP_NAMES = {"B1_star": "B1_star_override", "B1-star": "B1_star_override"}

@@ -80,7 +80,9 @@ def _otsu(values: np.ndarray) -> tuple[float, float]:
     """Otsu threshold and its effectiveness (between-class / total variance)."""
     from .._filters import threshold_otsu
     v = values[np.isfinite(values)]
-    if v.size < 4 or np.ptp(v) == 0:
+    # a range of a few rounding steps is flat (and too narrow for the histogram's bins)
+    eps = np.finfo(v.dtype).eps if np.issubdtype(v.dtype, np.floating) else 0.0
+    if v.size < 4 or np.ptp(v) <= 1e4 * eps * max(1.0, float(np.abs(v).max())):
         return float(np.median(v)) if v.size else 0.0, 0.0
     thr = threshold_otsu(v, nbins=512)
     hi = v > thr

@@ -5,6 +5,14 @@ validation against the linear analysis of :mod:`grainplug.stability`.
 """
 
 from .equations import Closure
-from .run import RANDOM_CLOSE_PACKING, SimulationParams, SimulationResult, segment_counts, simulate
+from .run import (
+    RANDOM_CLOSE_PACKING,
+    SimulationParams,
+    SimulationResult,
+    segment_counts,
+    simulate,
+    simulate_and_measure,
+)
 
-__all__ = ["RANDOM_CLOSE_PACKING", "Closure", "SimulationParams", "SimulationResult", "segment_counts", "simulate"]
+__all__ = ["RANDOM_CLOSE_PACKING", "Closure", "SimulationParams", "SimulationResult", "segment_counts", "simulate",
+           "simulate_and_measure"]

@@ -273,3 +273,44 @@ def segment_counts(res: SimulationResult, *, threshold: float | None = None) -> 
     else:
         starts = dense & ~np.concatenate([np.zeros((len(c), 1), bool), dense[:, :-1]], axis=1)
     return starts.sum(axis=1)
+
+
+def simulate_and_measure(model: ModelParams, params: SimulationParams | None = None, *,
+                         rng: np.random.Generator | None = None,
+                         progress: object = None) -> tuple[SimulationResult, dict[str, object]]:
+    """:func:`simulate`, then the waves on the fields, the diagram measured as a movie's and the linear
+    prediction, as one JSON-ready summary (with the version, the set-up and the run's parameters)."""
+    from .._version import __version__
+    from ..stability import analyze_stability
+    from .measure import measure
+    from .waves import wave_state
+
+    res = simulate(model, params, rng=rng, progress=progress)
+    p = res.model
+    lin = analyze_stability(p, k_min=1e-3, k_max=3.0, n_k=1000)
+    mu = lin.most_unstable
+    waves = wave_state(res)
+    seen = measure(res)
+    warnings = list(res.warnings)
+    if waves.n_waves and res.params.boundary == "periodic" and waves.n_waves == 1:
+        warnings.append(f"one wave fills the box ({res.params.length_D:g} D): the dense-segment length "
+                        f"({waves.dense_length_D:.0f} D) is set by the box, not selected by the flow; "
+                        "compare boxes of different lengths")
+    summary: dict[str, object] = {
+        "grainplug_version": __version__,
+        "model": p.as_dict(),
+        "caveats": p.caveats(),
+        "run": {**dataclasses.asdict(res.params), "n_steps": res.n_steps, "wall_s": round(res.wall_s, 3),
+                "duration_s": res.params.duration_tc * p.t_c_s, "length_mm": res.params.length_D * p.diameter_mm,
+                "grain_drift": res.grain_drift, "air_drift": res.air_drift,
+                "grain_total": [float(res.grain_total[0]), float(res.grain_total[-1])],
+                "air_total": [float(res.air_total[0]), float(res.air_total[-1])]},
+        "linear": {"most_unstable_lambda_D": None if mu is None else mu.wavelength_over_diameter,
+                   "growth_rate_per_tc": None if mu is None else mu.growth_rate,
+                   "phase_speed_m_s": None if mu is None else mu.phase_speed * p.v_c_m_s,
+                   "cutoff_lambda_D": lin.cutoff_wavelength_over_diameter},
+        "waves": waves.as_dict(D_mm=p.diameter_mm, v_c_m_s=p.v_c_m_s),
+        "measured_as_movie": seen.as_dict(),
+        "warnings": warnings,
+    }
+    return res, summary

@@ -1,0 +1,101 @@
+"""The nonlinear state of a run, measured on the fields: waves, dense segments, fronts.
+
+Notes
+-----
+A cell is *dense* when its compactness is above the midpoint of the final field's
+range, ``(min c + max c) / 2``. A dense segment is a run of dense cells (joined
+across the ends of a periodic box). Its *front* is its downstream end, where the
+compactness falls. Front speeds come from following each front between consecutive
+outputs (the nearest front to its last position, unwrapped across a periodic box) over
+the last quarter of the run, fitted by a straight line.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .run import SimulationResult
+
+
+@dataclass(frozen=True)
+class WaveState:
+    """The waves at the end of a run (lengths in ``D``, speeds in ``v_c``)."""
+
+    n_waves: int
+    dense_length_D: float
+    dense_fraction: float
+    wavelength_D: float
+    front_speed: float
+    threshold_c: float
+    c_min: float
+    c_max: float
+
+    def as_dict(self, *, D_mm: float, v_c_m_s: float) -> dict[str, float | int]:
+        return {"n_waves": self.n_waves, "dense_length_D": self.dense_length_D, "dense_fraction": self.dense_fraction,
+                "wavelength_D": self.wavelength_D, "front_speed_v_c": self.front_speed,
+                "dense_length_mm": self.dense_length_D * D_mm, "wavelength_mm": self.wavelength_D * D_mm,
+                "front_speed_m_s": self.front_speed * v_c_m_s, "threshold_c": self.threshold_c,
+                "c_min": self.c_min, "c_max": self.c_max}
+
+
+def _segments(dense: np.ndarray, periodic: bool) -> list[tuple[int, int]]:
+    """(start, end) cell indices of runs of True, end exclusive; a run across a periodic edge ends past n."""
+    n = len(dense)
+    if not dense.any():
+        return []
+    if dense.all():
+        return [(0, n)]
+    d = dense.astype(np.int8)
+    if periodic:
+        k = int(np.argmin(dense))  # start the scan on a light cell
+        d = np.roll(d, -k)
+    else:
+        k = 0
+    edges = np.diff(np.concatenate([[0], d, [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return [(int(s) + k, int(e) + k) for s, e in zip(starts, ends, strict=True)]
+
+
+def _fronts(c: np.ndarray, thr: float, dx: float, periodic: bool) -> np.ndarray:
+    """Positions (units of D) where ``c`` falls through ``thr`` going downstream."""
+    nxt = np.roll(c, -1) if periodic else np.concatenate([c[1:], c[-1:]])
+    i = np.flatnonzero((c > thr) & (nxt <= thr))
+    frac = (c[i] - thr) / np.maximum(c[i] - nxt[i], 1e-300)
+    return (i + 0.5 + frac) * dx
+
+
+def wave_state(res: SimulationResult) -> WaveState:
+    """The dense segments at the end of the run and the speed of their fronts."""
+    c_end = res.c[-1]
+    periodic = res.params.boundary == "periodic"
+    lo, hi = float(c_end.min()), float(c_end.max())
+    thr = 0.5 * (lo + hi)
+    dx, L = res.params.dx, res.params.length_D
+    if hi - lo < 1e-3:
+        return WaveState(0, 0.0, 0.0, float("nan"), float("nan"), thr, lo, hi)
+    segs = _segments(c_end > thr, periodic)
+    lengths = np.array([e - s for s, e in segs], float) * dx
+    n = len(segs)
+    # fronts: the downstream end of each dense segment, where c falls through the threshold
+    # (interpolated between cells), followed over the last quarter and fitted by a line
+    j0 = max(1, int(0.75 * len(res.time)))
+    t_track, z_track = [], []
+    z_now = None
+    for j in range(j0 - 1, len(res.time)):
+        fronts = _fronts(res.c[j], thr, dx, periodic)
+        if not len(fronts):
+            continue
+        if z_now is None:
+            z_now = float(fronts[0])
+        else:
+            dz = (fronts - z_now % L + 0.5 * L) % L - 0.5 * L if periodic else fronts - z_now
+            z_now += float(dz[int(np.argmin(np.abs(dz)))])
+        t_track.append(res.time[j])
+        z_track.append(z_now)
+    speed = float(np.polyfit(t_track, z_track, 1)[0]) if len(t_track) >= 3 else float("nan")
+    return WaveState(n_waves=n, dense_length_D=float(lengths.mean()), dense_fraction=float(lengths.sum() / L),
+                     wavelength_D=L / n if periodic and n else float("nan"),
+                     front_speed=speed, threshold_c=thr,
+                     c_min=lo, c_max=hi)
