@@ -45,7 +45,8 @@ def main() -> None:
            "wall_s": round(res.wall_s, 2), "steps": res.n_steps,
            "us_per_step": round(1e6 * res.wall_s / res.n_steps, 1),
            "ns_per_cell_step": round(1e9 * res.wall_s / res.n_steps / a.cells, 1),
-           "n_waves": w.n_waves, "dense_length_D": round(w.dense_length_D, 2), "front_speed_v_c": round(w.front_speed, 3),
+           "n_waves": w.n_waves, "dense_length_D": round(w.dense_length_D, 2),
+           "front_speed_v_c": round(w.front_speed, 3),
            "c_max_end": round(w.c_max, 4), "grain_drift": res.grain_drift, "air_drift": res.air_drift}
     log.info(json.dumps(out))
 
