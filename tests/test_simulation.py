@@ -288,6 +288,35 @@ def test_open_pipe_fills_with_the_fed_grains():
     np.testing.assert_allclose(res.v[-1], p.v0_star, rtol=1e-6)
 
 
+def test_open_pipe_carries_the_fed_mass_flow_rate():
+    """Fed at 0.5 g/s, the grains accelerate to their terminal velocity and thin out; once steady the grain
+    flux is the fed flux all along the pipe (what goes in comes out)."""
+    from grainplug.simulation.run import feed_velocity
+
+    p = ModelParams(friction_law="v|v|", base_velocity="balanced")
+    sim = SimulationParams(boundary="open", length_D=100.0, n_cells=200, duration_tc=300.0, output_interval_tc=10.0,
+                           noise=0.0, feed_rate_g_s=0.5)
+    res = simulate(p, sim)
+    v_in = feed_velocity(p, 0.5, p.c0)
+    # 0.5 g/s of glass through a 3 mm pipe at c = 0.55: 0.0514 m/s
+    assert v_in * p.v_c_m_s == pytest.approx(0.5e-3 / (2500 * math.pi * 0.003**2 / 4 * 0.55), rel=1e-12)
+    flux = res.c[-1] * res.v[-1]
+    np.testing.assert_allclose(flux[5:], p.c0 * v_in, rtol=3e-3)  # still settling by ~1e-3
+    # below the inlet the grains fall at their terminal velocity, friction = weight: 2 b mu_s v^2 = c
+    np.testing.assert_allclose(res.v[-1][5:], np.sqrt(res.c[-1][5:] / (2 * p.mu_s)), rtol=0.01)
+    assert res.c[-1][5:].max() < 0.9 * p.c0  # thinned out
+    assert not res.warnings
+
+
+def test_a_jammed_pipe_is_said_so():
+    """Frozen Coulomb friction above the weight, no balancing force: the fed grains stop, with a warning."""
+    sim = SimulationParams(boundary="open", length_D=50.0, n_cells=100, duration_tc=50.0, output_interval_tc=5.0,
+                           noise=0.0, feed_rate_g_s=0.5)
+    res = simulate(FROZEN, sim)
+    assert np.mean(res.v[-1] == 0.0) > 0.5  # the lower part of the pipe is a static column
+    assert any("grains stopped over" in w for w in res.warnings)
+
+
 def test_bad_parameters_are_refused_in_one_line():
     with pytest.raises(ParameterError, match="n_cells"):
         SimulationParams(n_cells=4)
@@ -295,6 +324,10 @@ def test_bad_parameters_are_refused_in_one_line():
         SimulationParams(boundary="closed")
     with pytest.raises(ParameterError, match="cfl"):
         SimulationParams(cfl=0.9)
+    with pytest.raises(ParameterError, match="open pipe only"):
+        SimulationParams(feed_rate_g_s=0.5)
+    with pytest.raises(ParameterError, match="not both"):
+        SimulationParams(boundary="open", feed_rate_g_s=0.5, feed_v=0.3)
 
 
 def test_nonlinear_state_converges_between_grids():

@@ -435,11 +435,14 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
               "[default: c0].")
 @click.option("--feed-v", type=Number(1e-6, 1e3, unit="v_c"), default=None,
               help="Open pipe: velocity of the fed grains in units of v_c [default: the base velocity].")
+@click.option("--feed-rate-g-s", type=Number(1e-6, 1e6, unit="g/s"), default=None,
+              help="Open pipe: mass flow rate of the grains fed at the top (sets their velocity).")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Folder for fields.nc, summary.json and diagram.png (replaced as a whole).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, output_interval_tc: float, cfl: float,
-             noise: float, seed: int, feed_c: float | None, feed_v: float | None, out_dir: Path, as_json: bool,
+             noise: float, seed: int, feed_c: float | None, feed_v: float | None, feed_rate_g_s: float | None,
+             out_dir: Path, as_json: bool,
              **model: object) -> None:
     """Integrate the paper's 1D model in time (finite volumes) and measure what it forms.
 
@@ -455,7 +458,8 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
 
     p = _model_params(**model)
     sim = SimulationParams(boundary=boundary, length_D=length_D, n_cells=n_cells, duration_tc=duration_tc,
-                           output_interval_tc=output_interval_tc, cfl=cfl, noise=noise, feed_c=feed_c, feed_v=feed_v)
+                           output_interval_tc=output_interval_tc, cfl=cfl, noise=noise, feed_c=feed_c, feed_v=feed_v,
+                           feed_rate_g_s=feed_rate_g_s)
     from .._atomic import check_output_place
 
     check_output_place(out_dir)  # refuse a bad place before the run, not after

@@ -121,6 +121,8 @@ def _rate(U, k, Upad, W, out):
         H[0, f] = (ap * fl0 - am * fr0 + ap * am * (ur0 - ul0)) / span
         H[1, f] = (ap * fl1 - am * fr1 + ap * am * (ur1 - ul1)) / span
         H[2, f] = (ap * fl2 - am * fr2 + ap * am * (ur2 - ul2)) / span
+    if int(k[K_BC]) == 1:  # the feed: exactly the fed grains enter
+        H[0, 0] = k[K_IN_Q]
     for j in range(3):
         for i in range(n):
             out[j, i] = -(H[j, i + 1] - H[j, i]) / dx

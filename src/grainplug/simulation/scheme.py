@@ -57,9 +57,11 @@ class Boundary:
     Attributes
     ----------
     kind : str
-        ``"periodic"``; ``"open"``: an inlet at ``z = 0`` (grains fed at compactness
-        ``inlet_c`` and velocity ``inlet_v``, air at ``P_end``) and a free outflow at
-        ``z = L`` (the grains leave at their own velocity, air at ``P_end``); or
+        ``"periodic"``; ``"open"``: an inlet at ``z = 0`` (the grain flux through the top
+        face is the feed, ``inlet_c inlet_v``, exactly; momentum and air fluxes come from
+        the numerical flux against a ghost state holding the fed grains and air at
+        ``P_end``) and a free outflow at ``z = L`` (zero-gradient ghosts: grains leave at
+        their own velocity; the air pressure is held at ``P_end`` half a cell out); or
         ``"outflow"``: both ends free, no air flux through them (Riemann problems).
     inlet_c, inlet_v, P_end : float
         Inlet compactness and velocity, and the air pressure at both ends (dimensionless).
@@ -138,7 +140,10 @@ class Integrator:
         ul, ur = cl.conserved(*wl), cl.conserved(*wr)
         span = ap - am
         span = np.where(span > 0, span, 1.0)
-        return (ap * fl - am * fr + ap * am * (ur - ul)) / span
+        H = (ap * fl - am * fr + ap * am * (ur - ul)) / span
+        if self.bc.kind == "open":  # the feed: exactly the fed grains enter, whatever waves leave upward
+            H[0, 0] = self._inlet[1]
+        return H
 
     def hyperbolic_rate(self, U: np.ndarray) -> np.ndarray:
         H = self.face_fluxes(U)
