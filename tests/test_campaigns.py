@@ -64,8 +64,15 @@ def test_fit_coverage(rng):
 
 
 def test_paper_reproduction():
-    rep = reproduce()
+    rep = reproduce(simulate=False)
     d = rep.as_dict()
+    panel = d["model_vs_experiment"]
+    assert panel["measured"]["n_runs"] == 17  # Table 1
+    lin = {q["label"]: q for q in panel["predictions"]}
+    assert lin["as printed"]["most_unstable_lambda_D"] is None
+    assert lin["frozen friction"]["most_unstable_lambda_D"] == pytest.approx(2 * np.pi / 0.1476, rel=0.02)
+    assert lin["frozen friction, atmospheric air"]["most_unstable_lambda_D"] is None  # longer than the pipe
+    assert not any(q["nonlinear"] for q in panel["predictions"])  # simulate=False
     for key in ("propagative/rough", "propagative/smooth", "oscillating"):
         f = d["fits"][key]
         assert {"slope_m_s_per_g_s", "intercept_m_s", "slope_stderr", "intercept_stderr", "r2", "n"} <= set(f)
@@ -93,6 +100,15 @@ def test_paper_cli(tmp_path, capsys):
         assert (tmp_path / "p" / name).stat().st_size > 0, name
     text = (tmp_path / "p" / "reproduction.md").read_text()
     assert "Where it does not" in text and "misprint" in text
+    # the model against Table 1, with the simulations: the direction disagrees, the length is set by the box
+    panel = d["model_vs_experiment"]
+    assert "the model does not predict the observed waves' direction" in panel["verdict"][0]
+    frozen = next(q for q in panel["predictions"] if q["label"] == "frozen friction")
+    small, large = frozen["nonlinear"]
+    assert small["n_waves"] == large["n_waves"] == 1
+    assert large["dense_length_D"] > 1.5 * small["dense_length_D"]
+    assert (tmp_path / "p" / "model_vs_experiment.png").stat().st_size > 0
+    assert "Model against experiment" in (tmp_path / "p" / "report.html").read_text()
 
 
 @pytest.fixture(scope="module")
@@ -141,6 +157,14 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
     out = tmp_path / "out"
     camp = run_campaign(campaign_dir / "manifest.csv", out)
     t = camp.table
+    # the model against the measured runs: linear and simulated predictions, sentences from the numbers
+    report_text = (out / "report.html").read_text()
+    assert "Model against experiment" in report_text and "this campaign, 3 mm pipe" in report_text
+    panel = json.loads((out / "fits.json").read_text())["model_vs_experiment"]
+    assert panel["measured"]["n_runs"] == 5 and panel["measured"]["celerity_max_m_s"] < 0
+    assert any(q["nonlinear"] for q in panel["predictions"])
+    assert panel["verdict"][0].startswith("Celerity: the measured plugs climb")
+    assert (out / "model_vs_experiment.png").exists()
     assert list(t.status) == ["ok"] * 5
     assert t.celerity_m_s.to_numpy() == pytest.approx([-0.040, -0.054, -0.063, -0.052, -0.083], rel=0.02)
     assert set(camp.fits) == {"propagative/rough", "propagative/smooth", "all"}
@@ -155,7 +179,7 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
                  "length_vs_mass_flow.png", "runs/a/summary.json", "runs/a/report.html"):
         assert (out / name).exists(), name
     # rerun: nothing changed, nothing analysed again
-    again = run_campaign(campaign_dir / "manifest.csv", out)
+    again = run_campaign(campaign_dir / "manifest.csv", out, simulate=False)
     assert list(again.table.status) == ["ok"] * 5 and again.n_reused == 5
     assert again.table.celerity_m_s.tolist() == t.celerity_m_s.tolist()
     # a changed parameter re-runs that run only; a missing movie fails alone
@@ -163,7 +187,7 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
     m[1] = m[1].replace("0.185", "0.19")
     m.append("z,missing.avi,0.3,40,rough,0.185,lab-3")
     (campaign_dir / "manifest2.csv").write_text("\n".join(m) + "\n")
-    code, _, err = run(capsys, "batch", campaign_dir / "manifest2.csv", "--out", out)
+    code, _, err = run(capsys, "batch", campaign_dir / "manifest2.csv", "--out", out, "--no-simulations")
     assert_one_line_error(code, err, "1 of 6 runs failed", "missing.avi")
     t3 = pd.read_csv(out / "campaign.csv")
     assert list(t3.status) == ["ok", "ok", "ok", "ok", "ok", "failed"]

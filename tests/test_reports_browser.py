@@ -48,7 +48,7 @@ def test_run_report(tmp_path):
 
 
 def test_paper_report(tmp_path):
-    write_paper(reproduce(), tmp_path / "p")
+    write_paper(reproduce(simulate=False), tmp_path / "p")
     _check(tmp_path / "p" / "report.html")
 
 

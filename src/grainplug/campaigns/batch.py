@@ -34,6 +34,7 @@ from ..outputs import write_outputs
 from ..pipeline import analyze, fingerprint
 from .fits import fit_line, summarize_lengths
 from .manifest import RunSpec, read_manifest, run_folder_name
+from .model_panel import ModelPanel, measured_from, model_panel
 
 log = logging.getLogger(__name__)
 
@@ -154,7 +155,7 @@ def campaign_fits(table: pd.DataFrame, *, diameter_mm: float = 3.0) -> dict[str,
 
 
 def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1, scheduler: str | None = None,
-                 figures: bool = True, verify: bool = False,
+                 figures: bool = True, verify: bool = False, simulate: bool = True,
                  progress: Callable[[int, int, str], None] | None = None) -> Campaign:
     """Analyse every run of ``manifest`` and write the campaign's table, fits, figures and report.
 
@@ -173,6 +174,9 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     verify : bool
         Reuse a run only if every byte of its movie hashes as when it was analysed
         (reads every movie whole); otherwise its size and sampled content must match.
+    simulate : bool
+        With figures, the report's model-against-experiment panel includes the
+        nonlinear simulations (about 20 s); otherwise linear theory only.
     progress : callable, optional
         ``progress(done, total, run)`` after each run.
 
@@ -236,7 +240,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     n_reused = sum(bool(records[s.run].get("reused")) for s in specs)
     table = pd.DataFrame([{k: v for k, v in records[s.run].items() if k != "reused"} for s in specs])
     fits = campaign_fits(table)
-    _write_campaign(table, fits, out, manifest=Path(manifest), figures=figures)
+    _write_campaign(table, fits, out, manifest=Path(manifest), figures=figures, simulate=simulate)
     return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused, deaths)
 
 
@@ -380,7 +384,8 @@ def _stop(pool: ProcessPoolExecutor) -> None:
     pool.shutdown(wait=False, cancel_futures=True)
 
 
-def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Path, figures: bool) -> None:
+def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Path, figures: bool,
+                    simulate: bool = True) -> None:
     with atomic_directory(out) as tmp:
         table.to_csv(tmp / "campaign.csv", index=False)
         pq = table.copy()
@@ -390,13 +395,43 @@ def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Pat
         pq.to_parquet(tmp / "campaign.parquet", index=False)
         meta = {"grainplug_version": __version__, "manifest": str(manifest.resolve()),
                 "manifest_sha256": hashlib.sha256(manifest.read_bytes()).hexdigest(), "fits": fits}
+        panel = _model_panel(table, simulate=simulate) if figures else None
+        if panel is not None:
+            meta["model_vs_experiment"] = panel.as_dict()
         (tmp / "fits.json").write_text(dumps(meta))
         names: list[str] = []
         if figures:
             names = _campaign_figures(table, tmp)
+            if panel is not None:
+                import matplotlib.pyplot as plt
+
+                from ..plotting.model_panel import plot_model_panel
+
+                fig = plot_model_panel(panel.measured, panel.predictions, diameter_mm=panel.diameter_mm)
+                fig.savefig(tmp / MODEL_FIGURE, dpi=110)
+                plt.close(fig)
             from .report import campaign_report
 
-            (tmp / "report.html").write_text(campaign_report(table, fits, tmp, names, meta))
+            (tmp / "report.html").write_text(campaign_report(table, fits, tmp, names, meta, panel=panel))
+
+
+#: the model-against-experiment figure of a campaign
+MODEL_FIGURE = "model_vs_experiment.png"
+
+
+def _model_panel(table: pd.DataFrame, *, simulate: bool) -> ModelPanel | None:
+    """The campaign's measurements against the model (with the pipe diameter of its runs), or None
+    without a measured celerity."""
+    ok = table[table.status == "ok"] if "status" in table else table
+    if "celerity_m_s" not in ok or not np.isfinite(ok.celerity_m_s.to_numpy(float)).any():
+        return None
+    d = ok["tube_diameter_mm"].to_numpy(float) if "tube_diameter_mm" in ok else np.array([])
+    d = d[np.isfinite(d)]
+    diameter_mm = float(np.median(d)) if len(d) else 3.0
+    bubbles = ok["bubble_length_mm"].to_numpy(float) if "bubble_length_mm" in ok else None
+    measured = measured_from(ok.celerity_m_s.to_numpy(float), ok.plug_length_mm.to_numpy(float), bubbles,
+                             source=f"this campaign, {diameter_mm:g} mm pipe")
+    return model_panel(measured, diameter_mm=diameter_mm, simulate=simulate)
 
 
 def _campaign_figures(table: pd.DataFrame, folder: Path) -> list[str]:

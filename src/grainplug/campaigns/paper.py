@@ -19,6 +19,7 @@ from .. import datasets
 from ..stability import ModelParams, analyze_stability
 from ..stability.resonance import ResonanceInputs, resonance
 from .fits import LinearFit, fit_line, summarize_lengths
+from .model_panel import ModelPanel, measured_from, model_panel
 
 GROUPS = ("propagative/rough", "propagative/smooth", "oscillating")
 D_MM = 3.0
@@ -48,6 +49,7 @@ class PaperReproduction:
     stability: dict[str, object]
     resonance: dict[str, object]
     source: dict = field(default_factory=dict)
+    model_panel: ModelPanel | None = None
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -61,6 +63,7 @@ class PaperReproduction:
             "checks": [c.as_dict() for c in self.checks],
             "n_checks": len(self.checks),
             "n_agree": sum(c.agrees for c in self.checks),
+            "model_vs_experiment": None if self.model_panel is None else self.model_panel.as_dict(),
         }
 
 
@@ -68,8 +71,10 @@ def _r(x: float, nd: int = 4) -> float:
     return round(float(x), nd)
 
 
-def reproduce() -> PaperReproduction:
-    """Fits, lengths, stated ranges, stability and resonance, each checked against the text."""
+def reproduce(*, simulate: bool = True) -> PaperReproduction:
+    """Fits, lengths, stated ranges, stability and resonance, each checked against the text, and the
+    model against the measurements (:mod:`.model_panel`; ``simulate=False`` skips its nonlinear runs,
+    about 20 s)."""
     runs = datasets.paper_runs()
     fits: dict[str, LinearFit] = {}
     lengths: dict[str, dict] = {}
@@ -195,7 +200,10 @@ def reproduce() -> PaperReproduction:
     add("an acoustic resonance of about 4 Hz (measured oscillations 7 Hz)", "Oscillating wave regime", 4.0,
         {"quarter_wave_hz": _r(q, 2), "half_wave_hz": _r(h, 2)}, abs(q - 4) <= 1,
         "1 m column, c = 0.55, adiabatic air (Wood); the half-wave mode is ~7.6 Hz")
-    return PaperReproduction(fits, lengths, checks, stab, res_a, datasets.source())
+    panel = model_panel(measured_from(prop.celerity_m_s.to_numpy(), prop.plug_length_mm.to_numpy(), None,
+                                      source="the paper's Table 1, propagative regime"),
+                        diameter_mm=D_MM, simulate=simulate)
+    return PaperReproduction(fits, lengths, checks, stab, res_a, datasets.source(), panel)
 
 
 def reproduction_text(rep: PaperReproduction) -> str:
@@ -220,4 +228,6 @@ def reproduction_text(rep: PaperReproduction) -> str:
               for c in disagree]
     lines += ["", "The stability figures are written for the printed model and for the `frozen-friction` "
               "variant; see docs/stability.md for why only the variant is unstable.", ""]
+    if rep.model_panel is not None:
+        lines += ["## Model against experiment", ""] + [f"- {s}" for s in rep.model_panel.verdict] + [""]
     return "\n".join(lines)

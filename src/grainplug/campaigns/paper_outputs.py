@@ -10,7 +10,10 @@ from .. import datasets
 from .._atomic import atomic_directory
 from .._version import __version__
 from ..jsonio import dumps
+from .model_panel import panel_html
 from .paper import D_MM, PaperReproduction, reproduction_text
+
+MODEL_FIGURE = "model_vs_experiment.png"
 
 
 def paper_figures(rep: PaperReproduction, folder: Path) -> list[str]:
@@ -55,6 +58,13 @@ def paper_figures(rep: PaperReproduction, folder: Path) -> list[str]:
         fig.savefig(folder / name, dpi=110)
         plt.close(fig)
         names.append(name)
+    if rep.model_panel is not None:
+        from ..plotting.model_panel import plot_model_panel
+
+        fig = plot_model_panel(rep.model_panel.measured, rep.model_panel.predictions, diameter_mm=D_MM)
+        fig.savefig(folder / MODEL_FIGURE, dpi=110)
+        plt.close(fig)
+        names.append(MODEL_FIGURE)
     return names
 
 
@@ -78,7 +88,9 @@ def write_paper(rep: PaperReproduction, out_dir: str | Path, *, figures: bool = 
                 + table(["group", "slope (m/s per g/s)", "intercept (m/s)", "R²", "n"], fit_rows)
                 + "<h2>Checks against the text</h2>"
                 + table(["claim", "where", "paper", "reproduced", "agrees", "note"], rows)
-                + "<h2>Figures</h2>" + images(tmp, names)
+                + ("" if rep.model_panel is None else
+                   panel_html(rep.model_panel, MODEL_FIGURE if MODEL_FIGURE in names else None))
+                + "<h2>Figures</h2>" + images(tmp, [n for n in names if n != MODEL_FIGURE])
                 + provenance({"grainplug_version": __version__, "source": rep.source}))
         if figures:
             (tmp / "report.html").write_text(page("grainplug: reproduction of the paper", body))

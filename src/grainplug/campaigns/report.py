@@ -9,6 +9,7 @@ import pandas as pd
 
 from ..reports import images, page, provenance, table
 from ..reports.html import number
+from .model_panel import ModelPanel, panel_html
 
 #: table columns: (column of the campaign table, header, decimals or None for text)
 RUN_COLUMNS = (
@@ -26,7 +27,8 @@ def _cell(value: object, decimals: int | None) -> str:
     return "—" if value is None or (isinstance(value, float) and pd.isna(value)) else str(value)
 
 
-def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[str], meta: dict) -> str:
+def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[str], meta: dict, *,
+                    panel: ModelPanel | None = None) -> str:
     """The report of a campaign: one row per run, the fits against mass flow rate, the figures,
     the warnings and errors of each run, and the provenance."""
     cols = [(c, h, d) for c, h, d in RUN_COLUMNS if c in tab]
@@ -59,5 +61,7 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
             + table(["group", "slope (m/s per g/s)", "± se", "intercept (m/s)", "± se", "R²", "n",
                      "mean λ (mm)", "sd λ (mm)", "λ/D"], fit_rows)
             + "<h2>Figures</h2>" + images(folder, figures)
-            + provenance({k: v for k, v in meta.items() if k != "fits"} | {"inputs": inputs}))
+            + ("" if panel is None else panel_html(panel, "model_vs_experiment.png"))
+            + provenance({k: v for k, v in meta.items() if k not in ("fits", "model_vs_experiment")}
+                         | {"inputs": inputs}))
     return page("grainplug campaign", body)

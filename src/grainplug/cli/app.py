@@ -620,12 +620,15 @@ def resonance(as_json: bool, **kwargs: object) -> None:
               help="Folder for paper.json, reproduction.md, figures and report.html.")
 @click.option("--no-figures", is_flag=True, help="Skip figures and report.")
 @click.option("--json", "as_json", is_flag=True, help="Print fits, lengths, stability and checks as JSON.")
-def paper(out: Path, no_figures: bool, as_json: bool) -> None:
-    """Reproduce the paper's numbers and figures from its own Tables 1 and 2."""
+@click.option("--no-simulations", is_flag=True,
+              help="Compare the measurements with the linear theory only (skip the ~20 s of nonlinear runs).")
+def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool) -> None:
+    """Reproduce the paper's numbers and figures from its own Tables 1 and 2, and put the model's
+    predictions (linear and simulated) beside the measurements."""
     from ..campaigns.paper import reproduce
     from ..campaigns.paper_outputs import write_paper
 
-    rep = reproduce()
+    rep = reproduce(simulate=not no_simulations)
     write_paper(rep, out, figures=not no_figures)
     if as_json:
         _echo_json({"grainplug_version": __version__, **rep.as_dict()})
@@ -638,6 +641,10 @@ def paper(out: Path, no_figures: bool, as_json: bool) -> None:
     for c in rep.checks:
         if not c.agrees:
             click.echo(f"  disagrees: {c.claim} — {c.note}")
+    if rep.model_panel is not None:
+        click.echo("model against experiment:")
+        for sentence in rep.model_panel.verdict:
+            click.echo(f"  {sentence}")
 
 
 # ---------------------------------------------------------------------------
@@ -652,8 +659,10 @@ def paper(out: Path, no_figures: bool, as_json: bool) -> None:
 @click.option("--verify", is_flag=True,
               help="Reuse a finished run only if every byte of its movie is unchanged (reads every movie whole).")
 @click.option("--json", "as_json", is_flag=True, help="Print the fits as JSON.")
+@click.option("--no-simulations", is_flag=True,
+              help="In the report, compare with the model's linear theory only (skip ~20 s of simulations).")
 def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_figures: bool, verify: bool,
-          as_json: bool) -> None:
+          as_json: bool, no_simulations: bool) -> None:
     """Analyse every run of MANIFEST (CSV or TOML), then tabulate, fit and report.
 
     One row per run: movie (relative to the manifest), fps, mm_per_px or tube_diameter_mm,
@@ -676,7 +685,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
 
         try:
             camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,
-                                verify=verify, progress=progress)
+                                verify=verify, simulate=not no_simulations, progress=progress)
         except CampaignInterrupted as exc:  # before click's own handler, which prints a blank line
             raise Interrupted(str(exc)) from None
     t = camp.table
