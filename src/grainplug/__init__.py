@@ -14,6 +14,8 @@ The public API, imported on first use so that ``import grainplug`` stays fast:
 - :func:`synthesize` and :class:`SynthConfig`: synthetic movies with known truth;
 - :func:`analyze_stability`, :func:`sweep`, :class:`ModelParams`: the paper's linear
   stability analysis (:mod:`grainplug.stability`);
+- :func:`simulate` and :class:`SimulationParams`: the model's equations integrated in time
+  (:mod:`grainplug.simulation`, docs/model.md);
 - :func:`calibrate_image` / :func:`calibrate_file` (a checkerboard, dot grid, graph paper or
   ruler) giving a :class:`Calibration`, :func:`save_calibration` / :func:`load_calibration`; pass
   it as ``analyze(..., calibration=cal)``; :func:`read_background` (a light calibration, the
@@ -44,6 +46,8 @@ _EXPORTS = {
     "analyze_stability": "grainplug.stability",
     "sweep": "grainplug.stability",
     "ModelParams": "grainplug.stability",
+    "simulate": "grainplug.simulation",
+    "SimulationParams": "grainplug.simulation",
     "run_campaign": "grainplug.campaigns.batch",
     "calibrate_image": "grainplug.calibration.pattern",
     "Calibration": "grainplug.calibration.pattern",
@@ -56,14 +60,14 @@ _EXPORTS = {
     "MovieError": "grainplug.errors",
     "ParameterError": "grainplug.errors",
 }
-_SUBMODULES = ("datasets", "stability", "synthetic", "readers", "plotting")
+_SUBMODULES = ("datasets", "stability", "simulation", "synthetic", "readers", "plotting")
 
 __all__ = [
     "FLOW_DIRECTIONS", "AnalysisParams", "AnalysisResult", "Background", "Calibration", "GrainplugError",
-    "ModelParams", "Movie", "MovieError", "MovieInfo", "ParameterError", "SynthConfig", "__version__", "analyze",
-    "analyze_stability", "calibrate_file", "calibrate_image", "datasets", "load_calibration", "load_result",
-    "open_movie", "plotting", "read_background", "readers", "run_campaign", "save_calibration", "stability", "sweep",
-    "synthesize", "synthetic",
+    "ModelParams", "Movie", "MovieError", "MovieInfo", "ParameterError", "SimulationParams", "SynthConfig",
+    "__version__", "analyze", "analyze_stability", "calibrate_file", "calibrate_image", "datasets", "load_calibration",
+    "load_result", "open_movie", "plotting", "read_background", "readers", "run_campaign", "save_calibration",
+    "simulate", "simulation", "stability", "sweep", "synthesize", "synthetic",
 ]
 
 
