@@ -109,10 +109,15 @@ def _fsync_tree(folder: Path) -> None:
             os.close(fd)
 
 
+#: files a user edits in place (a reviewer's corrections): not part of the completion check
+USER_FILES = ("corrections.json",)
+
+
 def _seal(folder: Path) -> None:
-    """Write the completion marker: every file of the set with its size (see :func:`is_complete`)."""
+    """Write the completion marker: every file of the set with its size (see :func:`is_complete`),
+    except the files a user edits (:data:`USER_FILES`)."""
     files = {f.relative_to(folder).as_posix(): f.stat().st_size
-             for f in sorted(folder.rglob("*")) if f.is_file() and f.name != MARKER}
+             for f in sorted(folder.rglob("*")) if f.is_file() and f.name != MARKER and f.name not in USER_FILES}
     (folder / MARKER).write_text(json.dumps({"grainplug_output": "replaced whole by each run", "complete": True,
                                              "files": files}, indent=1) + "\n")
 

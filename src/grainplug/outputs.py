@@ -127,6 +127,10 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
                                       default=jsonio.default),
             )
         write_result(res, tmp / FILES["result"])
+        if res.corrections is not None:
+            from .corrections import CORRECTIONS_FILE
+
+            (tmp / CORRECTIONS_FILE).write_text(jsonio.dumps(res.corrections.as_dict()))
         if pending is not None:
             pending()
         elif figures:
@@ -139,3 +143,26 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
         (tmp / FILES["summary"]).write_text(jsonio.dumps(summary))
     return {(Path(name).stem if not name.endswith(".png") else "fig_" + Path(name).stem): path
             for name, path in written.items()}
+
+
+def remeasure(folder: str | Path, *, figures: bool = True, report: bool = True) -> AnalysisResult:
+    """Reapply ``folder/corrections.json`` to the analysis saved in ``folder`` and rewrite its outputs.
+
+    The measures are recomputed from the detected tracks (the movie is not read); without a
+    corrections file, the detection is restored as it was. Returns the corrected result.
+    """
+    from .corrections import Corrections, apply_corrections
+    from .store import load_result, read_corrections
+
+    res = load_result(folder)
+    corr = read_corrections(folder)
+    new = apply_corrections(res, corr if corr is not None else Corrections())
+    extra = {}
+    try:
+        old = json.loads((Path(folder) / FILES["summary"]).read_text())
+        if isinstance(old.get("batch"), dict):
+            extra["batch"] = old["batch"]  # a campaign's run keeps its key
+    except (OSError, ValueError):
+        pass
+    write_outputs(new, folder, figures=figures, report=report, extra=extra)
+    return new

@@ -40,6 +40,7 @@ if TYPE_CHECKING:
     import xarray as xr
     from matplotlib.axes import Axes
 
+    from .corrections import Corrections
     from .plotting.worker import FigureWorker
 
 CONVENTIONS = ("positions in mm along the tube from the upstream end of the view, increasing "
@@ -89,6 +90,11 @@ class AnalysisResult:
     bore : BoreEstimate or None
         The tube model's estimates of the bore's width in pixels (None when the
         scale was given).
+    detected : (Runs, Tracks) or None
+        What was detected, before a reviewer's corrections (None when uncorrected:
+        ``runs`` and ``links`` are then what was detected).
+    corrections : Corrections or None
+        The corrections applied (:func:`grainplug.corrections.apply_corrections`).
     """
 
     params: AnalysisParams
@@ -114,6 +120,8 @@ class AnalysisResult:
     warnings: list[str] = field(default_factory=list)
     scale_rel_sd: float = 0.0
     bore: BoreEstimate | None = None
+    detected: tuple[Runs, Tracks] | None = field(default=None, repr=False)
+    corrections: Corrections | None = None
 
     # -- figures --------------------------------------------------------------
     @property
@@ -421,6 +429,8 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "flow_direction_source": res.flow_direction_source,
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
         "warnings": list(res.warnings),
+        "corrections": res.corrections.describe() if res.corrections is not None else [],
+        "corrections_applied": res.corrections.as_dict()["edits"] if res.corrections is not None else [],
         "view_length_mm": _r(float(res.diagram.position_mm[-1] + 0.5 * res.mm_per_px), 4),
         "illumination": {
             "plugs_darker_than_bubbles": res.normalized.plugs_darker,

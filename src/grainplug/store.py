@@ -28,6 +28,7 @@ def _types() -> dict[str, type]:
     from .calibration.pattern import Calibration
     from .calibration.tube import TubeGeometry
     from .calibration.tube_model import BoreEstimate, WallMeasure
+    from .corrections import Corrections, Edit
     from .diagram import Diagram, Normalized
     from .measures import Lengths, Motion
     from .params import AnalysisParams
@@ -37,7 +38,7 @@ def _types() -> dict[str, type]:
 
     return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
                                     Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate,
-                                    Background)}
+                                    Background, Corrections, Edit)}
 
 
 def _encode(obj: Any, path: str, arrays: dict[str, np.ndarray]) -> Any:
@@ -135,3 +136,27 @@ def load_result(folder: str | Path) -> Any:
         raise GrainplugError(f"no {RESULT_FILE} in {p}{hint} — pass a folder written by result.save() "
                              "or `grainplug analyze`")
     return read_result(f)
+
+
+def read_corrections(folder: str | Path) -> Any:
+    """The reviewer's corrections in ``folder/corrections.json`` (None when there is none).
+
+    Raises
+    ------
+    ParameterError
+        When the file is not valid corrections, naming the file and what is wrong.
+    """
+    from .corrections import CORRECTIONS_FILE, Corrections
+    from .errors import ParameterError
+
+    f = Path(folder) / CORRECTIONS_FILE
+    if not f.exists():
+        return None
+    try:
+        data = json.loads(f.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ParameterError(f"{f}: not readable JSON ({exc}) — fix or delete the file") from None
+    try:
+        return Corrections.from_dict(data)
+    except ParameterError as exc:
+        raise ParameterError(f"{f}: {exc.message} — fix or delete the file") from None

@@ -14,6 +14,7 @@ on where it ran.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import logging
@@ -28,10 +29,12 @@ import pandas as pd
 
 from .._atomic import atomic_directory, is_complete
 from .._version import __version__
+from ..corrections import Corrections, apply_corrections
 from ..errors import CampaignInterrupted, GrainplugError
 from ..jsonio import dumps
 from ..outputs import write_outputs
 from ..pipeline import analyze, fingerprint
+from ..store import load_result, read_corrections
 from .fits import fit_line, summarize_lengths
 from .manifest import RunSpec, read_manifest, run_folder_name
 from .model_panel import ModelPanel, measured_from, model_panel
@@ -80,6 +83,11 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
     except GrainplugError as exc:
         return {**record, "status": "failed", "error": str(exc)}
     record["run_key"] = key
+    extra = {"batch": {"run": spec.run, "run_key": key, "meta": spec.meta, "input_sha256": ident.get("sha256")}}
+    try:
+        corr = read_corrections(run_dir)  # a reviewer's corrections of this run, honoured below
+    except GrainplugError as exc:
+        return {**record, "status": "failed", "error": str(exc)}
     if is_complete(run_dir):
         try:
             old = json.loads((run_dir / "summary.json").read_text())
@@ -87,12 +95,23 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
             old = {}
         done = old.get("batch") or {}
         if done.get("run_key") == key and (not verify or done.get("input_sha256") == ident["sha256"]):
-            return {**record, "status": "ok", "reused": True, **_flat(old)}
+            wanted = corr.as_dict()["edits"] if corr is not None else []
+            if (old.get("corrections_applied") or []) == wanted:
+                return {**record, "status": "ok", "reused": True, **_flat(old)}
+            try:  # the corrections changed since: measures again from the detected plugs, no movie read
+                res = apply_corrections(load_result(run_dir), corr or Corrections())
+                write_outputs(res, run_dir, figures=figures, report=figures, extra=extra)
+                return {**record, "status": "ok", "reused": True, **_flat(res.summary)}
+            except GrainplugError:
+                pass  # an unreadable result: analyse again below
     try:
         res = analyze(spec.movie, spec.params, threads=threads)
-        write_outputs(res, run_dir, figures=figures, report=figures,
-                      extra={"batch": {"run": spec.run, "run_key": key, "meta": spec.meta,
-                                       "input_sha256": ident.get("sha256")}})
+        if corr is not None and corr.edits:
+            res = apply_corrections(res, corr)
+            res = dataclasses.replace(res, warnings=[*res.warnings, (
+                f"{len(corr.edits)} corrections from an earlier analysis of this run were applied again "
+                "(corrections.json): the movie or parameters changed, check that they still fit the tracks")])
+        write_outputs(res, run_dir, figures=figures, report=figures, extra=extra)
         return {**record, "status": "ok", "reused": False, **_flat(res.summary)}
     except GrainplugError as exc:
         return {**record, "status": "failed", "error": str(exc)}
@@ -110,7 +129,8 @@ def _flat(summary: dict) -> dict[str, object]:
                input_sha256_sampled=(summary.get("input") or {}).get("sha256_sampled"),
                input_bytes=(summary.get("input") or {}).get("bytes"),
                grainplug_version=summary.get("grainplug_version"),
-               warnings=" | ".join(summary.get("warnings") or []) or None)
+               warnings=" | ".join(summary.get("warnings") or []) or None,
+               n_corrections=len(summary.get("corrections") or []))
     return out
 
 

@@ -18,6 +18,7 @@ RUN_COLUMNS = (
     ("celerity_ci95_low_m_s", "95 % CI from", 4), ("celerity_ci95_high_m_s", "to", 4),
     ("plug_length_mm", "plug length (mm)", 2), ("bubble_length_mm", "bubble length (mm)", 2),
     ("oscillation_frequency_hz", "oscillation (Hz)", 3), ("scale_source", "scale from", None),
+    ("n_corrections", "corrections", 0),
 )
 
 

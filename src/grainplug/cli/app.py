@@ -521,6 +521,35 @@ def simulation_lines(summary: dict) -> list[str]:
     return out
 
 
+@cli.command()
+@click.argument("folder", type=click.Path(path_type=Path))
+@click.option("--no-figures", is_flag=True, help="Skip figures and report.")
+@click.option("--json", "as_json", is_flag=True, help="Print the new summary as JSON.")
+def remeasure(folder: Path, no_figures: bool, as_json: bool) -> None:
+    """Reapply FOLDER/corrections.json (a reviewer's edits) to a saved analysis and rewrite its outputs.
+
+    The measures are recomputed from the detected plugs without reading the movie; without a
+    corrections file the detection is restored as it was.
+    """
+    from ..outputs import remeasure as run_remeasure
+
+    if not folder.is_dir():
+        raise ParameterError(f"{folder} is not a folder: give the --out folder of an analysis")
+    res = run_remeasure(folder, figures=not no_figures, report=not no_figures)
+    s = res.summary
+    if as_json:
+        _echo_json(s)
+        return
+    applied = s["corrections"]
+    click.echo(f"corrections        {len(applied)} applied" + (": " + "; ".join(applied) if applied else ""))
+    cel = "-" if s["celerity_m_s"] is None else f"{s['celerity_m_s']:+.4f} m/s"
+    plug = "-" if s["plug_length_mm"] is None else f"{s['plug_length_mm']:.2f} mm"
+    click.echo(f"regime             {s['regime']}; celerity {cel}; plug length {plug}")
+    if res.statement:
+        click.echo(f"note               {res.statement}")
+    click.echo(f"outputs            {folder}/")
+
+
 _SWEEP_NAMES = {"B1_star": "B1_star_override", "B1-star": "B1_star_override"}
 
 

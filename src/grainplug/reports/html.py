@@ -89,6 +89,13 @@ def run_report(res: AnalysisResult, folder: Path) -> str:
     warnings = "".join(f"<li>{html.escape(w)}</li>" for w in res.warnings)
     if warnings:
         warnings = f'<h2 class="note">Warnings</h2><ul class="note">{warnings}</ul>'
+    corrections = ""
+    if res.corrections is not None and res.corrections.edits:
+        items = "".join(f"<li>{html.escape(e.describe())} <small>({html.escape(e.at)})</small></li>"
+                        for e in res.corrections.edits)
+        corrections = (f'<h2 class="note">Corrections applied ({len(res.corrections.edits)})</h2>'
+                       f'<ul class="note">{items}</ul><p>The measures below are recomputed from the detected '
+                       "plugs with these corrections (corrections.json; <code>grainplug remeasure</code>).</p>")
     prov = {"grainplug_version": s["grainplug_version"], "input": s["input"],
             "parameters": s["parameters"], "movie": s["movie"],
             "generated": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
@@ -98,6 +105,7 @@ def run_report(res: AnalysisResult, folder: Path) -> str:
 <h1>grainplug analysis of <code>{html.escape(Path(res.info.path).name)}</code></h1>
 {statement}
 {warnings}
+{corrections}
 <h2>Results</h2>{_table([(k, s.get(k)) for k in keys])}
 <h2>Figures</h2>{figs}
 <h2>Provenance</h2><pre>{html.escape(json.dumps(prov, indent=2, default=str))}</pre>

@@ -1,0 +1,240 @@
+"""A reviewer's corrections to what an analysis detected, and the measures recomputed from them.
+
+Notes
+-----
+A :class:`Corrections` is a list of edits, each with what was done and when, replayed
+in order on the detected plug tracks:
+
+- ``exclude`` / ``restore`` a track (a false detection, a plug cut by a splash);
+- ``merge`` track ``b`` into track ``a`` (one plug the tracker cut in two);
+- ``split`` a track at a frame (two plugs the tracker joined: the part from that frame
+  on becomes a new track);
+- ``window``: keep the frames between two times (cut away a start-up transient);
+- ``no_plugs``: mark a time span as not plugs (a stretch where the flow is compact or
+  the view blocked), and ``clear_no_plugs``.
+
+Track ids in an edit refer to the tracks as they are at that point of the replay (as a
+reviewer sees them), so merges and splits compose. :func:`apply_corrections` replays
+them on the *detected* runs and tracks (kept in the result, so corrections never
+compound) and recomputes celerity, regime, frequency and lengths from the same
+functions as the analysis, without reading the movie again.
+
+The file ``corrections.json`` beside an analysis holds the edits (format
+:data:`FORMAT_VERSION`); ``grainplug remeasure DIR`` reapplies it, and ``grainplug
+batch`` honours it for every run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .errors import ParameterError
+from .measures import measure_lengths, measure_motion
+from .plugs import Runs, Tracks
+
+if TYPE_CHECKING:
+    from .result import AnalysisResult
+
+#: version of the format of ``corrections.json``
+FORMAT_VERSION = 1
+CORRECTIONS_FILE = "corrections.json"
+ACTIONS = ("exclude", "restore", "merge", "split", "window", "no_plugs", "clear_no_plugs")
+
+
+@dataclass(frozen=True)
+class Edit:
+    """One correction: ``action`` (see :data:`ACTIONS`), its arguments and when it was made (ISO 8601, UTC)."""
+
+    action: str
+    track: int = -1
+    other: int = -1
+    frame: int = -1
+    start_s: float | None = None
+    end_s: float | None = None
+    at: str = ""
+
+    def describe(self) -> str:
+        a = self.action
+        if a in ("exclude", "restore"):
+            return f"{a}d track {self.track}"
+        if a == "merge":
+            return f"merged track {self.other} into track {self.track}"
+        if a == "split":
+            return f"split track {self.track} at frame {self.frame}"
+        if a == "window":
+            lo = "the start" if self.start_s is None else f"{self.start_s:g} s"
+            hi = "the end" if self.end_s is None else f"{self.end_s:g} s"
+            return f"kept the frames from {lo} to {hi}"
+        if a == "no_plugs":
+            return f"marked {self.start_s:g}–{self.end_s:g} s as not plugs"
+        return "cleared the spans marked as not plugs"
+
+    def as_dict(self) -> dict[str, object]:
+        return {k: v for k, v in dataclasses.asdict(self).items()
+                if v not in (-1, None) or k in ("action", "at")}
+
+
+@dataclass(frozen=True)
+class Corrections:
+    """The edits, in the order they were made."""
+
+    edits: tuple[Edit, ...] = field(default=())
+
+    def add(self, action: str, *, at: str | None = None, **args: object) -> Corrections:
+        """A copy with one more edit (checked); ``at`` defaults to now."""
+        edit = _edit(action, at=at or datetime.now(UTC).isoformat(timespec="seconds"), **args)
+        return Corrections((*self.edits, edit))
+
+    def undo(self) -> Corrections:
+        """A copy without the last edit."""
+        return Corrections(self.edits[:-1])
+
+    def describe(self) -> list[str]:
+        return [e.describe() for e in self.edits]
+
+    def as_dict(self) -> dict[str, object]:
+        return {"format": "grainplug-corrections", "format_version": FORMAT_VERSION,
+                "edits": [e.as_dict() for e in self.edits]}
+
+    @classmethod
+    def from_dict(cls, data: object) -> Corrections:
+        """Read the JSON form; raises ParameterError naming what is wrong."""
+        if not isinstance(data, dict) or data.get("format") != "grainplug-corrections":
+            raise ParameterError("not a grainplug corrections file (no \"format\": \"grainplug-corrections\")")
+        version = data.get("format_version")
+        if not isinstance(version, int) or version > FORMAT_VERSION:
+            raise ParameterError(f"corrections format {version!r} is newer than this grainplug reads "
+                                 f"({FORMAT_VERSION}): upgrade grainplug")
+        edits = data.get("edits")
+        if not isinstance(edits, list):
+            raise ParameterError("the corrections' \"edits\" must be a list")
+        out = []
+        for k, e in enumerate(edits):
+            if not isinstance(e, dict) or "action" not in e:
+                raise ParameterError(f"edit {k + 1} has no \"action\"")
+            args = {key: v for key, v in e.items() if key not in ("action", "at")}
+            try:
+                out.append(_edit(str(e["action"]), at=str(e.get("at", "")), **args))
+            except ParameterError as exc:
+                raise ParameterError(f"edit {k + 1}: {exc.message}") from None
+        return cls(tuple(out))
+
+
+def _edit(action: str, *, at: str, **args: object) -> Edit:
+    if action not in ACTIONS:
+        raise ParameterError(f"unknown correction {action!r}: use one of {', '.join(ACTIONS)}")
+    known = {f.name for f in dataclasses.fields(Edit)} - {"action", "at"}
+    unknown = set(args) - known
+    if unknown:
+        raise ParameterError(f"{action}: unknown argument {', '.join(sorted(unknown))}")
+    need = {"exclude": ("track",), "restore": ("track",), "merge": ("track", "other"), "split": ("track", "frame"),
+            "window": (), "no_plugs": ("start_s", "end_s"), "clear_no_plugs": ()}[action]
+    for name in need:
+        if args.get(name) is None:
+            raise ParameterError(f"{action} needs {name}")
+    ints = {k: int(args[k]) for k in ("track", "other", "frame") if args.get(k) is not None}  # type: ignore[call-overload]
+    for k, v in ints.items():
+        if v < 0:
+            raise ParameterError(f"{action}: {k} must be >= 0")
+    times = {k: (None if args.get(k) is None else float(args[k])) for k in ("start_s", "end_s")}  # type: ignore[arg-type]
+    for k, v in times.items():
+        if v is not None and not math.isfinite(v):
+            raise ParameterError(f"{action}: {k} must be a finite time in seconds")
+    if times["start_s"] is not None and times["end_s"] is not None and times["end_s"] <= times["start_s"]:
+        raise ParameterError(f"{action}: the end ({times['end_s']:g} s) must come after the start "
+                             f"({times['start_s']:g} s)")
+    if action == "merge" and ints["track"] == ints["other"]:
+        raise ParameterError("merge: a track cannot be merged into itself")
+    return Edit(action, at=at, **ints, **times)
+
+
+@dataclass(frozen=True)
+class _State:
+    run_track: np.ndarray
+    excluded: frozenset[int]
+    window: tuple[float | None, float | None]
+    spans: tuple[tuple[float, float], ...]
+
+
+def _replay(runs: Runs, links: Tracks, corr: Corrections) -> _State:
+    track = links.run_track.astype(np.int64).copy()
+    excluded: set[int] = set()
+    window: tuple[float | None, float | None] = (None, None)
+    spans: list[tuple[float, float]] = []
+    for e in corr.edits:
+        if e.action == "exclude":
+            excluded.add(e.track)
+        elif e.action == "restore":
+            excluded.discard(e.track)
+        elif e.action == "merge":
+            track[track == e.other] = e.track
+            if e.other in excluded:
+                excluded.discard(e.other)
+        elif e.action == "split":
+            new = int(track.max()) + 1 if track.size else 0
+            track[(track == e.track) & (runs.frame >= e.frame)] = new
+        elif e.action == "window":
+            window = (e.start_s, e.end_s)
+        elif e.action == "no_plugs":
+            spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
+        else:
+            spans.clear()
+    return _State(track, frozenset(excluded), window, tuple(spans))
+
+
+def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks) -> Tracks:
+    """Per-track first/last frames and how each began and ended, for the relabelled runs."""
+    n = int(track.max()) + 1 if track.size else 0
+    first = np.full(n, -1, np.int64)
+    last = np.full(n, -1, np.int64)
+    if track.size:
+        order = np.lexsort((frame, track))
+        t_sorted, f_sorted = track[order], frame[order]
+        starts = np.flatnonzero(np.r_[True, t_sorted[1:] != t_sorted[:-1]])
+        ends = np.r_[starts[1:] - 1, len(t_sorted) - 1]
+        first[t_sorted[starts]] = f_sorted[starts]
+        last[t_sorted[ends]] = f_sorted[ends]
+    started = [detected.started_by[i] if i < len(detected) else "split" for i in range(n)]
+    ended = [detected.ended_by[i] if i < len(detected) else "end" for i in range(n)]
+    return Tracks(track, first, last, started, ended)
+
+
+def apply_corrections(res: AnalysisResult, corr: Corrections) -> AnalysisResult:
+    """The result with ``corr`` applied to its detected tracks and every measure recomputed.
+
+    Applying to an already corrected result starts again from what was detected, so
+    ``apply_corrections(apply_corrections(r, a), b)`` is ``apply_corrections(r, b)``.
+    """
+    runs, links = res.detected if res.detected is not None else (res.runs, res.links)
+    st = _replay(runs, links, corr)
+    t = res.diagram.time_s[runs.frame]
+    keep = ~np.isin(st.run_track, np.fromiter(st.excluded, np.int64, len(st.excluded)))
+    lo, hi = st.window
+    if lo is not None:
+        keep &= t >= lo
+    if hi is not None:
+        keep &= t <= hi
+    for a, b in st.spans:
+        keep &= ~((t >= a) & (t <= b))
+    new_runs = Runs(runs.frame[keep], runs.start[keep], runs.stop[keep], runs.top_mm[keep], runs.bottom_mm[keep])
+    new_links = _tracks_of(st.run_track[keep], runs.frame[keep], links)
+    # excluded and emptied tracks keep their ids (so edits and tables stay readable) but have no runs
+    motion = lengths = None
+    statement = res.statement
+    has_plugs = res.has_plugs and len(new_runs) > 0
+    if has_plugs:
+        motion = measure_motion(res.diagram.time_s, new_runs.top_mm, new_links.run_track, new_runs.frame,
+                                fps=res.info.fps, mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd)
+        lengths = measure_lengths(new_runs, new_links, scale_rel_sd=res.scale_rel_sd)
+        statement = "" if motion is not None else "plugs were seen but no plug edge could be followed over time"
+    elif res.has_plugs:
+        statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
+    return dataclasses.replace(res, runs=new_runs, links=new_links, motion=motion, lengths=lengths,
+                               has_plugs=has_plugs, statement=statement, detected=(runs, links),
+                               corrections=corr)

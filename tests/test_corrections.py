@@ -1,0 +1,154 @@
+"""A reviewer's corrections: measures recomputed from the detected plugs, kept, reapplied, honoured by batch."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import grainplug as gp
+from grainplug.cli import main
+from grainplug.corrections import Corrections, apply_corrections
+from grainplug.errors import ParameterError
+from grainplug.synthetic import SynthConfig, synthesize
+
+CELERITY = -0.05
+
+
+@pytest.fixture(scope="module")
+def movie(tmp_path_factory):
+    return synthesize(SynthConfig(n_frames=160, seed=5, fps=250.0, celerity_m_s=CELERITY),
+                      tmp_path_factory.mktemp("m"), fmt="tiff")
+
+
+@pytest.fixture(scope="module")
+def result(movie):
+    return gp.analyze(movie.movie)
+
+
+def _measures(res):
+    return (res.celerity_m_s, res.plug_length_mm, res.lengths.bubble_length_mm if res.lengths else None,
+            res.motion.regime if res.motion else None, len(res.runs))
+
+
+def test_excluding_a_track_removes_it_and_restoring_gives_the_detection_back(result):
+    tid = int(result.tracks.sort_values("n_frames").plug_id.iloc[-1])  # the longest-lived plug
+    ex = apply_corrections(result, Corrections().add("exclude", track=tid))
+    assert tid not in set(ex.edges.plug_id)
+    assert len(ex.runs) < len(result.runs)
+    assert ex.motion.n_edges < result.motion.n_edges
+    assert ex.summary["corrections"] == [f"excluded track {tid}"]
+    back = apply_corrections(ex, ex.corrections.add("restore", track=tid))
+    assert _measures(back) == _measures(result)
+
+
+def test_corrections_start_from_the_detection_every_time(result):
+    a = Corrections().add("exclude", track=0)
+    once = apply_corrections(result, a)
+    twice = apply_corrections(once, a)
+    assert _measures(once) == _measures(twice)
+    assert apply_corrections(once, Corrections()).celerity_m_s == result.celerity_m_s
+
+
+def test_split_then_merge_back_is_the_detection(result):
+    t = result.tracks.sort_values("n_frames").iloc[-1]
+    tid, mid = int(t.plug_id), int((t.first_frame + t.last_frame) // 2)
+    split = apply_corrections(result, Corrections().add("split", track=tid, frame=mid))
+    new = int(split.links.run_track.max())
+    assert new == len(result.links) and {tid, new} <= set(split.edges.plug_id)
+    assert split.edges[split.edges.plug_id == new].frame.min() == mid
+    merged = apply_corrections(result, split.corrections.add("merge", track=tid, other=new))
+    assert _measures(merged) == _measures(result)
+
+
+def test_a_time_window_and_spans_without_plugs(result):
+    t_end = float(result.diagram.time_s[-1])
+    late = apply_corrections(result, Corrections().add("window", start_s=0.4 * t_end))
+    assert late.edges.time_s.min() >= 0.4 * t_end
+    assert late.celerity_m_s == pytest.approx(CELERITY, rel=0.03)  # the truth, from fewer frames
+    gap = apply_corrections(result, Corrections().add("no_plugs", start_s=0.2 * t_end, end_s=0.5 * t_end))
+    assert not ((gap.edges.time_s >= 0.2 * t_end) & (gap.edges.time_s <= 0.5 * t_end)).any()
+    none = apply_corrections(result, Corrections().add("no_plugs", start_s=0.0, end_s=t_end))
+    assert not none.has_plugs and none.celerity_m_s is None
+    assert "no plugs left after the corrections" in none.statement
+    cleared = apply_corrections(result, none.corrections.add("clear_no_plugs"))
+    assert _measures(cleared) == _measures(result)
+
+
+def test_corrections_are_checked_and_read_back():
+    c = Corrections().add("exclude", track=2, at="2026-11-25T10:00:00+00:00").add("window", start_s=0.1)
+    assert Corrections.from_dict(json.loads(json.dumps(c.as_dict()))) == c
+    with pytest.raises(ParameterError, match="unknown correction 'delete'"):
+        Corrections().add("delete", track=1)
+    with pytest.raises(ParameterError, match="merge needs other"):
+        Corrections().add("merge", track=1)
+    with pytest.raises(ParameterError, match="must come after the start"):
+        Corrections().add("no_plugs", start_s=2.0, end_s=1.0)
+    with pytest.raises(ParameterError, match="newer"):
+        Corrections.from_dict({"format": "grainplug-corrections", "format_version": 99, "edits": []})
+    with pytest.raises(ParameterError, match="edit 1"):
+        Corrections.from_dict({"format": "grainplug-corrections", "format_version": 1, "edits": [{"track": 1}]})
+
+
+def test_saved_with_corrections_loaded_back_and_reported(result, tmp_path):
+    from test_api import assert_same
+
+    fixed = apply_corrections(result, Corrections().add("exclude", track=0))
+    fixed.save(tmp_path / "run", figures=False)
+    again = gp.load_result(tmp_path / "run")
+    assert_same(fixed, again)
+    saved = json.loads((tmp_path / "run" / "corrections.json").read_text())
+    assert saved["format"] == "grainplug-corrections" and saved["edits"][0]["action"] == "exclude"
+    assert "Corrections applied (1)" in (tmp_path / "run" / "report.html").read_text()
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["corrections"] == ["excluded track 0"]
+
+
+def test_remeasure_command_reapplies_the_file(result, tmp_path, capsys):
+    out = tmp_path / "run"
+    result.save(out, figures=False, report=False)
+    before = json.loads((out / "summary.json").read_text())
+    (out / "corrections.json").write_text(json.dumps(Corrections().add("exclude", track=0).as_dict()))
+    assert main(["remeasure", str(out), "--no-figures"]) == 0
+    stdout = capsys.readouterr().out
+    assert "1 applied: excluded track 0" in stdout
+    after = json.loads((out / "summary.json").read_text())
+    assert after["n_edges_used"] < before["n_edges_used"]
+    (out / "corrections.json").unlink()
+    assert main(["remeasure", str(out), "--no-figures"]) == 0
+    restored = json.loads((out / "summary.json").read_text())
+    assert restored["celerity_m_s"] == before["celerity_m_s"] and restored["corrections"] == []
+
+
+def test_a_bad_corrections_file_is_one_line_and_changes_nothing(result, tmp_path, capsys):
+    out = tmp_path / "run"
+    result.save(out, figures=False, report=False)
+    before = (out / "summary.json").read_bytes()
+    (out / "corrections.json").write_text('{"format": "grainplug-corrections", "format_version": 1, '
+                                          '"edits": [{"action": "explode"}]}')
+    assert main(["remeasure", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "corrections.json" in err and "explode" in err
+    assert (out / "summary.json").read_bytes() == before
+
+
+def test_batch_honours_each_runs_corrections(movie, tmp_path):
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"run,movie,mass_flow_rate_g_s,surface\na,{movie.movie},0.5,rough\n")
+    out = tmp_path / "camp"
+    first = gp.run_campaign(manifest, out, figures=False)
+    run_summary = out / "runs" / "a" / "summary.json"
+    n0 = json.loads(run_summary.read_text())["n_edges_used"]
+    assert first.table.n_corrections.tolist() == [0]
+    (out / "runs" / "a" / "corrections.json").write_text(
+        json.dumps(Corrections().add("exclude", track=0).as_dict()))
+    second = gp.run_campaign(manifest, out, figures=False)
+    assert second.n_reused == 1  # measured again from the saved detection, not analysed again
+    assert second.table.n_corrections.tolist() == [1]
+    summary = json.loads(run_summary.read_text())
+    assert summary["n_edges_used"] < n0
+    assert summary["corrections"] == ["excluded track 0"] and summary["batch"]["run"] == "a"
+    third = gp.run_campaign(manifest, out, figures=False)  # nothing changed: plain reuse
+    assert third.n_reused == 1 and third.table.celerity_m_s.tolist() == second.table.celerity_m_s.tolist()
+    assert np.isfinite(third.table.celerity_m_s.iloc[0])
