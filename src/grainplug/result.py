@@ -324,12 +324,15 @@ def track_rows(res: AnalysisResult) -> list[dict[str, Any]]:
     -----
     A track's celerity is the slope of a straight line fitted to its upper edges (its lower
     edges when fewer than two upper ones are in view), in m/s; its lengths are over the
-    frames where both edges are in view.
+    frames where both edges are in view. Tracks left without a plug by a reviewer's
+    corrections (excluded, or merged into another) have no row.
     """
     r, tr, t = res.runs, res.links, res.diagram.time_s
     rows = []
     for tid in range(len(tr)):
         sel = tr.run_track == tid
+        if not sel.any() and tr.first_frame[tid] < 0:
+            continue
         frames = r.frame[sel]
         top, bot = r.top_mm[sel], r.bottom_mm[sel]
         whole = np.isfinite(top) & np.isfinite(bot)

@@ -550,6 +550,39 @@ def remeasure(folder: Path, no_figures: bool, as_json: bool) -> None:
     click.echo(f"outputs            {folder}/")
 
 
+@cli.command()
+@click.argument("folder", type=click.Path(path_type=Path))
+@click.option("--port", type=Number(0, 65535, integer=True), default=0, show_default=True,
+              help="Port on 127.0.0.1 (0: a free one).")
+@click.option("--no-browser", is_flag=True, help="Do not open a browser (print the address only).")
+def review(folder: Path, port: int, no_browser: bool) -> None:
+    """Review an analysis (or a campaign's runs) in the browser: the diagram, any frame with its
+    edges, the tracks; exclude, merge or split tracks, set a time window or spans without plugs.
+
+    Edits are kept in FOLDER/corrections.json at once and the measures recomputed; "Write
+    outputs" rewrites the run's files (as grainplug remeasure). Served on 127.0.0.1 only,
+    offline; Ctrl-C stops it.
+    """
+    import threading
+    import webbrowser
+
+    from ..review import ReviewServer
+
+    try:
+        server = ReviewServer(folder, port=port)
+    except OSError as exc:
+        raise ParameterError(f"cannot listen on 127.0.0.1:{port} ({exc.strerror or exc}) — choose another --port "
+                             "or 0") from None
+    with server:
+        click.echo(f"review             {server.url}  (Ctrl-C to stop)")
+        if not no_browser:
+            webbrowser.open(server.url)
+        try:
+            threading.Event().wait()
+        except KeyboardInterrupt:
+            click.echo("review stopped")
+
+
 _SWEEP_NAMES = {"B1_star": "B1_star_override", "B1-star": "B1_star_override"}
 
 

@@ -93,9 +93,16 @@ def plot_spectrum(res: AnalysisResult) -> Figure:
     return fig
 
 
-def plot_annotated_frame(res: AnalysisResult) -> Figure:
-    """One frame with the detected tube (inner walls, axis) and plugs (edges), the paper's Fig 4."""
-    frame = res.sample_frame
+def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None,
+                         index: int | None = None) -> Figure:
+    """One frame with the detected tube (inner walls, axis) and plugs (edges), the paper's Fig 4.
+
+    By default the frame kept in the result; ``frame`` (frame ``index`` of the analysis) for another.
+    """
+    if frame is None:
+        frame, index = res.sample_frame, res.sample_frame_index
+    elif index is None:
+        raise ValueError("give the index of the frame")
     tube = res.tube
     h = tube.canonical_shape[0]
     vertical = tube.orientation == "vertical"
@@ -127,7 +134,7 @@ def plot_annotated_frame(res: AnalysisResult) -> Figure:
     draw(axis + half, rows, "-", color="tab:orange", lw=0.8)
     draw(axis, rows, ":", color="tab:orange", lw=0.6)
     runs = res.runs
-    sel = runs.frame == res.sample_frame_index
+    sel = runs.frame == index
     cos_t = np.cos(np.radians(tube.tilt_deg))
     reverse = runs_backwards(res.flow_direction)
     for top, bot in zip(runs.top_mm[sel], runs.bottom_mm[sel], strict=True):
@@ -140,7 +147,7 @@ def plot_annotated_frame(res: AnalysisResult) -> Figure:
             xc = tube.axis_x(row)
             draw([xc - half, xc + half], [row, row], "-", color=color, lw=1.6)
             draw([xc], [row], "*", color=color, ms=7)
-    ax.set_title(f"frame {res.sample_frame_index}: tube {tube.inner_diameter_px:.2f} px, "
+    ax.set_title(f"frame {index}: tube {tube.inner_diameter_px:.2f} px, "
                  f"tilt {tube.tilt_deg:+.2f}°\nred: upper edges, blue: lower edges", fontsize=8)
     ax.set_xticks([])
     ax.set_yticks([])

@@ -1,0 +1,369 @@
+"""``grainplug review``: a local page to check an analysis against its frames and correct it.
+
+Notes
+-----
+The server is Python's own :class:`http.server.ThreadingHTTPServer`, bound to
+127.0.0.1. The page is one HTML file and one script shipped in the package, with no
+JavaScript library and no CDN, so it works offline. Nothing to install, nothing fetched
+at run time, and nothing listening beyond this machine. Panel/Bokeh would bring a
+zoomable plot for free, but also ~50 MB of dependencies and a server of their own for a
+page with one image, one table and a few buttons.
+
+Endpoints (``R`` is a run's name: its folder's name, a single analysis' or each of a
+campaign's runs):
+
+- ``GET /`` and ``/app.js``: the page;
+- ``GET /api/runs``: the runs that can be reviewed;
+- ``GET /api/run/R/state``: measures, tracks, edges, corrections, the movie's status;
+- ``GET /api/run/R/diagram.png``: the spatiotemporal diagram (time across, position down);
+- ``GET /api/run/R/frame/K.png``: frame ``K`` read from the movie, with the tube and the
+  plug edges drawn on it;
+- ``POST /api/run/R/edit`` (a JSON edit: ``{"action": "exclude", "track": 3}``),
+  ``/undo``, ``/save``: change the corrections (kept in ``corrections.json`` at once,
+  measures recomputed) or rewrite the run's outputs (:func:`grainplug.remeasure`).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import threading
+from dataclasses import dataclass
+from http import HTTPStatus
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from importlib import resources
+from pathlib import Path
+from typing import Any
+from urllib.parse import unquote
+
+import numpy as np
+
+from .._atomic import atomic_file
+from ..corrections import CORRECTIONS_FILE, Corrections, apply_corrections
+from ..errors import GrainplugError, ParameterError
+from ..jsonio import dumps
+from ..result import AnalysisResult
+from ..store import RESULT_FILE, load_result, read_corrections
+
+log = logging.getLogger(__name__)
+
+#: at most this many points per track are sent to the page (the diagram is drawn from all)
+MAX_POINTS_PER_TRACK = 2000
+
+
+def review_targets(folder: str | Path) -> dict[str, Path]:
+    """The analyses under ``folder``: itself, or a campaign's runs (``runs/*``); name -> folder."""
+    p = Path(folder)
+    if (p / RESULT_FILE).is_file():
+        return {p.resolve().name or "analysis": p}
+    runs = p / "runs"
+    found = {q.name: q for q in sorted(runs.iterdir()) if (q / RESULT_FILE).is_file()} if runs.is_dir() else {}
+    if not found:
+        raise ParameterError(f"{p} holds no analysis (no {RESULT_FILE}, no runs/*/{RESULT_FILE}) — give the --out "
+                             "folder of grainplug analyze or grainplug batch")
+    return found
+
+
+@dataclass
+class _Run:
+    folder: Path
+    result: AnalysisResult
+    corrections: Corrections
+    movie: Any = None
+    movie_error: str | None = None
+    offset: int = 0
+
+
+class ReviewSession:
+    """The runs being reviewed, their corrections and open movies (a context manager: closes the movies).
+
+    Parameters
+    ----------
+    folder : path
+        An analysis folder, or a campaign's.
+    """
+
+    def __init__(self, folder: str | Path) -> None:
+        self.targets = review_targets(folder)
+        self._runs: dict[str, _Run] = {}
+        self._lock = threading.Lock()
+
+    def __enter__(self) -> ReviewSession:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        with self._lock:
+            for run in self._runs.values():
+                if run.movie is not None:
+                    run.movie.close()
+            self._runs.clear()
+
+    # -- runs ------------------------------------------------------------------------
+    def run(self, name: str) -> _Run:
+        if name not in self.targets:
+            raise ParameterError(f"no run named {name!r}")
+        with self._lock:
+            if name not in self._runs:
+                folder = self.targets[name]
+                res = load_result(folder)
+                corr = read_corrections(folder) or Corrections()
+                self._runs[name] = _Run(folder, apply_corrections(res, corr), corr)
+            return self._runs[name]
+
+    def _movie(self, run: _Run) -> Any:
+        """The run's movie, opened on first use (None, with the reason, when it cannot be)."""
+        if run.movie is None and run.movie_error is None:
+            from ..readers import open_movie
+
+            path = run.result.input.get("path") if isinstance(run.result.input, dict) else None
+            if not path:
+                run.movie_error = "the analysis was made from frames in memory: no movie to show"
+            else:
+                try:
+                    p = run.result.params
+                    run.movie = open_movie(path, fps=p.fps, glob=p.glob, allow_truncated=True)
+                    run.offset = _window_start(run.movie, p)
+                except (GrainplugError, OSError) as exc:
+                    run.movie_error = f"cannot open the movie {path}: {exc}"
+        return run.movie
+
+    # -- what the page shows ---------------------------------------------------------------
+    def state(self, name: str) -> dict[str, object]:
+        run = self.run(name)
+        res = run.result
+        s = res.summary
+        tracks = res.tracks
+        excluded = _excluded(run.corrections)
+        detected_runs, detected_links = res.detected if res.detected is not None else (res.runs, res.links)
+        rows = []
+        for _, t in tracks.iterrows():
+            rows.append({k: (None if isinstance(v, float) and not np.isfinite(v) else
+                             (v.item() if hasattr(v, "item") else v)) for k, v in t.items()})
+        shown = {int(r["plug_id"]) for r in rows}
+        for tid in sorted(excluded - shown):
+            rows.append({"plug_id": tid, "n_frames": int(np.sum(detected_links.run_track == tid)), "excluded": True})
+        for r in rows:
+            r["excluded"] = int(r["plug_id"]) in excluded
+        edges = {}
+        t = res.diagram.time_s
+        for tid in np.unique(res.links.run_track):
+            sel = np.flatnonzero(res.links.run_track == tid)
+            step = max(1, len(sel) // MAX_POINTS_PER_TRACK)
+            sel = sel[::step]
+            edges[int(tid)] = {"t": _list(t[res.runs.frame[sel]]), "top": _list(res.runs.top_mm[sel]),
+                               "bottom": _list(res.runs.bottom_mm[sel])}
+        self._movie(run)
+        del detected_runs
+        return {
+            "run": name, "runs": list(self.targets),
+            "measures": {k: s.get(k) for k in ("regime", "celerity_m_s", "celerity_ci95_m_s", "plug_length_mm",
+                                               "bubble_length_mm", "oscillation_frequency_hz", "n_plugs",
+                                               "n_edges_used")},
+            "statement": res.statement, "warnings": list(res.warnings),
+            "diagram": {"t0": float(t[0]), "t1": float(t[-1]), "n_frames": int(res.diagram.n_frames),
+                        "z0": float(res.diagram.position_mm[0]), "z1": float(res.diagram.position_mm[-1]),
+                        "fps": res.info.fps},
+            "tracks": rows, "edges": edges,
+            "corrections": [{"text": e.describe(), "at": e.at} for e in run.corrections.edits],
+            "movie": run.movie_error or "ok",
+        }
+
+    def diagram_png(self, name: str) -> bytes:
+        """The diagram as an 8-bit grey PNG: time across (columns), position down (rows)."""
+        from PIL import Image
+
+        v = self.run(name).result.diagram.values.astype(np.float32)
+        lo, hi = np.percentile(v, [0.5, 99.5])
+        g = np.clip((v - lo) / max(hi - lo, 1e-9) * 255, 0, 255).astype(np.uint8).T
+        buf = io.BytesIO()
+        Image.fromarray(np.ascontiguousarray(g)).save(buf, format="PNG", compress_level=1)
+        return buf.getvalue()
+
+    def frame_png(self, name: str, k: int) -> bytes:
+        """Frame ``k`` of the analysis with the tube and the edges of that frame drawn on it."""
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        from ..plotting.figures import plot_annotated_frame
+
+        run = self.run(name)
+        n = run.result.diagram.n_frames
+        if not 0 <= k < n:
+            raise ParameterError(f"frame {k} is outside the analysis (0 to {n - 1})")
+        movie = self._movie(run)
+        if movie is None:
+            raise GrainplugError(run.movie_error or "no movie")
+        with self._lock:  # one reader at a time
+            frame = np.asarray(movie.read(run.offset + k))
+        fig = plot_annotated_frame(run.result, frame=frame, index=k)
+        buf = io.BytesIO()
+        FigureCanvasAgg(fig).print_png(buf)
+        return buf.getvalue()
+
+    # -- corrections -----------------------------------------------------------------------
+    def _set(self, name: str, corr: Corrections) -> None:
+        run = self.run(name)
+        new = apply_corrections(run.result, corr)
+        with atomic_file(run.folder / CORRECTIONS_FILE) as tmp:
+            Path(tmp).write_text(dumps(corr.as_dict()), encoding="utf-8")
+        run.result, run.corrections = new, corr
+
+    def edit(self, name: str, edit: dict[str, object]) -> None:
+        if not isinstance(edit, dict) or "action" not in edit:
+            raise ParameterError("an edit is a JSON object with an \"action\"")
+        args = {k: v for k, v in edit.items() if k != "action"}
+        self._set(name, self.run(name).corrections.add(str(edit["action"]), **args))
+
+    def undo(self, name: str) -> None:
+        self._set(name, self.run(name).corrections.undo())
+
+    def save(self, name: str) -> None:
+        """Rewrite the run's outputs with the corrections (as ``grainplug remeasure``)."""
+        from ..outputs import remeasure
+
+        run = self.run(name)
+        run.result = remeasure(run.folder)
+
+
+def _window_start(movie: Any, params: Any) -> int:
+    """First movie frame of the analysis' window (0 without one)."""
+    import math
+
+    if params.start_frame is not None:
+        return int(params.start_frame)
+    if params.start_s is not None:
+        fps = params.fps or movie.info.fps
+        return int(math.ceil(params.start_s * fps - 1e-6))
+    return 0
+
+
+def _excluded(corr: Corrections) -> set[int]:
+    out: set[int] = set()
+    for e in corr.edits:
+        if e.action == "exclude":
+            out.add(e.track)
+        elif e.action == "restore":
+            out.discard(e.track)
+    return out
+
+
+def _list(a: np.ndarray) -> list[float | None]:
+    return [None if not np.isfinite(x) else round(float(x), 4) for x in a]
+
+
+def _static(name: str) -> bytes:
+    return resources.files("grainplug.review").joinpath("static", name).read_bytes()
+
+
+class _Handler(BaseHTTPRequestHandler):
+    session: ReviewSession  # set on the subclass made by ReviewServer
+
+    def log_message(self, fmt: str, *args: object) -> None:
+        log.debug("review: " + fmt, *args)
+
+    def _send(self, body: bytes, ctype: str, status: int = 200) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", ctype)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
+        self.wfile.write(body)
+
+    def _json(self, data: object, status: int = 200) -> None:
+        self._send(dumps(data).encode(), "application/json", status)
+
+    def _error(self, exc: Exception) -> None:
+        status = HTTPStatus.BAD_REQUEST if isinstance(exc, ParameterError) else HTTPStatus.INTERNAL_SERVER_ERROR
+        msg = exc.message if isinstance(exc, ParameterError) else str(exc)
+        self._json({"error": msg}, status)
+
+    def _route(self) -> tuple[str, str, list[str]]:
+        parts = [unquote(p) for p in self.path.split("?")[0].strip("/").split("/")]
+        if len(parts) >= 4 and parts[:2] == ["api", "run"]:
+            return "run", parts[2], parts[3:]
+        return "top", "", parts
+
+    def do_GET(self) -> None:
+        try:
+            kind, name, rest = self._route()
+            s = self.session
+            if kind == "top":
+                if rest in ([""], ["index.html"]):
+                    return self._send(_static("index.html"), "text/html; charset=utf-8")
+                if rest == ["app.js"]:
+                    return self._send(_static("app.js"), "text/javascript; charset=utf-8")
+                if rest == ["api", "runs"]:
+                    return self._json({"runs": list(s.targets)})
+                if rest == ["favicon.ico"]:
+                    return self._send(b"", "image/x-icon", HTTPStatus.NO_CONTENT)
+            elif rest == ["state"]:
+                return self._json(s.state(name))
+            elif rest == ["diagram.png"]:
+                return self._send(s.diagram_png(name), "image/png")
+            elif len(rest) == 2 and rest[0] == "frame" and rest[1].endswith(".png"):
+                return self._send(s.frame_png(name, int(rest[1][:-4])), "image/png")
+            self._json({"error": f"no such page {self.path}"}, HTTPStatus.NOT_FOUND)
+        except (GrainplugError, ValueError) as exc:
+            self._error(exc)
+        except Exception as exc:  # a bug: answer, log, keep serving
+            log.exception("review: %s", self.path)
+            self._error(exc)
+
+    def do_POST(self) -> None:
+        try:
+            kind, name, rest = self._route()
+            if kind != "run":
+                return self._json({"error": "not found"}, HTTPStatus.NOT_FOUND)
+            n = int(self.headers.get("Content-Length") or 0)
+            body = json.loads(self.rfile.read(n) or b"{}")
+            if rest == ["edit"]:
+                self.session.edit(name, body)
+            elif rest == ["undo"]:
+                self.session.undo(name)
+            elif rest == ["save"]:
+                self.session.save(name)
+            else:
+                return self._json({"error": "not found"}, HTTPStatus.NOT_FOUND)
+            self._json(self.session.state(name))
+        except (GrainplugError, ValueError) as exc:
+            self._error(exc)
+        except Exception as exc:
+            log.exception("review: %s", self.path)
+            self._error(exc)
+
+
+class ReviewServer:
+    """The review page served on ``127.0.0.1:port`` from a thread (a context manager: stops it).
+
+    Parameters
+    ----------
+    folder : path
+        An analysis folder or a campaign's.
+    port : int
+        0 picks a free port (see :attr:`url`).
+    """
+
+    def __init__(self, folder: str | Path, *, port: int = 0) -> None:
+        self.session = ReviewSession(folder)
+        handler = type("Handler", (_Handler,), {"session": self.session})
+        self.httpd = ThreadingHTTPServer(("127.0.0.1", port), handler)
+        self.httpd.daemon_threads = True
+        self._thread = threading.Thread(target=self.httpd.serve_forever, name="grainplug-review", daemon=False)
+
+    @property
+    def url(self) -> str:
+        host, port = self.httpd.server_address[:2]
+        return f"http://{host}:{port}/"
+
+    def __enter__(self) -> ReviewServer:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.httpd.shutdown()
+        self._thread.join()
+        self.httpd.server_close()
+        self.session.close()

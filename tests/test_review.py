@@ -1,0 +1,171 @@
+"""grainplug review: the session behind the page, its HTTP answers, and the page in headless Chromium."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import urllib.error
+import urllib.request
+
+import pytest
+
+import grainplug as gp
+from grainplug.errors import GrainplugError, ParameterError
+from grainplug.review import ReviewServer, ReviewSession, review_targets
+from grainplug.synthetic import SynthConfig, synthesize
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.fixture(scope="module")
+def analysis(tmp_path_factory):
+    """A saved analysis of a short synthetic movie (the movie stays where it was analysed)."""
+    root = tmp_path_factory.mktemp("review")
+    movie = synthesize(SynthConfig(n_frames=120, seed=11, fps=250.0), root / "movie", fmt="tiff")
+    out = root / "run1"
+    gp.analyze(movie.movie).save(out, figures=False)
+    return out
+
+
+@pytest.fixture
+def copy(analysis, tmp_path):
+    """A fresh copy of the analysis for a test that edits it."""
+    dst = tmp_path / "run1"
+    shutil.copytree(analysis, dst)
+    return dst
+
+
+def with_stain(folder):
+    """The saved analysis as if a stain on the glass (100-104 mm, every frame) had been detected as a plug:
+    a false track that drags the celerity toward zero. Returns its track id."""
+    import dataclasses
+
+    import numpy as np
+
+    from grainplug.corrections import Corrections, apply_corrections
+    from grainplug.plugs import Runs, Tracks
+
+    res = gp.load_result(folder)
+    r, tr, n = res.runs, res.links, res.diagram.n_frames
+    stain = len(tr)
+    frame = np.concatenate([r.frame, np.arange(n)])
+    start = np.concatenate([r.start, np.full(n, int(100 / res.mm_per_px))])
+    order = np.lexsort((start, frame))
+    runs = Runs(frame[order], start[order], np.concatenate([r.stop, np.full(n, int(104 / res.mm_per_px))])[order],
+                np.concatenate([r.top_mm, np.full(n, 100.0)])[order],
+                np.concatenate([r.bottom_mm, np.full(n, 104.0)])[order])
+    links = Tracks(np.concatenate([tr.run_track, np.full(n, stain)])[order], np.r_[tr.first_frame, 0],
+                   np.r_[tr.last_frame, n - 1], [*tr.started_by, "start"], [*tr.ended_by, "end"])
+    fake = apply_corrections(dataclasses.replace(res, runs=runs, links=links), Corrections())
+    dataclasses.replace(fake, detected=None, corrections=None).save(folder, figures=False, report=False)
+    return stain
+
+
+def test_targets_are_one_analysis_or_a_campaigns_runs(analysis, tmp_path):
+    assert review_targets(analysis) == {"run1": analysis}
+    camp = tmp_path / "camp"
+    shutil.copytree(analysis, camp / "runs" / "a")
+    shutil.copytree(analysis, camp / "runs" / "b")
+    assert list(review_targets(camp)) == ["a", "b"]
+    with pytest.raises(ParameterError, match="holds no analysis"):
+        review_targets(tmp_path / "nothing")
+
+
+def test_session_shows_measures_tracks_and_any_frame(analysis):
+    with ReviewSession(analysis) as s:
+        st = s.state("run1")
+        assert st["movie"] == "ok" and st["measures"]["regime"] == "propagative"
+        assert st["tracks"] and set(st["edges"]) == {t["plug_id"] for t in st["tracks"]}
+        assert st["diagram"]["n_frames"] == 120
+        png = s.frame_png("run1", 60)
+        assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
+        assert s.diagram_png("run1")[:4] == b"\x89PNG"
+        with pytest.raises(ParameterError, match="outside the analysis"):
+            s.frame_png("run1", 120)
+
+
+def test_edits_are_kept_at_once_and_measures_recomputed(copy):
+    with ReviewSession(copy) as s:
+        before = s.state("run1")["measures"]
+        tid = s.state("run1")["tracks"][0]["plug_id"]
+        s.edit("run1", {"action": "exclude", "track": tid})
+        after = s.state("run1")
+        assert after["measures"]["n_edges_used"] < before["n_edges_used"]
+        assert [t["excluded"] for t in after["tracks"] if t["plug_id"] == tid] == [True]
+        kept = json.loads((copy / "corrections.json").read_text())
+        assert kept["edits"][0] == {"action": "exclude", "track": tid, "at": kept["edits"][0]["at"]}
+        with pytest.raises(ParameterError, match="unknown correction"):
+            s.edit("run1", {"action": "explode"})
+        s.save("run1")  # the outputs, as grainplug remeasure
+        assert json.loads((copy / "summary.json").read_text())["corrections"] == [f"excluded track {tid}"]
+        s.undo("run1")
+        assert s.state("run1")["measures"] == before
+    with ReviewSession(copy) as again:  # a new session finds the file
+        assert again.state("run1")["corrections"] == []
+
+
+def test_a_moved_movie_is_said_and_the_rest_still_works(copy, tmp_path):
+    res = gp.load_result(copy)
+    moved = dict(res.input, path=str(tmp_path / "gone.tif"))
+    import dataclasses
+
+    dataclasses.replace(res, input=moved).save(copy, figures=False, report=False)
+    with ReviewSession(copy) as s:
+        st = s.state("run1")
+        assert st["movie"].startswith("cannot open the movie") and st["tracks"]
+        with pytest.raises(GrainplugError, match="cannot open the movie"):
+            s.frame_png("run1", 3)
+
+
+def test_http_answers_errors_as_json(copy):
+    with ReviewServer(copy) as srv:
+        runs = json.loads(urllib.request.urlopen(srv.url + "api/runs").read())
+        assert runs == {"runs": ["run1"]}
+        req = urllib.request.Request(srv.url + "api/run/run1/edit", data=b'{"action": "merge", "track": 1}',
+                                     headers={"Content-Type": "application/json"})
+        with pytest.raises(urllib.error.HTTPError) as err:
+            urllib.request.urlopen(req)
+        assert err.value.code == 400 and "merge needs other" in json.loads(err.value.read())["error"]
+        with pytest.raises(urllib.error.HTTPError) as err:
+            urllib.request.urlopen(srv.url + "api/run/nope/state")
+        assert err.value.code == 400
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
+def test_review_page_in_chromium(copy):
+    """Load; click a time and see that frame; exclude a false track (a stain) and see the celerity change back
+    to the truth; reload: the edit is there; no script error, no horizontal scrolling at 1366 x 768."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    stain = with_stain(copy)
+    errors: list[str] = []
+    with ReviewServer(copy) as srv, sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=[
+            "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"])
+        try:
+            page = browser.new_page(viewport={"width": 1366, "height": 768})
+            page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(srv.url)
+            page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+            box = page.locator("#diagram").bounding_box()
+            page.mouse.click(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"])
+            page.wait_for_function("() => { const i = document.getElementById('frame');"
+                                   " return i.complete && i.naturalWidth > 0; }", timeout=20_000)
+            label = page.inner_text("#frame-label")
+            k = int(label.split()[1].rstrip(","))
+            assert 50 <= k <= 70, label  # the middle of 120 frames
+            before = float(page.get_attribute("#celerity", "data-value"))
+            assert before == pytest.approx(-0.031, abs=0.005)  # dragged toward 0 by the stain
+            page.locator(f"#tracks tbody tr[data-track='{stain}'] button").click()
+            page.wait_for_function("() => document.querySelector('#corrections li').textContent.includes('excluded')",
+                                   timeout=20_000)
+            after = float(page.get_attribute("#celerity", "data-value"))
+            assert after == pytest.approx(-0.05, rel=0.03)  # the synthetic movie's truth
+            assert page.inner_text("#celerity") == f"{after:.4f}"
+            page.reload()
+            page.wait_for_selector("#tracks tbody tr.excluded", timeout=20_000)
+            assert "excluded track" in page.inner_text("#corrections")
+            assert page.evaluate("document.documentElement.scrollWidth") <= 1366
+        finally:
+            browser.close()
+    assert errors == []
