@@ -169,3 +169,26 @@ def test_review_page_in_chromium(copy):
         finally:
             browser.close()
     assert errors == []
+
+
+def test_review_command_serves_until_ctrl_c(analysis):
+    """The command prints its address, serves, and stops cleanly on Ctrl-C (exit 0)."""
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "grainplug", "review", str(analysis), "--no-browser"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        line = proc.stdout.readline()
+        url = line.split()[1]
+        assert url.startswith("http://127.0.0.1:")
+        assert json.loads(urllib.request.urlopen(url + "api/runs", timeout=10).read()) == {"runs": ["run1"]}
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "review stopped" in out
