@@ -192,3 +192,37 @@ def test_review_command_serves_until_ctrl_c(analysis):
             proc.kill()
     assert proc.returncode == 0, err
     assert "review stopped" in out
+
+
+def test_overlay_video_shows_the_detected_edges(analysis, tmp_path, capsys):
+    """The MP4 has one frame per analysed frame at the asked rate; the red upper edges are where the
+    analysis put them (within 2 px after H.264)."""
+    import av
+    import numpy as np
+
+    from grainplug.cli import main
+    from grainplug.overlay import crop_box
+
+    out = tmp_path / "check.mp4"
+    assert main(["overlay", str(analysis), "--out", str(out), "--slowdown", "25"]) == 0
+    assert str(out) in capsys.readouterr().out
+    res = gp.load_result(analysis)
+    lo, _ = crop_box(res)
+    k = 60
+    with av.open(str(out)) as c:
+        stream = c.streams.video[0]
+        assert stream.frames == res.diagram.n_frames and float(stream.average_rate) == pytest.approx(10.0)
+        img = next(f for i, f in enumerate(c.decode(video=0)) if i == k).to_ndarray(format="rgb24").astype(int)
+    sel = np.flatnonzero((res.runs.frame == k) & np.isfinite(res.runs.top_mm))
+    assert sel.size
+    for i in sel:
+        row = int(round(res.runs.top_mm[i] / res.mm_per_px - 0.5))
+        x = int(round(float(res.tube.axis_x(np.array([row]))[0]))) - lo
+        patch = img[max(row - 2, 0): row + 3, x - 2: x + 3]
+        red = (patch[..., 0] > 150) & (patch[..., 1] < 110) & (patch[..., 2] < 110)
+        assert red.any(), (k, row)
+    # a bad name and a folder without an analysis are refused in one line
+    assert main(["overlay", str(analysis), "--out", str(tmp_path / "x.avi")]) == 2
+    assert main(["overlay", str(tmp_path / "none")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and ".mp4" in err[0]

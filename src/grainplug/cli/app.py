@@ -583,6 +583,25 @@ def review(folder: Path, port: int, no_browser: bool) -> None:
             click.echo("review stopped")
 
 
+@cli.command()
+@click.argument("folder", type=click.Path(path_type=Path))
+@click.option("--out", "out", type=click.Path(path_type=Path), default=None,
+              help="The MP4 file [default: FOLDER/overlay.mp4].")
+@click.option("--slowdown", type=Number(0.01, 1e6), default=None,
+              help="Play this many times slower than real time [default: at most 30 frames per second].")
+@click.option("--every", type=Number(1, 1e6, integer=True), default=1, show_default=True,
+              help="Keep one frame in this many.")
+def overlay(folder: Path, out: Path | None, slowdown: float | None, every: int) -> None:
+    """Write an H.264 MP4 of the analysed movie around the tube with the detected edges, track numbers,
+    a scale bar and the time stamp (for checking by eye and for supplementary material)."""
+    from ..overlay import write_overlay
+
+    if not folder.is_dir():
+        raise ParameterError(f"{folder} is not a folder: give the --out folder of an analysis")
+    path = write_overlay(folder, out, slowdown=slowdown, every=every)
+    click.echo(f"overlay            {path}")
+
+
 _SWEEP_NAMES = {"B1_star": "B1_star_override", "B1-star": "B1_star_override"}
 
 

@@ -1,0 +1,185 @@
+"""An overlay video of an analysis: the raw frames around the tube with what was detected on them.
+
+Notes
+-----
+Each frame of the analysis is cropped around the tube (six diameters either side, as
+the annotated figure), shown with the tube's inner walls, every plug's upper (red) and
+lower (blue) edge with its track number, a scale bar and the time stamp. It is written
+as H.264 in an MP4 file (PyAV's libx264, ``yuv420p``, CRF 18), which plays everywhere and
+is what labs check by eye and put in supplementary material. ``slowdown`` plays the
+movie that many times slower. Frames are read one at a time, so memory does not grow with
+the movie.
+
+The drawing (:func:`draw_frame`) takes arrays only; :func:`write_overlay` opens the
+movie and writes the file atomically.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .errors import GrainplugError, ParameterError
+from .params import runs_backwards
+
+if TYPE_CHECKING:
+    from .result import AnalysisResult
+
+#: colours (BGR for OpenCV): upper edges, lower edges, walls, text
+RED, BLUE, ORANGE, WHITE = (40, 40, 230), (230, 140, 30), (0, 150, 255), (255, 255, 255)
+#: default output frame rate when no slow-down is given: at most this many frames per second
+DEFAULT_MAX_FPS = 30.0
+
+
+def crop_box(res: AnalysisResult) -> tuple[int, int]:
+    """Columns (vertical tube) or rows (horizontal) ``[lo, hi)`` kept around the tube."""
+    tube = res.tube
+    h = tube.canonical_shape[0]
+    ends = tube.axis_x(np.array([0.0, h - 1.0]))
+    margin = 6 * tube.inner_diameter_px + 10
+    width = tube.canonical_shape[1]
+    lo = int(max(0, math.floor(ends.min() - margin)))
+    hi = int(min(width, math.ceil(ends.max() + margin) + 1))
+    return lo, hi
+
+
+def _to_bgr8(frame: np.ndarray, top: float) -> np.ndarray:
+    f = np.asarray(frame)
+    g = f.astype(np.float32) * (255.0 / top) if f.dtype != np.uint8 else f
+    g = np.clip(g, 0, 255).astype(np.uint8)
+    if g.ndim == 2:
+        return np.repeat(g[:, :, None], 3, axis=2)
+    return np.ascontiguousarray(g[:, :, :3][:, :, ::-1])
+
+
+def draw_frame(res: AnalysisResult, frame: np.ndarray, k: int, *, top_value: float = 255.0) -> np.ndarray:
+    """Frame ``k`` of the analysis as a BGR uint8 image cropped around the tube, with the detection on it."""
+    import cv2
+
+    tube = res.tube
+    vertical = tube.orientation == "vertical"
+    img = _to_bgr8(frame, top_value)
+    if not vertical:  # draw in the tube's frame of reference (axis down the rows), turn back at the end
+        img = np.ascontiguousarray(img.transpose(1, 0, 2))
+    lo, hi = crop_box(res)
+    img = np.ascontiguousarray(img[:, lo:hi])
+    h = img.shape[0]
+    rows = np.arange(h, dtype=float)
+    half = 0.5 * tube.inner_diameter_px / math.cos(math.radians(tube.tilt_deg))
+    axis = tube.axis_x(rows) - lo
+    for side in (-1, 1):
+        pts = np.stack([axis + side * half, rows], axis=1).round().astype(np.int32)
+        cv2.polylines(img, [np.ascontiguousarray(pts[::4]).reshape(-1, 1, 2)], False, ORANGE, 1, cv2.LINE_AA)
+    cos_t = math.cos(math.radians(tube.tilt_deg))
+    reverse = runs_backwards(res.flow_direction)
+    sel = np.flatnonzero(res.runs.frame == k)
+    for i in sel:
+        tid = int(res.links.run_track[i])
+        for pos, colour in ((res.runs.top_mm[i], RED), (res.runs.bottom_mm[i], BLUE)):
+            if not np.isfinite(pos):
+                continue
+            row = pos / res.mm_per_px * cos_t - 0.5
+            if reverse:
+                row = h - 1 - row
+            xc = float(tube.axis_x(np.array([row]))[0]) - lo
+            y = int(round(row))
+            cv2.line(img, (int(round(xc - half - 3)), y), (int(round(xc + half + 3)), y), colour, 2, cv2.LINE_AA)
+            if colour == RED:
+                cv2.putText(img, str(tid), (int(round(xc + half + 6)), y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                            RED, 1, cv2.LINE_AA)
+    # scale bar (10 mm, or 5 / 2 / 1 mm when the view is short) and time stamp, on a dark band
+    bar_mm = next((b for b in (10.0, 5.0, 2.0, 1.0) if b / res.mm_per_px < 0.4 * h), 1.0)
+    bar_px = int(round(bar_mm / res.mm_per_px))
+    x0 = 6
+    cv2.rectangle(img, (0, h - bar_px - 14), (min(img.shape[1] - 1, 60), h - 1), (0, 0, 0), -1)
+    cv2.line(img, (x0, h - 8), (x0, h - 8 - bar_px), WHITE, 2)
+    cv2.putText(img, f"{bar_mm:g} mm", (x0 + 5, h - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.35, WHITE, 1, cv2.LINE_AA)
+    t = float(res.diagram.time_s[k])
+    cv2.rectangle(img, (0, 0), (min(img.shape[1] - 1, 110), 16), (0, 0, 0), -1)
+    cv2.putText(img, f"t = {t:.4f} s", (3, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, WHITE, 1, cv2.LINE_AA)
+    if not vertical:
+        img = np.ascontiguousarray(img.transpose(1, 0, 2))
+    return img
+
+
+def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown: float | None = None,
+                  every: int = 1) -> Path:
+    """Write the overlay video of the analysis saved in ``folder``; returns its path.
+
+    Parameters
+    ----------
+    folder : path
+        An analysis (``grainplug analyze --out``); its movie must still be where it was analysed.
+    out : path, optional
+        The MP4 file (default ``folder/overlay.mp4``).
+    slowdown : float, optional
+        Play this many times slower than real time (default: slow enough for at most
+        :data:`DEFAULT_MAX_FPS` frames per second, i.e. real time for slow cameras).
+    every : int
+        Keep one frame in ``every`` (a shorter video of a long record).
+    """
+    import av
+
+    from ._atomic import atomic_file
+    from .readers import open_movie
+    from .store import load_result
+
+    res = load_result(folder)
+    if every < 1:
+        raise ParameterError("every must be at least 1", param="every")
+    path = res.input.get("path") if isinstance(res.input, dict) else None
+    if not path:
+        raise GrainplugError("the analysis was made from frames in memory: there is no movie to draw on")
+    fps = float(res.info.fps)
+    slow = max(1.0, fps / DEFAULT_MAX_FPS) if slowdown is None else float(slowdown)
+    if not (math.isfinite(slow) and slow > 0):
+        raise ParameterError("the slow-down must be a positive number", param="slowdown")
+    out_fps = fps / slow / every
+    target = Path(out) if out is not None else Path(folder) / "overlay.mp4"
+    if target.suffix.lower() != ".mp4":
+        raise ParameterError(f"the overlay is an MP4 file: give a name ending in .mp4, not {target.name}",
+                             param="out")
+    top = float((1 << int(res.info.bit_depth)) - 1) if res.info.bit_depth else 255.0
+    p = res.params
+    try:
+        movie = open_movie(path, fps=p.fps, glob=p.glob, allow_truncated=True)
+    except (GrainplugError, OSError) as exc:
+        raise GrainplugError(f"cannot open the movie {path} ({exc}) — the overlay draws on the analysed movie, "
+                             "put it back where it was") from None
+    from fractions import Fraction
+
+    with movie, atomic_file(target) as tmp:
+        offset = _offset(movie, p)
+        container = av.open(str(tmp), mode="w", format="mp4")
+        try:
+            stream = None
+            for k in range(0, res.diagram.n_frames, every):
+                img = draw_frame(res, movie.read(offset + k), k, top_value=top)
+                h, w = img.shape[:2]
+                img = np.ascontiguousarray(img[: h - h % 2, : w - w % 2])  # yuv420p: even sizes
+                if stream is None:
+                    stream = container.add_stream("libx264", rate=Fraction(out_fps).limit_denominator(1000))
+                    stream.width, stream.height = img.shape[1], img.shape[0]
+                    stream.pix_fmt = "yuv420p"
+                    stream.options = {"crf": "18", "preset": "veryfast"}
+                vf = av.VideoFrame.from_ndarray(img, format="bgr24")
+                for packet in stream.encode(vf):
+                    container.mux(packet)
+            if stream is not None:
+                for packet in stream.encode():
+                    container.mux(packet)
+        finally:
+            container.close()
+    return target
+
+
+def _offset(movie: object, params: object) -> int:
+    if getattr(params, "start_frame", None) is not None:
+        return int(params.start_frame)  # type: ignore[attr-defined]
+    if getattr(params, "start_s", None) is not None:
+        fps = getattr(params, "fps", None) or movie.info.fps  # type: ignore[attr-defined]
+        return int(math.ceil(params.start_s * fps - 1e-6))  # type: ignore[attr-defined]
+    return 0
