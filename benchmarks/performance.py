@@ -150,7 +150,7 @@ def run_analyze(path: Path, out: Path) -> tuple[float, int, dict]:
     code = (
         "import resource, sys, json\n"
         "from grainplug.cli import main\n"
-        f"rc = main(['analyze', {str(path)!r}, '--out', {str(out)!r}, '--json'])\n"
+        f"rc = main(['analyze', {str(path)!r}, '--out', {str(out)!r}, '--json', '--overwrite'])\n"
         "rss = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
         "       + resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss) * 1024  # + the figures' helper\n"
         "print(json.dumps({'rss': rss, 'rc': rc}), file=sys.stderr)\n"

@@ -109,12 +109,17 @@ def test_output_places_that_cannot_be_right(tmp_path, capsys, movie):
     assert movie.stat().st_size > 0 and (tmp_path / "afile").read_text() == "x"
 
 
-def test_a_rerun_replaces_the_folder_whole(tmp_path, capsys, movie):
+def test_a_rerun_is_refused_then_replaces_the_folder_whole_with_overwrite(tmp_path, capsys, movie):
     out = tmp_path / "out"
     assert main(["analyze", str(movie), "--out", str(out)]) == 0
     assert (out / "diagram.png").exists()
     (out / "stale.png").write_text("from an older run")
-    assert main(["analyze", str(movie), "--out", str(out), "--no-figures"]) == 0
+    before = (out / "summary.json").read_bytes()
+    capsys.readouterr()
+    assert main(["analyze", str(movie), "--out", str(out), "--no-figures"]) == 2  # not without asking
+    one_line(capsys.readouterr().err, "already exists — pass --overwrite")
+    assert (out / "summary.json").read_bytes() == before and (out / "stale.png").exists()
+    assert main(["analyze", str(movie), "--out", str(out), "--no-figures", "--overwrite"]) == 0
     assert not (out / "diagram.png").exists() and not (out / "stale.png").exists()
     s = json.loads((out / "summary.json").read_text())
     assert set(s["outputs"].values()) <= {p.name for p in out.iterdir()}  # what it lists, it wrote

@@ -428,3 +428,18 @@ def test_simulate_refuses_bad_input_in_one_line(tmp_path, capsys, args, needle):
     assert code == 2
     assert needle in err and len(err.strip().splitlines()) == 1, err
     assert not out.exists()
+
+
+def test_simulate_refuses_an_existing_folder_unless_overwrite(tmp_path, capsys):
+    from grainplug.cli import main
+
+    out = tmp_path / "sim"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    args = ["simulate", "--length-D", "20", "--cells", "32", "--duration-tc", "2", "--output-interval-tc", "1",
+            "--out", str(out)]
+    assert main(args) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert (out / "notes.txt").exists()
+    assert main([*args, "--overwrite"]) == 0
+    assert (out / "fields.nc").exists() and not (out / "notes.txt").exists()

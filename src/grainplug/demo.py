@@ -26,8 +26,8 @@ def main(argv: list[str] | None = None) -> int:
     if code:
         return code
     dest = out / "sample"
-    print(f"\n== grainplug analyze {SAMPLE.name} --out {dest}")
-    code = cli_main(["analyze", str(SAMPLE), "--out", str(dest)])
+    print(f"\n== grainplug analyze {SAMPLE.name} --out {dest} --overwrite")
+    code = cli_main(["analyze", str(SAMPLE), "--out", str(dest), "--overwrite"])
     if code:
         return code
     truth = json.loads(SAMPLE_TRUTH.read_text())

@@ -51,6 +51,18 @@ def cli(debug: bool, verbose: bool) -> None:
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
 
 
+OVERWRITE_HELP = "Replace --out if it exists (the whole folder: files not written by this run go with it)."
+
+
+def _refuse_existing(out: Path, overwrite: bool) -> None:
+    """An existing, non-empty output folder is replaced only when asked (``--overwrite``)."""
+    if overwrite or not out.exists() or (out.is_dir() and not any(out.iterdir())):
+        return
+    what = "folder" if out.is_dir() else "file"
+    raise ParameterError(f"--out {out}: that {what} already exists — pass --overwrite to replace it, or give "
+                         "another --out")
+
+
 def _echo_json(data: object) -> None:
     from ..jsonio import dumps
 
@@ -189,12 +201,13 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.option("--end", "end", type=FRAME_OR_TIME, default=None,
               help="Analyse up to this frame (excluded) or time.")
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
+@click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_per_px: float | None,
             tube_diameter_mm: float | None, tube_outer_diameter_mm: float | None, glass_index: float,
             flow_direction: str | None, min_plug_mm: float, glob_: str | None, threads: int | None,
             calibration: Path | None, background: Path | None, allow_truncated: bool,
-            start: tuple[str, float] | None, end: tuple[str, float] | None, no_figures: bool,
+            start: tuple[str, float] | None, end: tuple[str, float] | None, no_figures: bool, overwrite: bool,
             as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -205,6 +218,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     from ..plotting.worker import FigureWorker
 
     check_output_place(out, inputs=[movie], replace=True)  # before the analysis, not after it
+    _refuse_existing(out, overwrite)
     if mm_per_px is not None and tube_diameter_mm is not None:
         raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
                              "not both")
@@ -439,11 +453,11 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
               help="Open pipe: mass flow rate of the grains fed at the top (sets their velocity).")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Folder for fields.nc, summary.json and diagram.png (replaced as a whole).")
+@click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, output_interval_tc: float, cfl: float,
              noise: float, seed: int, feed_c: float | None, feed_v: float | None, feed_rate_g_s: float | None,
-             out_dir: Path, as_json: bool,
-             **model: object) -> None:
+             out_dir: Path, overwrite: bool, as_json: bool, **model: object) -> None:
     """Integrate the paper's 1D model in time (finite volumes) and measure what it forms.
 
     Conservative in grain and air mass (the air's mass balance replaces the printed
@@ -463,6 +477,7 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
     from .._atomic import check_output_place
 
     check_output_place(out_dir)  # refuse a bad place before the run, not after
+    _refuse_existing(out_dir, overwrite)
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:g} t_c"),
@@ -703,12 +718,16 @@ def resonance(as_json: bool, **kwargs: object) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print fits, lengths, stability and checks as JSON.")
 @click.option("--no-simulations", is_flag=True,
               help="Compare the measurements with the linear theory only (skip the ~20 s of nonlinear runs).")
-def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool) -> None:
+@click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
+def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, overwrite: bool) -> None:
     """Reproduce the paper's numbers and figures from its own Tables 1 and 2, and put the model's
     predictions (linear and simulated) beside the measurements."""
+    from .._atomic import check_output_place
     from ..campaigns.paper import reproduce
     from ..campaigns.paper_outputs import write_paper
 
+    check_output_place(out)
+    _refuse_existing(out, overwrite)
     rep = reproduce(simulate=not no_simulations)
     write_paper(rep, out, figures=not no_figures)
     if as_json:
