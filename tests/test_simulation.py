@@ -431,15 +431,21 @@ def test_simulate_refuses_bad_input_in_one_line(tmp_path, capsys, args, needle):
 
 
 def test_simulate_refuses_an_existing_folder_unless_overwrite(tmp_path, capsys):
+    """A rerun into its own folder needs --overwrite; a folder holding someone else's files is never replaced."""
     from grainplug.cli import main
 
     out = tmp_path / "sim"
-    out.mkdir()
-    (out / "notes.txt").write_text("mine")
     args = ["simulate", "--length-D", "20", "--cells", "32", "--duration-tc", "2", "--output-interval-tc", "1",
             "--out", str(out)]
+    assert main(args) == 0
+    before = (out / "summary.json").read_bytes()
+    capsys.readouterr()
     assert main(args) == 2
-    assert "--overwrite" in capsys.readouterr().err
-    assert (out / "notes.txt").exists()
+    assert "already exists — pass --overwrite" in capsys.readouterr().err
+    assert (out / "summary.json").read_bytes() == before
     assert main([*args, "--overwrite"]) == 0
-    assert (out / "fields.nc").exists() and not (out / "notes.txt").exists()
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / "notes.txt").write_text("mine")
+    assert main([*args[:-1], str(theirs), "--overwrite"]) == 2
+    assert (theirs / "notes.txt").read_text() == "mine"
