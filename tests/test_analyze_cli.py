@@ -147,3 +147,31 @@ def test_threads_do_not_change_the_result(tmp_path, capsys):
         out.append(json.loads(stdout))
     assert out[0]["celerity_m_s"] == out[1]["celerity_m_s"]
     assert out[0]["plug_length_mm"] == out[1]["plug_length_mm"]
+
+
+def test_publication_figures_png_svg_pdf_at_200_dpi(movie, tmp_path, capsys):
+    """--publication: every figure as PNG at 200 dpi, SVG and PDF, listed in the summary; --style applies a
+    matplotlib style sheet; bad values are one line."""
+    from PIL import Image
+
+    out = tmp_path / "pub"
+    style = tmp_path / "journal.mplstyle"
+    style.write_text("font.size: 7\naxes.linewidth: 0.5\n")
+    code, _, err = run(capsys, "analyze", movie.movie, "--out", out, "--publication", "--style", style)
+    assert code == 0, err
+    for stem in ("diagram", "frame"):
+        for ext in ("png", "svg", "pdf"):
+            assert (out / f"{stem}.{ext}").stat().st_size > 1000, (stem, ext)
+    assert (out / "diagram.svg").read_text().lstrip().startswith("<?xml")
+    assert (out / "diagram.pdf").read_bytes()[:5] == b"%PDF-"
+    with Image.open(out / "diagram.png") as im:
+        dpi = im.info["dpi"]
+    assert round(dpi[0]) == 200
+    s = json.loads((out / "summary.json").read_text())
+    assert s["figures"] == {"dpi": 200, "formats": ["png", "svg", "pdf"], "style": str(style)}
+    assert {"diagram.svg", "diagram.pdf", "frame.pdf"} <= set(s["outputs"].values())
+    code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "x", "--figure-formats", "png,tiff")
+    assert_one_line_error(code, err, "--figure-formats", "tiff")
+    code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "y", "--style", "no-such-style")
+    assert_one_line_error(code, err, "--style", "no-such-style")
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()

@@ -137,7 +137,7 @@ def test_plot_draws_into_given_axes(result):
     fig = Figure()
     ax = fig.subplots()
     assert result.plot(ax=ax) is ax
-    assert ax.images and ax.get_xlabel() == "time (s)"
+    assert ax.images and ax.get_xlabel() == "time t (s)"
     assert any("celerity" in line.get_label() for line in ax.lines)
 
 

@@ -17,7 +17,7 @@ pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is n
                                 "(make test installs it with apt-get when run as root)")
 
 
-def _check(page_file):
+def _check(page_file, *, shot=None):
     sync_api = pytest.importorskip("playwright.sync_api")
     errors: list[str] = []
     with sync_api.sync_playwright() as p:
@@ -25,7 +25,7 @@ def _check(page_file):
             "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
             "--disable-background-networking", "--disable-component-update", "--disable-sync"])
         try:
-            page = browser.new_page()
+            page = browser.new_page(viewport={"width": 1366, "height": 768})
             page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
             page.on("pageerror", lambda e: errors.append(str(e)))
             page.goto(page_file.resolve().as_uri(), wait_until="load")
@@ -33,18 +33,37 @@ def _check(page_file):
             decoded = page.evaluate(
                 "Array.from(document.images).every(i => i.complete && i.naturalWidth > 0)")
             title = page.title()
+            scroll = page.evaluate("document.documentElement.scrollWidth")
+            text = page.inner_text("body")
+            if shot is not None:
+                shot(page)
         finally:
             browser.close()
     assert errors == []
     assert n_images > 0 and decoded
     assert title.startswith("grainplug")
+    assert scroll <= 1366, "horizontal scrolling at 1366 x 768"
+    return text
 
 
 def test_run_report(tmp_path):
     res = synthesize(SynthConfig(n_frames=120, seed=3, regime="oscillating", celerity_m_s=0.03), tmp_path / "m")
     out = tmp_path / "out"
     write_outputs(analyze(res.movie, AnalysisParams()), out)
-    _check(out / "report.html")
+    sorted_first = []
+
+    def sort_by_celerity(page):
+        page.click("table.sortable th.sort >> nth=4")
+        sorted_first.append(page.inner_text("table.sortable tbody tr >> nth=0"))
+
+    text = _check(out / "report.html", shot=sort_by_celerity)
+    # headline first, in words, rounded to the uncertainty; no raw keys, no None; provenance folded
+    assert text.lstrip().startswith("Plug flow in")
+    assert "Oscillating regime: the plugs oscillate at" in text and " ± " in text
+    assert "celerity_m_s" not in text and "None" not in text and "null" not in text
+    assert "Provenance (version, input, parameters)" in text and '"grainplug_version"' not in text
+    assert "Spatiotemporal diagram:" in text  # captions
+    assert sorted_first and sorted_first[0].strip()
 
 
 def test_paper_report(tmp_path):

@@ -11,6 +11,7 @@ import io
 import json
 import logging
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -82,23 +83,84 @@ def figures_of(res: AnalysisResult) -> list[str]:
     return keys
 
 
-def draw_figures(res: AnalysisResult, folder: str | Path) -> list[Path]:
-    """Draw the figures of ``res`` as PNG files in ``folder`` (in this process, no pyplot)."""
+@dataclass(frozen=True)
+class FigureOptions:
+    """How the figures are written.
+
+    Attributes
+    ----------
+    dpi : int
+        Resolution of the PNG files (110: quick to write and to look at; 200 or more for print).
+    formats : tuple of str
+        ``"png"``, ``"svg"``, ``"pdf"``: each figure in each format (vector for journals).
+    style : str, optional
+        A matplotlib style sheet (a name such as ``"seaborn-v0_8-paper"`` or a ``.mplstyle`` file)
+        applied to every figure.
+    """
+
+    dpi: int = 110
+    formats: tuple[str, ...] = ("png",)
+    style: str | None = None
+
+    def __post_init__(self) -> None:
+        from .errors import ParameterError
+
+        if not 20 <= self.dpi <= 1200:
+            raise ParameterError(f"dpi must be between 20 and 1200, got {self.dpi}", param="dpi")
+        bad = [f for f in self.formats if f not in FIGURE_FORMATS]
+        if bad or not self.formats:
+            raise ParameterError(f"figure formats are {', '.join(FIGURE_FORMATS)}; got {', '.join(self.formats)}",
+                                 param="formats")
+
+
+#: formats a figure can be written in
+FIGURE_FORMATS = ("png", "svg", "pdf")
+#: for print: 200 dpi PNG, and SVG and PDF
+PUBLICATION = FigureOptions(dpi=200, formats=FIGURE_FORMATS)
+
+
+def figure_files(res: AnalysisResult, options: FigureOptions) -> dict[str, str]:
+    """Output key -> file name of every figure file ``options`` makes for ``res``."""
+    out = {}
+    for key in figures_of(res):
+        stem = Path(FILES[key]).stem
+        for fmt in options.formats:
+            out[key if fmt == "png" else f"{key}_{fmt}"] = f"{stem}.{fmt}"
+    return out
+
+
+def draw_figures(res: AnalysisResult, folder: str | Path, options: FigureOptions | None = None) -> list[Path]:
+    """Draw the figures of ``res`` into ``folder`` (in this process, no pyplot), in each format of ``options``."""
+    import contextlib
+
     from .plotting import plot_annotated_frame, plot_diagram, plot_spectrum
 
+    options = options or FigureOptions()
     plots = {"fig_diagram": plot_diagram, "fig_frame": plot_annotated_frame, "fig_spectrum": plot_spectrum}
     paths = []
-    for key in figures_of(res):
-        path = Path(folder) / FILES[key]
-        # zlib level 1: a fraction of the default's time, files ~15% larger
-        plots[key](res).savefig(path, dpi=110, pil_kwargs={"compress_level": 1})
-        paths.append(path)
+    if options.style:
+        import matplotlib.style
+
+        ctx = matplotlib.style.context(options.style)
+    else:
+        ctx = contextlib.nullcontext()
+    with ctx:
+        for key in figures_of(res):
+            fig = plots[key](res)
+            stem = Path(FILES[key]).stem
+            for fmt in options.formats:
+                path = Path(folder) / f"{stem}.{fmt}"
+                # PNG at zlib level 1: a fraction of the default's time, files ~15% larger
+                kw = {"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}
+                fig.savefig(path, dpi=options.dpi, format=fmt, **kw)
+                paths.append(path)
     return paths
 
 
 def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = True,
                   report: bool = True, extra: dict | None = None,
-                  figure_worker: FigureWorker | None = None) -> dict[str, Path]:
+                  figure_worker: FigureWorker | None = None,
+                  figure_options: FigureOptions | None = None) -> dict[str, Path]:
     """Write every output of ``res`` into ``out_dir``, atomically; returns the paths written.
 
     ``extra`` is merged into ``summary.json`` (e.g. the campaign's run key).
@@ -111,11 +173,14 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
     with atomic_directory(out_dir, written, replace=True, inputs=[source] if source else ()) as tmp:
         summary = res.summary
         summary.update(extra or {})
-        drawn = figures_of(res) if figures else []
-        summary["outputs"] = {k: v for k, v in FILES.items() if not k.startswith("fig_") or k in drawn}
+        options = figure_options or FigureOptions()
+        summary["outputs"] = {k: v for k, v in FILES.items() if not k.startswith("fig_")}
+        if figures:
+            summary["outputs"].update(figure_files(res, options))
+            summary["figures"] = {"dpi": options.dpi, "formats": list(options.formats), "style": options.style}
         pending = None
         if figures and figure_worker is not None:  # drawn while the tables are written
-            pending = figure_worker.submit(res, tmp)
+            pending = figure_worker.submit(res, tmp, options)
         (tmp / FILES["edges"]).write_text(edges_table(res))
         (tmp / FILES["tracks"]).write_text(tracks_table(res))
         with open(tmp / FILES["diagram"], "wb") as fh:
@@ -134,7 +199,7 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
         if pending is not None:
             pending()
         elif figures:
-            draw_figures(res, tmp)
+            draw_figures(res, tmp, options)
         if report:
             from .reports import run_report
 

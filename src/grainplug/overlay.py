@@ -3,8 +3,8 @@
 Notes
 -----
 Each frame of the analysis is cropped around the tube (six diameters either side, as
-the annotated figure), shown with the tube's inner walls, every plug's upper (red) and
-lower (blue) edge with its track number, a scale bar and the time stamp. It is written
+the annotated figure), shown with the tube's inner walls (orange), every plug's upper
+(vermillion) and lower (blue) edge with its track number, a scale bar and the time stamp. It is written
 as H.264 in an MP4 file (PyAV's libx264, ``yuv420p``, CRF 18), which plays everywhere and
 is what labs check by eye and put in supplementary material. ``slowdown`` plays the
 movie that many times slower. Frames are read one at a time, so memory does not grow with
@@ -24,12 +24,14 @@ import numpy as np
 
 from .errors import GrainplugError, ParameterError
 from .params import runs_backwards
+from .plotting import palette
+from .plotting.palette import bgr
 
 if TYPE_CHECKING:
     from .result import AnalysisResult
 
-#: colours (BGR for OpenCV): upper edges, lower edges, walls, text
-RED, BLUE, ORANGE, WHITE = (40, 40, 230), (230, 140, 30), (0, 150, 255), (255, 255, 255)
+#: colours (BGR for OpenCV) of :mod:`grainplug.plotting.palette`: upper edges, lower edges, walls; text
+RED, BLUE, ORANGE, WHITE = bgr(palette.UPPER), bgr(palette.LOWER), bgr(palette.WALL), (255, 255, 255)
 #: default output frame rate when no slow-down is given: at most this many frames per second
 DEFAULT_MAX_FPS = 30.0
 

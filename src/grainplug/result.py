@@ -41,6 +41,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
     from .corrections import Corrections
+    from .outputs import FigureOptions
     from .plotting.worker import FigureWorker
 
 CONVENTIONS = ("positions in mm along the tube from the upstream end of the view, increasing "
@@ -297,7 +298,8 @@ class AnalysisResult:
         return ax
 
     def save(self, out_dir: str | Path, *, figures: bool = True, report: bool = True,
-             figure_worker: FigureWorker | None = None) -> dict[str, Path]:
+             figure_worker: FigureWorker | None = None, figure_options: FigureOptions | None = None,
+             ) -> dict[str, Path]:
         """Write every output into ``out_dir`` (atomically); read back with :func:`grainplug.load_result`.
 
         Writes ``summary.json``, ``plug_edges.csv``, ``tracks.csv``, ``diagram.npz``,
@@ -305,10 +307,13 @@ class AnalysisResult:
         switched off, the PNG figures and ``report.html``. Returns the paths written.
         ``figure_worker`` (:class:`grainplug.plotting.worker.FigureWorker`, started
         before the analysis) draws the figures in another process meanwhile.
+        ``figure_options`` (:class:`grainplug.outputs.FigureOptions`): resolution, formats
+        (PNG, SVG, PDF) and a matplotlib style sheet; ``grainplug.outputs.PUBLICATION`` for print.
         """
         from .outputs import write_outputs
 
-        return write_outputs(self, out_dir, figures=figures, report=report, figure_worker=figure_worker)
+        return write_outputs(self, out_dir, figures=figures, report=report, figure_worker=figure_worker,
+                             figure_options=figure_options)
 
 
 #: columns of :attr:`AnalysisResult.tracks` and ``tracks.csv``

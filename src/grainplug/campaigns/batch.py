@@ -467,12 +467,18 @@ def _campaign_figures(table: pd.DataFrame, folder: Path) -> list[str]:
     if ok.empty:
         return []
     names = []
-    for y, label, fname, ref in (("celerity_m_s", "v_p (m/s)", "celerity_vs_mass_flow.png", None),
-                                 ("plug_length_mm", "λ (mm)", "length_vs_mass_flow.png", 30.0)):
+    for y, label, fname, ref, ci in (
+            ("celerity_m_s", "celerity c (m s⁻¹)", "celerity_vs_mass_flow.png", None,
+             ("celerity_ci95_low_m_s", "celerity_ci95_high_m_s")),
+            ("plug_length_mm", "plug length λ (mm)", "length_vs_mass_flow.png", 30.0,
+             ("plug_length_ci95_low_mm", "plug_length_ci95_high_mm"))):
         data = {g: (s.mass_flow_rate_g_s.to_numpy(float), s[y].to_numpy(float)) for g, s in ok.groupby("fit_group")}
+        errs = {g: (s[ci[0]].to_numpy(float), s[ci[1]].to_numpy(float)) for g, s in ok.groupby("fit_group")
+                if ci[0] in s and ci[1] in s}
         fits = {g: fit_line(*xy) for g, xy in data.items()}
-        fig = plot_vs_mass_flow(data, fits, ylabel=label, title=f"{y} against mass flow rate",
-                                hline=ref, hline_label="10 D" if ref else "")
+        what = "celerity" if y.startswith("celerity") else "plug length"
+        fig = plot_vs_mass_flow(data, fits, ylabel=label, title=f"{what} against mass flow rate (95 % intervals)",
+                                hline=ref, hline_label="10 D" if ref else "", errors=errs)
         fig.savefig(folder / fname, dpi=110)
         plt.close(fig)
         names.append(fname)

@@ -63,6 +63,26 @@ def _refuse_existing(out: Path, overwrite: bool) -> None:
                          "another --out")
 
 
+def _figure_options(dpi: int | None, formats: str | None, publication: bool, style: str | None):
+    """``FigureOptions`` of the figure flags (checked before the analysis)."""
+    from ..outputs import FigureOptions
+
+    base = FigureOptions(dpi=200, formats=("png", "svg", "pdf")) if publication else FigureOptions()
+    fmts = tuple(f.strip().lower() for f in formats.split(",") if f.strip()) if formats else base.formats
+    if style and not (Path(style).is_file() or _known_style(style)):
+        raise ParameterError(f"--style {style}: neither a file nor a matplotlib style sheet name")
+    try:
+        return FigureOptions(dpi=dpi or base.dpi, formats=fmts, style=style)
+    except ParameterError as exc:
+        raise ParameterError(f"--{'dpi' if exc.param == 'dpi' else 'figure-formats'}: {exc.message}") from None
+
+
+def _known_style(name: str) -> bool:
+    import matplotlib.style
+
+    return name in matplotlib.style.available or name == "default"
+
+
 def _echo_json(data: object) -> None:
     from ..jsonio import dumps
 
@@ -201,13 +221,21 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.option("--end", "end", type=FRAME_OR_TIME, default=None,
               help="Analyse up to this frame (excluded) or time.")
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
+@click.option("--dpi", type=Number(20, 1200, integer=True), default=None,
+              help="Resolution of the PNG figures [default: 110, or 200 with --publication].")
+@click.option("--figure-formats", default=None, metavar="png,svg,pdf",
+              help="Formats of every figure, comma-separated [default: png, or all three with --publication].")
+@click.option("--publication", is_flag=True, help="Figures for print: PNG at 200 dpi, SVG and PDF.")
+@click.option("--style", "style", default=None,
+              help="A matplotlib style sheet (a name or a .mplstyle file) for every figure.")
 @click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_per_px: float | None,
             tube_diameter_mm: float | None, tube_outer_diameter_mm: float | None, glass_index: float,
             flow_direction: str | None, min_plug_mm: float, glob_: str | None, threads: int | None,
             calibration: Path | None, background: Path | None, allow_truncated: bool,
-            start: tuple[str, float] | None, end: tuple[str, float] | None, no_figures: bool, overwrite: bool,
+            start: tuple[str, float] | None, end: tuple[str, float] | None, no_figures: bool, dpi: int | None,
+            figure_formats: str | None, publication: bool, style: str | None, overwrite: bool,
             as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -219,6 +247,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
 
     check_output_place(out, inputs=[movie], replace=True)  # before the analysis, not after it
     _refuse_existing(out, overwrite)
+    figure_options = _figure_options(dpi, figure_formats, publication, style)
     if mm_per_px is not None and tube_diameter_mm is not None:
         raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
                              "not both")
@@ -251,7 +280,8 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
                 bar.update(task, completed=done, total=total)
 
             result = run_analysis(movie, params, progress=progress, threads=threads)
-        result.save(out, figures=not no_figures, report=not no_figures, figure_worker=figure_worker)
+        result.save(out, figures=not no_figures, report=not no_figures, figure_worker=figure_worker,
+                    figure_options=figure_options)
     s = result.summary
     settings = click.get_current_context().meta.get("grainplug.config")
     if settings is not None:  # said once the run is done: a refusal stays one line

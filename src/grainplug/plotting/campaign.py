@@ -9,6 +9,7 @@ from matplotlib.figure import Figure
 
 from ..campaigns.fits import LinearFit
 from ._figure import new_figure
+from .palette import GROUPS
 
 MARKERS = ("o", "^", "D", "v", "s", "P", "X")
 LINES = ("-", "--", "-.", ":")
@@ -17,8 +18,9 @@ LINES = ("-", "--", "-.", ":")
 def plot_vs_mass_flow(groups: Mapping[str, tuple[np.ndarray, np.ndarray]],
                       fits: Mapping[str, LinearFit | None], *, ylabel: str, title: str,
                       absolute: bool = False, hline: float | None = None,
-                      hline_label: str = "") -> Figure:
-    """Scatter of each group with its fitted line and 95% band.
+                      hline_label: str = "",
+                      errors: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None) -> Figure:
+    """Scatter of each group, each run's 95 % interval as an error bar, the fitted line and its 95 % band.
 
     Parameters
     ----------
@@ -30,13 +32,24 @@ def plot_vs_mass_flow(groups: Mapping[str, tuple[np.ndarray, np.ndarray]],
         Plot ``|y|`` (the paper plots the absolute celerity of climbing plugs).
     hline : float, optional
         A reference level (e.g. 10 D).
+    errors : mapping, optional
+        ``name -> (low, high)``: each run's 95 % interval (same order as ``groups``).
     """
     fig, ax = new_figure(figsize=(6.4, 4.6), constrained_layout=True)
     for i, (name, (x, y)) in enumerate(groups.items()):
         x = np.asarray(x, float)
         y = np.asarray(y, float)
         sign = np.sign(np.nanmean(y)) if absolute and np.any(np.isfinite(y)) else 1.0
-        ax.plot(x, sign * y, MARKERS[i % len(MARKERS)], mfc="none", mec=f"C{i}", ms=7, label=name)
+        col = GROUPS[i % len(GROUPS)]
+        ax.plot(x, sign * y, MARKERS[i % len(MARKERS)], mfc="none", mec=col, ms=7, label=name)
+        if errors and name in errors:
+            lo_e, hi_e = (np.asarray(a, float) for a in errors[name])
+            ok = np.isfinite(lo_e) & np.isfinite(hi_e) & np.isfinite(y)
+            if ok.any():
+                a, b = sign * lo_e[ok], sign * hi_e[ok]
+                lo_b, hi_b = np.minimum(a, b), np.maximum(a, b)
+                ax.errorbar(x[ok], sign * y[ok], yerr=[sign * y[ok] - lo_b, hi_b - sign * y[ok]], fmt="none",
+                            ecolor=col, elinewidth=0.8, capsize=2)
         fit = fits.get(name)
         if fit is not None:
             xx = np.linspace(fit.x_min, fit.x_max, 100)
@@ -44,12 +57,12 @@ def plot_vs_mass_flow(groups: Mapping[str, tuple[np.ndarray, np.ndarray]],
             yy = fit.predict(xx)
             if sign < 0:
                 lo, hi = -hi, -lo
-            ax.plot(xx, sign * yy, LINES[i % len(LINES)], color=f"C{i}", lw=1.3,
+            ax.plot(xx, sign * yy, LINES[i % len(LINES)], color=col, lw=1.3,
                     label=f"fit: slope {sign * fit.slope:+.4g}, R² = {fit.r2:.3f}")
-            ax.fill_between(xx, lo, hi, color=f"C{i}", alpha=0.15, lw=0)
+            ax.fill_between(xx, lo, hi, color=col, alpha=0.15, lw=0, label="95 % band of the fit")
     if hline is not None:
         ax.axhline(hline, color="0.4", ls=":", lw=1, label=hline_label)
-    ax.set_xlabel("mass flow rate ṁ (g/s)")
+    ax.set_xlabel("mass flow rate ṁ (g s⁻¹)")
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=7)

@@ -10,6 +10,7 @@ from matplotlib.figure import Figure
 
 from ..diagram.extract import display_stride
 from ..params import runs_backwards
+from . import palette
 from ._figure import new_figure
 
 if TYPE_CHECKING:
@@ -19,31 +20,37 @@ if TYPE_CHECKING:
 
 
 def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: int = 4000) -> Figure:
-    """Spatiotemporal diagram with the detected upper (orange squares) and lower (blue
-    circles) plug edges and the mean-celerity line (dashed), as in the paper's Figs 5-8
-    (which draw the upper edges black, invisible here over dark plugs).
+    """Spatiotemporal diagram with the detected upper (vermillion squares) and lower (blue
+    circles) plug edges, the mean-celerity line (dashed, green) and a colour bar, as in the
+    paper's Figs 5-8 (which draw the upper edges black, invisible here over dark plugs).
+    Colours: :mod:`grainplug.plotting.palette`.
 
     Drawn into ``ax`` when given (its figure is returned), else into a new figure.
     """
     d = res.diagram
+    own_figure = ax is None
     if ax is None:
         # fixed margins (this layout never changes): a layout engine would double the drawing time
         fig, ax = new_figure(figsize=(9, 5.5))
-        fig.subplots_adjust(left=0.075, right=0.985, bottom=0.09, top=0.94)
+        fig.subplots_adjust(left=0.075, right=0.9, bottom=0.09, top=0.94)
     else:
         fig = ax.figure
     t, s = d.time_s, d.position_mm
     # at most ~1200 samples a side (a no-op when the values were already thinned for display)
     step_t, step_s = display_stride(d.values.shape)
-    ax.imshow(d.values[::step_t, ::step_s].T, aspect="auto", cmap="gray", origin="upper",
-              interpolation="nearest", extent=(t[0], t[-1], s[-1], s[0]))
+    im = ax.imshow(d.values[::step_t, ::step_s].T, aspect="auto", cmap="gray", origin="upper",
+                   interpolation="nearest", extent=(t[0], t[-1], s[-1], s[0]))
+    if own_figure:  # a colour bar in someone else's axes would take their space
+        cbar = fig.colorbar(im, cax=fig.add_axes((0.91, 0.09, 0.012, 0.85)))
+        cbar.set_label("grey level (camera units)", fontsize=8)
+        cbar.ax.tick_params(labelsize=7)
     runs = res.runs
     if len(runs):
         step = max(1, len(runs) // max_markers)
         tt = t[runs.frame[::step]]
-        ax.plot(tt, runs.top_mm[::step], "s", ms=2.2, mfc="none", mec="orange", mew=0.6,
+        ax.plot(tt, runs.top_mm[::step], "s", ms=2.2, mfc="none", mec=palette.UPPER, mew=0.6,
                 label="upper edge")
-        ax.plot(tt, runs.bottom_mm[::step], "o", ms=2.2, mfc="none", mec="tab:blue", mew=0.6,
+        ax.plot(tt, runs.bottom_mm[::step], "o", ms=2.2, mfc="none", mec=palette.LOWER, mew=0.6,
                 label="lower edge")
     m = res.motion
     title = "no plugs" if not res.has_plugs else ""
@@ -55,18 +62,19 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
             t0 = t[runs.frame[ok]]
             y0 = runs.top_mm[ok]
             k = int(np.argmin(np.abs(t0 - t0.mean())))
-            ax.plot(t, y0[k] + c_mm_s * (t - t0[k]), "--", color="tab:red", lw=1.2,
-                    label=f"mean celerity {m.celerity_m_s:+.4f} m/s")
+            ax.plot(t, y0[k] + c_mm_s * (t - t0[k]), "--", color=palette.FIT, lw=1.4,
+                    label=f"mean celerity {m.celerity_m_s:+.4f} m s⁻¹".replace("-", "−"))
         L = res.lengths.plug_length_mm if res.lengths else None
-        title = f"{m.regime}: v_p = {m.celerity_m_s:+.4f} m/s"
+        title = f"{m.regime}: c = {m.celerity_m_s:+.4f} m s⁻¹"
         if L:
-            title += f", λ = {L:.2f} mm ({L / res.params.tube_diameter_mm:.1f} D)"
+            title += f", λ = {L:.2f} mm, λ/D = {L / res.params.tube_diameter_mm:.1f}"
         if m.oscillation_frequency_hz:
             title += f", f = {m.oscillation_frequency_hz:.2f} Hz"
+        title = title.replace("-", "−")
     ax.set_ylim(s[-1], s[0])
     ax.set_xlim(t[0], t[-1])
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel(f"position along the tube (mm, flow {res.flow_direction} in the image)")
+    ax.set_xlabel("time t (s)")
+    ax.set_ylabel(f"position z along the tube (mm; flow {res.flow_direction} in the image)")
     ax.set_title(title, fontsize=10)
     if len(runs):
         ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
@@ -79,16 +87,16 @@ def plot_spectrum(res: AnalysisResult) -> Figure:
     fig, (a1, a2) = new_figure(2, 1, figsize=(8, 5.5), constrained_layout=True)
     x = m.displacement_mm - m.celerity_m_s * 1000 * m.time_s
     a1.plot(m.time_s, x - np.nanmean(x), "k-", lw=0.8)
-    a1.set_xlabel("time (s)")
-    a1.set_ylabel("displacement about drift (mm)")
+    a1.set_xlabel("time t (s)")
+    a1.set_ylabel("displacement about the drift (mm)")
     sel = m.spectrum_hz <= min(60.0, m.spectrum_hz[-1])
     a2.plot(m.spectrum_hz[sel], m.spectrum_mm[sel], "k-", lw=0.8)
     if m.oscillation_frequency_hz:
-        a2.axvline(m.oscillation_frequency_hz, color="tab:red", ls="--", lw=1,
+        a2.axvline(m.oscillation_frequency_hz, color=palette.FIT, ls="--", lw=1,
                    label=f"f = {m.oscillation_frequency_hz:.3f} Hz, A = {m.oscillation_amplitude_mm:.2f} mm")
         a2.legend(fontsize=8)
-    a2.set_xlabel("frequency (Hz)")
-    a2.set_ylabel("amplitude (mm)")
+    a2.set_xlabel("frequency f (Hz)")
+    a2.set_ylabel("amplitude A (mm)")
     a1.set_title(f"oscillation of the plugs ({m.regime})", fontsize=10)
     return fig
 
@@ -130,15 +138,15 @@ def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None
         else:
             ax.plot(yc, xc, *args, **kw)
 
-    draw(axis - half, rows, "-", color="tab:orange", lw=0.8, label="inner walls")
-    draw(axis + half, rows, "-", color="tab:orange", lw=0.8)
-    draw(axis, rows, ":", color="tab:orange", lw=0.6)
+    draw(axis - half, rows, "-", color=palette.WALL, lw=0.8, label="inner walls")
+    draw(axis + half, rows, "-", color=palette.WALL, lw=0.8)
+    draw(axis, rows, ":", color=palette.WALL, lw=0.6)
     runs = res.runs
     sel = runs.frame == index
     cos_t = np.cos(np.radians(tube.tilt_deg))
     reverse = runs_backwards(res.flow_direction)
     for top, bot in zip(runs.top_mm[sel], runs.bottom_mm[sel], strict=True):
-        for pos, color in ((top, "red"), (bot, "deepskyblue")):
+        for pos, color in ((top, palette.UPPER), (bot, palette.LOWER)):
             if not np.isfinite(pos):
                 continue
             row = pos / res.mm_per_px * cos_t - 0.5
@@ -148,7 +156,7 @@ def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None
             draw([xc - half, xc + half], [row, row], "-", color=color, lw=1.6)
             draw([xc], [row], "*", color=color, ms=7)
     ax.set_title(f"frame {index}: tube {tube.inner_diameter_px:.2f} px, "
-                 f"tilt {tube.tilt_deg:+.2f}°\nred: upper edges, blue: lower edges", fontsize=8)
+                 f"tilt {tube.tilt_deg:+.2f}°\nvermillion: upper edges, blue: lower edges", fontsize=8)
     ax.set_xticks([])
     ax.set_yticks([])
     ax.legend(loc="lower right", fontsize=7)

@@ -29,6 +29,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from ..outputs import FigureOptions
     from ..result import AnalysisResult
 
 log = logging.getLogger(__name__)
@@ -81,18 +82,19 @@ class FigureWorker:
         """Whether a helper process is there to take the job."""
         return self._proc is not None and self._proc.poll() is None
 
-    def submit(self, res: AnalysisResult, folder: str | Path) -> Callable[[], list[Path]]:
+    def submit(self, res: AnalysisResult, folder: str | Path,
+               options: FigureOptions | None = None) -> Callable[[], list[Path]]:
         """Start drawing the figures of ``res`` into ``folder``; call the result to wait for them."""
         from ..outputs import draw_figures
 
         if not self.running:
             self.close()
-            return lambda: draw_figures(res, folder)
+            return lambda: draw_figures(res, folder, options)
         proc = self._proc
         try:
-            job = pickle.dumps((figure_payload(res), str(folder)), protocol=pickle.HIGHEST_PROTOCOL)
+            job = pickle.dumps((figure_payload(res), str(folder), options), protocol=pickle.HIGHEST_PROTOCOL)
         except Exception as exc:  # a result that cannot be sent: draw here
-            return self._fallback(exc, res, folder)
+            return self._fallback(exc, res, folder, options)
         failed: list[BaseException] = []
 
         def send() -> None:  # in a thread: the helper may still be importing matplotlib
@@ -110,20 +112,21 @@ class FigureWorker:
             try:
                 status, value = pickle.load(proc.stdout)
             except Exception as exc:  # the helper died or said nothing
-                return self._fallback(failed[0] if failed else exc, res, folder)()
+                return self._fallback(failed[0] if failed else exc, res, folder, options)()
             self.close()
             if status != "ok":
-                return self._fallback(RuntimeError(value), res, folder)()
+                return self._fallback(RuntimeError(value), res, folder, options)()
             return [Path(p) for p in value]
 
         return wait
 
-    def _fallback(self, exc: BaseException, res: AnalysisResult, folder: str | Path) -> Callable[[], list[Path]]:
+    def _fallback(self, exc: BaseException, res: AnalysisResult, folder: str | Path,
+                  options: FigureOptions | None = None) -> Callable[[], list[Path]]:
         from ..outputs import draw_figures
 
         log.warning("figure worker failed (%s: %s); drawing in this process", type(exc).__name__, exc)
         self.close()
-        return lambda: draw_figures(res, folder)
+        return lambda: draw_figures(res, folder, options)
 
     def close(self) -> None:
         """Stop the helper and reap it (its reply, if any, has been read)."""
@@ -189,10 +192,10 @@ def main() -> int:
     _yield_to_the_analysis()
     try:
         _warm_up()
-        res, folder = pickle.load(sys.stdin.buffer)
+        res, folder, options = pickle.load(sys.stdin.buffer)
         from ..outputs import draw_figures
 
-        reply: tuple[str, object] = ("ok", [str(p) for p in draw_figures(res, folder)])
+        reply: tuple[str, object] = ("ok", [str(p) for p in draw_figures(res, folder, options)])
     except EOFError:  # the parent went away or needs no figures
         return 0
     except Exception as exc:  # reported to the parent, which draws the figures itself

@@ -14,9 +14,18 @@ if TYPE_CHECKING:
 
 _CSS = """
 body{font-family:system-ui,sans-serif;max-width:1000px;margin:2em auto;padding:0 1em;color:#222}
-table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:left}
+table{border-collapse:collapse;margin:1em 0;max-width:100%}td,th{border:1px solid #ccc;padding:3px 8px;text-align:left}
 th{background:#f3f3f3}img{max-width:100%;border:1px solid #ddd;margin:.5em 0}
-code,pre{background:#f6f6f6}pre{padding:.6em;overflow:auto;font-size:12px}.note{color:#a33}
+code,pre{background:#f6f6f6}pre{padding:.6em;overflow:auto;font-size:12px;white-space:pre-wrap;word-break:break-all}
+.note{color:#a33}
+.headline{display:flex;flex-wrap:wrap;gap:.8em;margin:1em 0}
+.card{border:1px solid #ccc;border-radius:6px;padding:.5em .9em;min-width:10em;background:#fafafa}
+.card .v{font-size:1.5em;font-variant-numeric:tabular-nums}.card .k{color:#555;font-size:.85em}
+.warnbox{border:2px solid #d9a400;background:#fff8e1;border-radius:6px;padding:.3em 1em;margin:1em 0}
+.fixbox{border:2px solid #3b7dd8;background:#eef4fd;border-radius:6px;padding:.3em 1em;margin:1em 0}
+figure{margin:1.2em 0}figcaption{color:#444;font-size:.9em}
+td.n,th.n{text-align:right;font-variant-numeric:tabular-nums}th.sort{cursor:pointer}
+.sentence{font-size:1.1em}
 """
 
 
@@ -75,41 +84,159 @@ def provenance(data: dict) -> str:
     return f"<h2>Provenance</h2><pre>{html.escape(json.dumps(data, indent=2, default=str))}</pre>"
 
 
-def run_report(res: AnalysisResult, folder: Path) -> str:
-    """HTML text of the report of one analysis (figures read from ``folder``)."""
+def with_uncertainty(value: float | None, lo: float | None, hi: float | None, *, scale: float = 1.0) -> str:
+    """``value ± half-width`` rounded to the uncertainty (two significant digits when it starts with 1 or 2,
+    else one), times ``scale``; the value alone when there is no interval; "—" when missing."""
+    import math
+
+    if value is None or not math.isfinite(value):
+        return "—"
+    v = value * scale
+    u = 0.0 if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)) else abs(hi - lo) * scale / 2
+    if u <= 0:
+        return f"{v:.4g}".replace("-", "−")  # four significant digits
+    exp = math.floor(math.log10(u))
+    lead = u / 10**exp
+    digits = -exp + (1 if lead < 3 else 0)
+    d = max(digits, 0)
+    return f"{number(round(v, digits), d)} ± {number(round(u, digits), d)}"
+
+
+_SORT_JS = """<script>
+document.querySelectorAll('table.sortable th.sort').forEach((th, i) => th.addEventListener('click', () => {
+  const tb = th.closest('table').tBodies[0], rows = Array.from(tb.rows), up = th.dataset.dir !== 'up';
+  const key = (r) => { const t = r.cells[i].dataset.v ?? r.cells[i].textContent; const x = parseFloat(t);
+                       return isNaN(x) ? t : x; };
+  rows.sort((a, b) => (key(a) > key(b) ? 1 : key(a) < key(b) ? -1 : 0) * (up ? 1 : -1));
+  th.dataset.dir = up ? 'up' : 'down'; rows.forEach((r) => tb.appendChild(r));
+}));
+</script>"""
+
+
+def _regime_sentence(res: AnalysisResult) -> str:
+    m = res.motion
+    if m is None:
+        return res.statement or "No plug could be followed over time."
+    speed = abs(m.celerity_m_s) * 1000
+    lo, hi = m.celerity_ci95_m_s
+    way = "climb the tube (against the flow)" if m.celerity_m_s < 0 else "move down the tube (with the flow)"
+    rng = with_uncertainty(abs(m.celerity_m_s), abs(lo), abs(hi), scale=1000)
+    if m.regime == "oscillating" and m.oscillation_frequency_hz:
+        return (f"Oscillating regime: the plugs oscillate at {m.oscillation_frequency_hz:.2f} Hz "
+                f"(amplitude {m.oscillation_amplitude_mm:.2f} mm) while they {way} at {rng} mm/s on average.")
+    del speed
+    return f"Propagative regime: the plugs {way} at a steady {rng} mm/s."
+
+
+def _cards(res: AnalysisResult) -> str:
+    m, ln = res.motion, res.lengths
+    D = res.params.tube_diameter_mm
+    cards = []
+    if m is not None:
+        cards.append(("celerity c (m s⁻¹)", with_uncertainty(m.celerity_m_s, *m.celerity_ci95_m_s),
+                      "95 % interval; positive downstream"))
+        if m.oscillation_frequency_hz:
+            cards.append(("oscillation f (Hz)", number(m.oscillation_frequency_hz, 2),
+                          f"amplitude {number(m.oscillation_amplitude_mm, 2)} mm"))
+    if ln is not None and ln.plug_length_mm is not None:
+        ci = ln.plug_length_ci95_mm or (None, None)
+        cards.append(("plug length λ (mm)", with_uncertainty(ln.plug_length_mm, *ci),
+                      f"λ/D = {number(ln.plug_length_mm / D, 2)}, {ln.n_plugs_measured} plugs"))
+    if ln is not None and ln.bubble_length_mm is not None:
+        ci = ln.bubble_length_ci95_mm or (None, None)
+        cards.append(("bubble length (mm)", with_uncertainty(ln.bubble_length_mm, *ci),
+                      f"{ln.n_bubbles_measured} bubbles"))
+    return '<div class="headline">' + "".join(
+        f'<div class="card"><div class="k">{html.escape(k)}</div><div class="v">{html.escape(v)}</div>'
+        f'<div class="k">{html.escape(n)}</div></div>' for k, v, n in cards) + "</div>"
+
+
+def _plug_table(res: AnalysisResult) -> str:
+    rows = res.tracks
+    if rows.empty:
+        return "<p>No plug tracks.</p>"
+    head = ("<tr><th class='sort n'>plug</th><th class='sort n'>first seen (s)</th><th class='sort n'>last seen (s)"
+            "</th><th class='sort n'>frames</th><th class='sort n'>celerity (mm/s)</th>"
+            "<th class='sort n'>length (mm)</th><th>note</th></tr>")
+    body = []
+    for _, r in rows.iterrows():
+        note = "two plugs joined (not in the mean length)" if r.composite else ""
+        cells = [(r.plug_id, number(int(r.plug_id))), (r.first_time_s, number(r.first_time_s, 3)),
+                 (r.last_time_s, number(r.last_time_s, 3)), (r.n_frames, number(int(r.n_frames))),
+                 (r.celerity_m_s * 1000, number(r.celerity_m_s * 1000, 1)),
+                 (r.median_length_mm, number(r.median_length_mm, 2))]
+        body.append("<tr>" + "".join(f'<td class="n" data-v="{v}">{t}</td>' for v, t in cells)
+                    + f"<td>{html.escape(note)}</td></tr>")
+    return f'<table class="sortable"><thead>{head}</thead><tbody>{"".join(body)}</tbody></table>'
+
+
+def _details(res: AnalysisResult) -> str:
     s = res.summary
-    keys = ["celerity_m_s", "celerity_ci95_m_s", "plug_length_mm", "plug_length_ci95_mm",
-            "plug_length_over_diameter", "bubble_length_mm", "oscillation_frequency_hz",
-            "oscillation_amplitude_mm", "regime", "n_plugs", "n_frames", "fps", "mm_per_px",
-            "scale_source", "scale_rel_sd", "tube_diameter_px", "tube_axis_angle_deg", "flow_direction",
-            "flow_direction_source"]
-    figs = "".join(_img(folder / name) for name in ("diagram.png", "spectrum.png", "frame.png")
-                   if (folder / name).exists())
-    statement = f'<p class="note">{html.escape(res.statement)}</p>' if res.statement else ""
+    D = res.params.tube_diameter_mm
+    rows = [
+        ("scale", f"{number(res.mm_per_px, 5)} mm/px ± {number(100 * res.scale_rel_sd, 2)} %"),
+        ("scale from", res.scale_source),
+        ("frames", f"{s['n_frames']} at {number(res.info.fps, 6 if res.info.fps % 1 else 0)} fps "
+                   f"({number(s['duration_s'], 3)} s)"),
+        ("tube", f"{number(D, 2)} mm bore = {number(s['tube_diameter_px'], 2)} px, "
+                 f"{res.tube.orientation}, tilt {number(res.tube.tilt_deg, 2)}°"),
+        ("flow", f"{res.flow_direction} in the image ({res.flow_direction_source})"),
+        ("view", f"{number(s['view_length_mm'], 1)} mm of tube"),
+    ]
+    if res.falling_grain_speed_m_s is not None:
+        rows.append(("grains in the bubbles fall at", f"{number(res.falling_grain_speed_m_s, 2)} m/s"))
+    return _table(rows)
+
+
+#: figure captions: file, caption
+CAPTIONS = (
+    ("diagram.png", "Spatiotemporal diagram: the grey level along the tube (vertical, from the top of the view, "
+                    "with the flow) against time. Vermillion: upper edges of the plugs, blue: lower edges; the "
+                    "dashed green line has the mean celerity."),
+    ("spectrum.png", "Displacement of the plug train about its mean drift, and its spectrum (oscillating regime)."),
+    ("frame.png", "One frame with the detected tube (inner walls, axis) and the plug edges."),
+)
+
+
+def run_report(res: AnalysisResult, folder: Path) -> str:
+    """HTML text of the report of one analysis (figures read from ``folder``): headline numbers rounded to
+    their uncertainty, the regime in a sentence, warnings and corrections in boxes, a sortable table of the
+    plugs, captioned figures, details, and the provenance folded at the end."""
+    s = res.summary
+    name = Path(res.info.path).name if res.info.path else "frames in memory"
     warnings = "".join(f"<li>{html.escape(w)}</li>" for w in res.warnings)
     if warnings:
-        warnings = f'<h2 class="note">Warnings</h2><ul class="note">{warnings}</ul>'
+        warnings = f'<div class="warnbox" role="note"><h2>Warnings</h2><ul>{warnings}</ul></div>'
     corrections = ""
     if res.corrections is not None and res.corrections.edits:
         items = "".join(f"<li>{html.escape(e.describe())} <small>({html.escape(e.at)})</small></li>"
                         for e in res.corrections.edits)
-        corrections = (f'<h2 class="note">Corrections applied ({len(res.corrections.edits)})</h2>'
-                       f'<ul class="note">{items}</ul><p>The measures below are recomputed from the detected '
-                       "plugs with these corrections (corrections.json; <code>grainplug remeasure</code>).</p>")
+        corrections = (f'<div class="fixbox"><h2>Corrections applied ({len(res.corrections.edits)})</h2>'
+                       f'<ul>{items}</ul><p>The measures are recomputed from the detected plugs with these '
+                       "corrections (corrections.json; <code>grainplug remeasure</code>).</p></div>")
+    figs = "".join(
+        f"<figure>{_img(folder / f)}<figcaption>{html.escape(c)}</figcaption></figure>"
+        for f, c in CAPTIONS if (folder / f).exists())
     prov = {"grainplug_version": s["grainplug_version"], "input": s["input"],
             "parameters": s["parameters"], "movie": s["movie"],
             "generated": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
     return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>grainplug: {html.escape(Path(res.info.path).name)}</title>
+<html lang="en"><head><meta charset="utf-8"><title>grainplug: {html.escape(name)}</title>
 <style>{_CSS}</style></head><body>
-<h1>grainplug analysis of <code>{html.escape(Path(res.info.path).name)}</code></h1>
-{statement}
+<h1>Plug flow in <code>{html.escape(name)}</code></h1>
+<p class="sentence">{html.escape(_regime_sentence(res))}</p>
+{_cards(res)}
 {warnings}
 {corrections}
-<h2>Results</h2>{_table([(k, s.get(k)) for k in keys])}
-<h2>Figures</h2>{figs}
-<h2>Provenance</h2><pre>{html.escape(json.dumps(prov, indent=2, default=str))}</pre>
+<h2>Figures</h2>{figs or "<p>No figures were drawn (--no-figures).</p>"}
+<h2>Plugs</h2>
+<p>One row per plug followed over time; click a column to sort. Celerity: the slope of its upper edge;
+length: the median over the frames where both edges are in view.</p>
+{_plug_table(res)}
+<h2>How it was measured</h2>{_details(res)}
 <p>Positions in mm along the tube from the upstream end of the view, increasing with the flow;
-celerity positive downstream.</p>
-</body></html>
-"""
+celerity positive downstream (plugs climbing the tube are negative).</p>
+<details><summary>Provenance (version, input, parameters)</summary>
+<pre>{html.escape(json.dumps(prov, indent=2, default=str))}</pre></details>
+{_SORT_JS}
+</body></html>"""

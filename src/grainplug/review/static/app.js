@@ -75,7 +75,7 @@ function draw() {
   }
   const zToY = (z) => (z - d.z0) / (d.z1 - d.z0 || 1) * h;
   for (const [tid, e] of Object.entries(state.edges)) {
-    for (const [key, colour] of [["top", "#e41a1c"], ["bottom", "#1f78b4"]]) {
+    for (const [key, colour] of [["top", "#d55e00"], ["bottom", "#0072b2"]]) {  // grainplug.plotting.palette
       ctx.beginPath();
       ctx.strokeStyle = colour;
       ctx.lineWidth = Number(tid) === selected ? 3 : 1.2;
