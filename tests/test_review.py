@@ -226,3 +226,53 @@ def test_overlay_video_shows_the_detected_edges(analysis, tmp_path, capsys):
     assert main(["overlay", str(tmp_path / "none")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and ".mp4" in err[0]
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
+def test_overlay_plays_in_chromium(analysis, tmp_path):
+    """The overlay MP4 decodes and plays in the browser: a <video> reaches its end with the right size."""
+    from grainplug.overlay import write_overlay
+
+    sync_api = pytest.importorskip("playwright.sync_api")
+    mp4 = write_overlay(analysis, tmp_path / "overlay.mp4", slowdown=5)
+    page_file = tmp_path / "play.html"
+    page_file.write_text('<!DOCTYPE html><video id="v" src="overlay.mp4" muted playsinline></video>')
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=[
+            "--no-sandbox", "--disable-gpu", "--no-first-run", "--autoplay-policy=no-user-gesture-required"])
+        try:
+            page = browser.new_page()
+            page.goto(page_file.as_uri())
+            page.wait_for_function("() => document.getElementById('v').readyState >= 2", timeout=20_000)
+            size = page.evaluate("() => { const v = document.getElementById('v');"
+                                 " return [v.videoWidth, v.videoHeight]; }")
+            page.evaluate("() => { const v = document.getElementById('v'); v.playbackRate = 16; return v.play(); }")
+            page.wait_for_function("() => document.getElementById('v').ended", timeout=30_000)
+            error = page.evaluate("() => document.getElementById('v').error")
+        finally:
+            browser.close()
+    import av
+
+    with av.open(str(mp4)) as c:
+        s = c.streams.video[0]
+        assert size == [s.width, s.height]
+    assert error is None
+
+
+def test_the_page_and_remeasure_give_the_same_numbers_after_a_restart(copy):
+    """Edits made on the page, then a new process running grainplug remeasure: the same measures."""
+    import subprocess
+    import sys
+
+    with ReviewSession(copy) as s:
+        tid = s.state("run1")["tracks"][0]["plug_id"]
+        s.edit("run1", {"action": "exclude", "track": tid})
+        t_end = s.state("run1")["diagram"]["t1"]
+        s.edit("run1", {"action": "window", "start_s": 0.2 * t_end})
+        shown = s.state("run1")["measures"]
+    done = subprocess.run([sys.executable, "-m", "grainplug", "remeasure", str(copy), "--json", "--no-figures"],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout)
+    for key in ("celerity_m_s", "plug_length_mm", "bubble_length_mm", "n_plugs", "n_edges_used", "regime"):
+        assert summary[key] == shown[key], key

@@ -260,6 +260,7 @@ def _static(name: str) -> bytes:
 
 class _Handler(BaseHTTPRequestHandler):
     session: ReviewSession  # set on the subclass made by ReviewServer
+    timeout = 60  # an idle connection is dropped after a minute
 
     def log_message(self, fmt: str, *args: object) -> None:
         log.debug("review: " + fmt, *args)
@@ -335,6 +336,39 @@ class _Handler(BaseHTTPRequestHandler):
             self._error(exc)
 
 
+class _Server(ThreadingHTTPServer):
+    """A threading server that closes every connection when it stops (a browser keeps idle ones open)."""
+
+    daemon_threads = False
+    block_on_close = True
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._open: set[Any] = set()
+        self._open_lock = threading.Lock()
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        with self._open_lock:
+            self._open.add(request)
+        super().process_request(request, client_address)
+
+    def shutdown_request(self, request: Any) -> None:
+        with self._open_lock:
+            self._open.discard(request)
+        super().shutdown_request(request)
+
+    def close_connections(self) -> None:
+        """End every open connection: their handlers see the end of input and finish."""
+        import contextlib
+        import socket
+
+        with self._open_lock:
+            open_now = list(self._open)
+        for sock in open_now:
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)
+
+
 class ReviewServer:
     """The review page served on ``127.0.0.1:port`` from a thread (a context manager: stops it).
 
@@ -349,8 +383,7 @@ class ReviewServer:
     def __init__(self, folder: str | Path, *, port: int = 0) -> None:
         self.session = ReviewSession(folder)
         handler = type("Handler", (_Handler,), {"session": self.session})
-        self.httpd = ThreadingHTTPServer(("127.0.0.1", port), handler)
-        self.httpd.daemon_threads = True
+        self.httpd = _Server(("127.0.0.1", port), handler)
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="grainplug-review", daemon=False)
 
     @property
@@ -365,5 +398,6 @@ class ReviewServer:
     def __exit__(self, *exc: object) -> None:
         self.httpd.shutdown()
         self._thread.join()
-        self.httpd.server_close()
+        self.httpd.close_connections()
+        self.httpd.server_close()  # joins the request threads
         self.session.close()
