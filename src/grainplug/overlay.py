@@ -48,6 +48,15 @@ def crop_box(res: AnalysisResult) -> tuple[int, int]:
     return lo, hi
 
 
+def analysed_region(res: AnalysisResult, frame: np.ndarray) -> np.ndarray:
+    """The part of a movie frame the analysis saw (its ``roi``, or the whole frame)."""
+    roi = res.params.roi
+    if roi is None:
+        return np.asarray(frame)
+    x0, y0, x1, y1 = roi
+    return np.asarray(frame)[y0:y1, x0:x1]
+
+
 def _to_bgr8(frame: np.ndarray, top: float) -> np.ndarray:
     f = np.asarray(frame)
     g = f.astype(np.float32) * (255.0 / top) if f.dtype != np.uint8 else f
@@ -159,7 +168,7 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
         try:
             stream = None
             for k in range(0, res.diagram.n_frames, every):
-                img = draw_frame(res, movie.read(offset + k), k, top_value=top)
+                img = draw_frame(res, analysed_region(res, movie.read(offset + k)), k, top_value=top)
                 h, w = img.shape[:2]
                 img = np.ascontiguousarray(img[: h - h % 2, : w - w % 2])  # yuv420p: even sizes
                 if stream is None:

@@ -122,6 +122,10 @@ class AnalysisParams:
     start_s, end_s : float, optional
         The same window in seconds from the first frame (instead of frames; one of each pair).
         Frame times in the result stay those of the movie.
+    roi : (x0, y0, x1, y1), optional
+        Analyse only this rectangle of each frame (pixels, ``x1``/``y1`` excluded): the tube is
+        looked for inside it. The way to choose one tube when a frame holds several. Positions
+        along the tube then start at the rectangle's edge.
 
     Examples
     --------
@@ -146,6 +150,7 @@ class AnalysisParams:
     end_frame: int | None = None
     start_s: float | None = None
     end_s: float | None = None
+    roi: tuple[int, int, int, int] | None = None
 
     def __post_init__(self) -> None:
         def check(ok: bool, param: str, message: str) -> None:
@@ -174,6 +179,12 @@ class AnalysisParams:
               f"must be one of {', '.join(FLOW_DIRECTIONS)}, got {self.flow_direction!r}")
         check(self.calibration is None or self.mm_per_px is None, "calibration",
               "give either a calibration or mm_per_px (the scale), not both")
+        if self.roi is not None:
+            r = self.roi
+            ok = (isinstance(r, (tuple, list)) and len(r) == 4 and all(isinstance(v, numbers.Integral) for v in r)
+                  and 0 <= r[0] < r[2] and 0 <= r[1] < r[3])
+            check(ok, "roi", f"must be four pixel numbers x0,y0,x1,y1 with x0 < x1 and y0 < y1, got {r}")
+            object.__setattr__(self, "roi", tuple(int(v) for v in r))
 
     def as_record(self) -> dict[str, object]:
         """The parameters as plain data, for provenance and run keys: a background is recorded by its

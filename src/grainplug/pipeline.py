@@ -84,7 +84,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         raise ParameterError(f"give at least 1 (or None for one per core), got {threads}", param="threads")
     laps = _Laps()
     with _opened(source, params) as movie:
-        movie = _window(movie, params)
+        movie = _roi(_window(movie, params), params)
         info = _movie_info(movie, params)
         _check_movie(info)
         laps("open_s")
@@ -93,6 +93,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("sample_s")
         wanted = tube_orientation(params.flow_direction) if params.flow_direction else None
         tube = find_tube(sample, orientation=wanted)
+        other_tubes = _other_moving_regions(sample, tube)
         sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
         laps("tube_s")
         band, axis_px = band_along_tube(tube)
@@ -131,7 +132,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *scale_warnings, *light_warnings,
-                  *filter(None, [repair.describe(diagram.n_frames)]), *flow.warnings,
+                  *filter(None, [repair.describe(diagram.n_frames)]), *flow.warnings, *other_tubes,
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
     )
 
@@ -192,6 +193,51 @@ def _window(movie: Movie, params: AnalysisParams) -> Movie:
         raise ParameterError(f"the window holds {max(stop - start, 0)} of the movie's {n} frames (frames {start} to "
                              f"{stop}); at least 8 are needed — move its start or its end", param="start_frame")
     return movie if (start, stop) == (0, n) else FrameWindow(movie, start, stop)
+
+
+#: another region whose frame-to-frame variation reaches this share of the tube's is reported
+OTHER_REGION_SHARE = 0.5
+
+
+def _other_moving_regions(frames: list[np.ndarray], tube: TubeGeometry) -> list[str]:
+    """A warning when the sampled frames move as much somewhere else across the tube as in it (a second
+    tube in view): the analysis follows one tube only, and says which, and how to choose."""
+    if len(frames) < 4:
+        return []
+    grey = np.stack([np.asarray(f, np.float32).mean(axis=2) if np.ndim(f) == 3 else np.asarray(f, np.float32)
+                     for f in frames])
+    if tube.orientation != "vertical":
+        grey = grey.transpose(0, 2, 1)
+    across = grey.std(axis=0).mean(axis=0)  # temporal variation per column across the tube
+    h = grey.shape[1]
+    axis = tube.axis_x(np.array([0.0, h - 1.0]))
+    half = 1.5 * tube.inner_diameter_px + 3
+    cols = np.arange(across.size)
+    inside = (cols >= axis.min() - half) & (cols <= axis.max() + half)
+    if not inside.any() or inside.all():
+        return []
+    level = float(np.median(across[(cols >= axis.min() - 0.4 * tube.inner_diameter_px)
+                                   & (cols <= axis.max() + 0.4 * tube.inner_diameter_px)]))
+    hot = ~inside & (across > OTHER_REGION_SHARE * level)
+    if level <= 0 or hot.sum() < max(3, 0.3 * tube.inner_diameter_px):
+        return []
+    where = cols[hot]
+    name = "x" if tube.orientation == "vertical" else "y"
+    return [f"the frames change as much around {name} = {int(where.min())}-{int(where.max())} px as in the tube "
+            f"analysed (at {name} = {float(axis.mean()):.0f} px): a second tube? Only this one is analysed — "
+            "give --roi X0,Y0,X1,Y1 to choose"]
+
+
+def _roi(movie: Movie, params: AnalysisParams) -> Movie:
+    """The region of interest ``params.roi`` of the movie (:class:`RegionOfInterest`), or the movie."""
+    if params.roi is None:
+        return movie
+    from .readers.roi import RegionOfInterest
+
+    try:
+        return RegionOfInterest(movie, params.roi)
+    except ValueError as exc:
+        raise ParameterError(f"{exc} — give x0,y0,x1,y1 inside the frame", param="roi") from None
 
 
 def _movie_info(movie: Movie, params: AnalysisParams) -> MovieInfo:

@@ -63,6 +63,20 @@ def _refuse_existing(out: Path, overwrite: bool) -> None:
                          "another --out")
 
 
+def _roi_option(text: str | None) -> tuple[int, int, int, int] | None:
+    """``--roi X0,Y0,X1,Y1`` as four integers (checked against the frame by the analysis)."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = tuple(int(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 4:
+        raise ParameterError(f"--roi must be four pixel numbers X0,Y0,X1,Y1 (e.g. 40,0,120,1024), got {text!r}")
+    return values  # type: ignore[return-value]
+
+
 def _figure_options(dpi: int | None, formats: str | None, publication: bool, style: str | None):
     """``FigureOptions`` of the figure flags (checked before the analysis)."""
     from ..outputs import FigureOptions
@@ -220,6 +234,9 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
               help="Analyse from this frame (e.g. 120) or time (e.g. 2.5s) on: leave out the start-up transient.")
 @click.option("--end", "end", type=FRAME_OR_TIME, default=None,
               help="Analyse up to this frame (excluded) or time.")
+@click.option("--roi", "roi", default=None, metavar="X0,Y0,X1,Y1",
+              help="Analyse only this rectangle of the frames (pixels; x1, y1 excluded): choose one tube when "
+                   "the frame holds several.")
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures and the HTML report.")
 @click.option("--dpi", type=Number(20, 1200, integer=True), default=None,
               help="Resolution of the PNG figures [default: 110, or 200 with --publication].")
@@ -234,7 +251,8 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
             tube_diameter_mm: float | None, tube_outer_diameter_mm: float | None, glass_index: float,
             flow_direction: str | None, min_plug_mm: float, glob_: str | None, threads: int | None,
             calibration: Path | None, background: Path | None, allow_truncated: bool,
-            start: tuple[str, float] | None, end: tuple[str, float] | None, no_figures: bool, dpi: int | None,
+            start: tuple[str, float] | None, end: tuple[str, float] | None, roi: str | None, no_figures: bool,
+            dpi: int | None,
             figure_formats: str | None, publication: bool, style: str | None, overwrite: bool,
             as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
@@ -248,6 +266,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     check_output_place(out, inputs=[movie], replace=True)  # before the analysis, not after it
     _refuse_existing(out, overwrite)
     figure_options = _figure_options(dpi, figure_formats, publication, style)
+    roi_px = _roi_option(roi)
     if mm_per_px is not None and tube_diameter_mm is not None:
         raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
                              "not both")
@@ -267,7 +286,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
                             tube_outer_diameter_mm=tube_outer_diameter_mm, glass_index=glass_index,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_,
-                            allow_truncated=allow_truncated, calibration=cal, background=light,
+                            allow_truncated=allow_truncated, calibration=cal, background=light, roi=roi_px,
                             **_window_params(start, end))
     # the figures' worker starts now: it imports matplotlib while the frames stream
     with FigureWorker() if not no_figures else contextlib.nullcontext() as figure_worker:

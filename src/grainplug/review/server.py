@@ -196,8 +196,10 @@ class ReviewSession:
         movie = self._movie(run)
         if movie is None:
             raise GrainplugError(run.movie_error or "no movie")
+        from ..overlay import analysed_region
+
         with self._lock:  # one reader at a time
-            frame = np.asarray(movie.read(run.offset + k))
+            frame = analysed_region(run.result, movie.read(run.offset + k))
         fig = plot_annotated_frame(run.result, frame=frame, index=k)
         buf = io.BytesIO()
         FigureCanvasAgg(fig).print_png(buf)
