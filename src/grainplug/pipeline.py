@@ -204,12 +204,15 @@ def _other_moving_regions(frames: list[np.ndarray], tube: TubeGeometry) -> list[
     tube in view): the analysis follows one tube only, and says which, and how to choose."""
     if len(frames) < 4:
         return []
-    grey = np.stack([np.asarray(f, np.float32).mean(axis=2) if np.ndim(f) == 3 else np.asarray(f, np.float32)
-                     for f in frames])
-    if tube.orientation != "vertical":
+    vertical = tube.orientation == "vertical"
+    h = tube.canonical_shape[0]
+    step = max(1, h // 32)  # 32 lines along the tube are plenty for a profile across it
+    lines = [np.asarray(f)[::step] if vertical else np.asarray(f)[:, ::step] for f in frames]
+    # one channel (green, most of the luminance) is enough to see where the frames change
+    grey = np.stack([g[..., min(1, g.shape[2] - 1)] if g.ndim == 3 else g for g in lines]).astype(np.float32)
+    if not vertical:
         grey = grey.transpose(0, 2, 1)
     across = grey.std(axis=0).mean(axis=0)  # temporal variation per column across the tube
-    h = grey.shape[1]
     axis = tube.axis_x(np.array([0.0, h - 1.0]))
     half = 1.5 * tube.inner_diameter_px + 3
     cols = np.arange(across.size)
