@@ -152,19 +152,21 @@ def _cards(res: AnalysisResult) -> str:
 
 
 def _plug_table(res: AnalysisResult) -> str:
-    rows = res.tracks
-    if rows.empty:
+    from ..result import track_rows  # plain rows: pandas is not needed (nor imported) to write a report
+
+    rows = track_rows(res)
+    if not rows:
         return "<p>No plug tracks.</p>"
     head = ("<tr><th class='sort n'>plug</th><th class='sort n'>first seen (s)</th><th class='sort n'>last seen (s)"
             "</th><th class='sort n'>frames</th><th class='sort n'>celerity (mm/s)</th>"
             "<th class='sort n'>length (mm)</th><th>note</th></tr>")
     body = []
-    for _, r in rows.iterrows():
-        note = "two plugs joined (not in the mean length)" if r.composite else ""
-        cells = [(r.plug_id, number(int(r.plug_id))), (r.first_time_s, number(r.first_time_s, 3)),
-                 (r.last_time_s, number(r.last_time_s, 3)), (r.n_frames, number(int(r.n_frames))),
-                 (r.celerity_m_s * 1000, number(r.celerity_m_s * 1000, 1)),
-                 (r.median_length_mm, number(r.median_length_mm, 2))]
+    for r in rows:
+        note = "two plugs joined (not in the mean length)" if r["composite"] else ""
+        cells = [(r["plug_id"], number(int(r["plug_id"]))), (r["first_time_s"], number(r["first_time_s"], 3)),
+                 (r["last_time_s"], number(r["last_time_s"], 3)), (r["n_frames"], number(int(r["n_frames"]))),
+                 (r["celerity_m_s"] * 1000, number(r["celerity_m_s"] * 1000, 1)),
+                 (r["median_length_mm"], number(r["median_length_mm"], 2))]
         body.append("<tr>" + "".join(f'<td class="n" data-v="{v}">{t}</td>' for v, t in cells)
                     + f"<td>{html.escape(note)}</td></tr>")
     return f'<table class="sortable"><thead>{head}</thead><tbody>{"".join(body)}</tbody></table>'
