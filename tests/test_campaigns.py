@@ -191,6 +191,19 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
     assert_one_line_error(code, err, "1 of 6 runs failed", "missing.avi")
     t3 = pd.read_csv(out / "campaign.csv")
     assert list(t3.status) == ["ok", "ok", "ok", "ok", "ok", "failed"]
+    # typed columns under a versioned schema: a failed run's measures are missing, not "nan" text
+    import pyarrow.parquet as pq_io
+
+    from grainplug.campaigns.schema import SCHEMA_VERSION
+
+    pq = pd.read_parquet(out / "campaign.parquet")
+    assert str(pq.has_plugs.dtype) == "boolean" and str(pq.n_plugs.dtype) == "Int64"
+    assert str(pq.celerity_m_s.dtype) == "Float64" and pq.celerity_m_s.isna().tolist()[-1]
+    assert pq_io.read_schema(out / "campaign.parquet").metadata[b"grainplug_schema_version"] == b"1"
+    schema = json.loads((out / "campaign.schema.json").read_text())
+    assert schema["schema_version"] == SCHEMA_VERSION
+    kinds = {c["name"]: c["dtype"] for c in schema["columns"]}
+    assert kinds["celerity_m_s"] == "Float64" and kinds["operator"] != "Float64"  # manifest metadata as read
 
 
 def test_batch_workers_match_serial(campaign_dir, tmp_path):

@@ -38,6 +38,7 @@ from ..store import load_result, read_corrections
 from .fits import fit_line, summarize_lengths
 from .manifest import RunSpec, read_manifest, run_folder_name
 from .model_panel import ModelPanel, measured_from, model_panel
+from .schema import SCHEMA_VERSION, schema_json, typed
 
 log = logging.getLogger(__name__)
 
@@ -258,7 +259,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
             f"interrupted: {n_done} of {total} runs have a complete result, kept; the others were not started "
             "or were stopped — run the same command again to finish (complete, current runs are reused)") from None
     n_reused = sum(bool(records[s.run].get("reused")) for s in specs)
-    table = pd.DataFrame([{k: v for k, v in records[s.run].items() if k != "reused"} for s in specs])
+    table = typed(pd.DataFrame([{k: v for k, v in records[s.run].items() if k != "reused"} for s in specs]))
     fits = campaign_fits(table)
     _write_campaign(table, fits, out, manifest=Path(manifest), figures=figures, simulate=simulate)
     return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused, deaths)
@@ -407,13 +408,21 @@ def _stop(pool: ProcessPoolExecutor) -> None:
 def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Path, figures: bool,
                     simulate: bool = True) -> None:
     with atomic_directory(out) as tmp:
+        table = typed(table)
         table.to_csv(tmp / "campaign.csv", index=False)
+        (tmp / "campaign.schema.json").write_text(schema_json(table))
         pq = table.copy()
-        for col in pq.columns:  # parquet needs one type per column
+        for col in pq.columns:  # parquet needs one type per column (manifest metadata of mixed types)
             if pq[col].dtype == object:
                 pq[col] = pq[col].map(lambda v: None if v is None or (isinstance(v, float) and np.isnan(v)) else str(v))
-        pq.to_parquet(tmp / "campaign.parquet", index=False)
-        meta = {"grainplug_version": __version__, "manifest": str(manifest.resolve()),
+        import pyarrow as pa
+        import pyarrow.parquet as pq_io
+
+        arrow = pa.Table.from_pandas(pq, preserve_index=False)
+        arrow = arrow.replace_schema_metadata({**(arrow.schema.metadata or {}),
+                                               b"grainplug_schema_version": str(SCHEMA_VERSION).encode()})
+        pq_io.write_table(arrow, tmp / "campaign.parquet")
+        meta = {"grainplug_version": __version__, "schema_version": SCHEMA_VERSION, "manifest": str(manifest.resolve()),
                 "manifest_sha256": hashlib.sha256(manifest.read_bytes()).hexdigest(), "fits": fits}
         panel = _model_panel(table, simulate=simulate) if figures else None
         if panel is not None:
