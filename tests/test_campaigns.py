@@ -245,3 +245,14 @@ def test_manifest_calibration_column(tmp_path):
     (tmp_path / "bad.csv").write_text("run,movie,calibration\na,a.avi,cal/missing.json\n")
     with pytest.raises(ParameterError, match=r"bad\.csv.*calibration: no such calibration file"):
         read_manifest(tmp_path / "bad.csv")
+
+
+def test_paper_figures_for_print(tmp_path, capsys):
+    """--publication: every figure of the reproduction as PNG (200 dpi), SVG and PDF."""
+    code, _, err = run(capsys, "paper", "--out", tmp_path / "p", "--no-simulations", "--publication")
+    assert code == 0, err
+    pngs = sorted(p.stem for p in (tmp_path / "p").glob("*.png"))
+    assert len(pngs) >= 7
+    for stem in pngs:
+        for ext in ("svg", "pdf"):
+            assert (tmp_path / "p" / f"{stem}.{ext}").stat().st_size > 1000, (stem, ext)

@@ -119,6 +119,19 @@ FIGURE_FORMATS = ("png", "svg", "pdf")
 PUBLICATION = FigureOptions(dpi=200, formats=FIGURE_FORMATS)
 
 
+def save_figure(fig: object, folder: str | Path, name: str, options: FigureOptions | None = None) -> list[str]:
+    """Save ``fig`` as ``name`` (a ``.png`` name) in every format of ``options``; returns the file names."""
+    options = options or FigureOptions()
+    stem = Path(name).stem
+    names = []
+    for fmt in options.formats:
+        target = Path(folder) / f"{stem}.{fmt}"
+        kw = {"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}
+        fig.savefig(target, dpi=options.dpi, format=fmt, **kw)  # type: ignore[attr-defined]
+        names.append(target.name)
+    return names
+
+
 def figure_files(res: AnalysisResult, options: FigureOptions) -> dict[str, str]:
     """Output key -> file name of every figure file ``options`` makes for ``res``."""
     out = {}

@@ -32,7 +32,7 @@ from .._version import __version__
 from ..corrections import Corrections, apply_corrections
 from ..errors import CampaignInterrupted, GrainplugError
 from ..jsonio import dumps
-from ..outputs import write_outputs
+from ..outputs import FigureOptions, save_figure, write_outputs
 from ..pipeline import analyze, fingerprint
 from ..store import load_result, read_corrections
 from .fits import fit_line, summarize_lengths
@@ -64,7 +64,7 @@ def run_key(spec: RunSpec, *, identity: dict[str, object] | None = None) -> str:
 
 
 def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: int | None = None,
-                verify: bool = False) -> dict[str, object]:
+                verify: bool = False, figure_options: FigureOptions | None = None) -> dict[str, object]:
     """Analyse one run into ``out_dir/runs/<run>`` (or reuse it); a record for the table.
 
     A run is reused only when its folder is complete (its completion marker lists every file,
@@ -101,7 +101,8 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
                 return {**record, "status": "ok", "reused": True, **_flat(old)}
             try:  # the corrections changed since: measures again from the detected plugs, no movie read
                 res = apply_corrections(load_result(run_dir), corr or Corrections())
-                write_outputs(res, run_dir, figures=figures, report=figures, extra=extra)
+                write_outputs(res, run_dir, figures=figures, report=figures, extra=extra,
+                              figure_options=figure_options)
                 return {**record, "status": "ok", "reused": True, **_flat(res.summary)}
             except GrainplugError:
                 pass  # an unreadable result: analyse again below
@@ -112,7 +113,7 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
             res = dataclasses.replace(res, warnings=[*res.warnings, (
                 f"{len(corr.edits)} corrections from an earlier analysis of this run were applied again "
                 "(corrections.json): the movie or parameters changed, check that they still fit the tracks")])
-        write_outputs(res, run_dir, figures=figures, report=figures, extra=extra)
+        write_outputs(res, run_dir, figures=figures, report=figures, extra=extra, figure_options=figure_options)
         return {**record, "status": "ok", "reused": False, **_flat(res.summary)}
     except GrainplugError as exc:
         return {**record, "status": "failed", "error": str(exc)}
@@ -177,6 +178,7 @@ def campaign_fits(table: pd.DataFrame, *, diameter_mm: float = 3.0) -> dict[str,
 
 def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1, scheduler: str | None = None,
                  figures: bool = True, verify: bool = False, simulate: bool = True,
+                 figure_options: FigureOptions | None = None,
                  progress: Callable[[int, int, str], None] | None = None) -> Campaign:
     """Analyse every run of ``manifest`` and write the campaign's table, fits, figures and report.
 
@@ -198,6 +200,8 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     simulate : bool
         With figures, the report's model-against-experiment panel includes the
         nonlinear simulations (about 20 s); otherwise linear theory only.
+    figure_options : FigureOptions, optional
+        Resolution and formats of every figure (``grainplug.outputs.PUBLICATION`` for print).
     progress : callable, optional
         ``progress(done, total, run)`` after each run.
 
@@ -236,7 +240,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         if progress:
             progress(len(records), total, str(rec["run"]))
 
-    kw = {"figures": figures, "verify": verify}
+    kw = {"figures": figures, "verify": verify, "figure_options": figure_options}
     deaths = 0
     try:
         if client is not None:
@@ -261,7 +265,8 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     n_reused = sum(bool(records[s.run].get("reused")) for s in specs)
     table = typed(pd.DataFrame([{k: v for k, v in records[s.run].items() if k != "reused"} for s in specs]))
     fits = campaign_fits(table)
-    _write_campaign(table, fits, out, manifest=Path(manifest), figures=figures, simulate=simulate)
+    _write_campaign(table, fits, out, manifest=Path(manifest), figures=figures, simulate=simulate,
+                    figure_options=figure_options)
     return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused, deaths)
 
 
@@ -406,7 +411,7 @@ def _stop(pool: ProcessPoolExecutor) -> None:
 
 
 def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Path, figures: bool,
-                    simulate: bool = True) -> None:
+                    simulate: bool = True, figure_options: FigureOptions | None = None) -> None:
     with atomic_directory(out) as tmp:
         table = typed(table)
         table.to_csv(tmp / "campaign.csv", index=False)
@@ -430,14 +435,14 @@ def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Pat
         (tmp / "fits.json").write_text(dumps(meta))
         names: list[str] = []
         if figures:
-            names = _campaign_figures(table, tmp)
+            names = _campaign_figures(table, tmp, figure_options)
             if panel is not None:
                 import matplotlib.pyplot as plt
 
                 from ..plotting.model_panel import plot_model_panel
 
                 fig = plot_model_panel(panel.measured, panel.predictions, diameter_mm=panel.diameter_mm)
-                fig.savefig(tmp / MODEL_FIGURE, dpi=110)
+                save_figure(fig, tmp, MODEL_FIGURE, figure_options)
                 plt.close(fig)
             from .report import campaign_report
 
@@ -463,7 +468,7 @@ def _model_panel(table: pd.DataFrame, *, simulate: bool) -> ModelPanel | None:
     return model_panel(measured, diameter_mm=diameter_mm, simulate=simulate)
 
 
-def _campaign_figures(table: pd.DataFrame, folder: Path) -> list[str]:
+def _campaign_figures(table: pd.DataFrame, folder: Path, options: FigureOptions | None = None) -> list[str]:
     import matplotlib.pyplot as plt
 
     from ..plotting.campaign import plot_vs_mass_flow
@@ -488,7 +493,7 @@ def _campaign_figures(table: pd.DataFrame, folder: Path) -> list[str]:
         what = "celerity" if y.startswith("celerity") else "plug length"
         fig = plot_vs_mass_flow(data, fits, ylabel=label, title=f"{what} against mass flow rate (95 % intervals)",
                                 hline=ref, hline_label="10 D" if ref else "", errors=errs)
-        fig.savefig(folder / fname, dpi=110)
+        save_figure(fig, folder, fname, options)
         plt.close(fig)
         names.append(fname)
     return names

@@ -10,14 +10,16 @@ from .. import datasets
 from .._atomic import atomic_directory
 from .._version import __version__
 from ..jsonio import dumps
+from ..outputs import FigureOptions, save_figure
 from .model_panel import panel_html
 from .paper import D_MM, PaperReproduction, reproduction_text
 
 MODEL_FIGURE = "model_vs_experiment.png"
 
 
-def paper_figures(rep: PaperReproduction, folder: Path) -> list[str]:
-    """Celerity and length against mass flow rate (both regimes) and the growth-rate figures."""
+def paper_figures(rep: PaperReproduction, folder: Path, options: FigureOptions | None = None) -> list[str]:
+    """Celerity and length against mass flow rate (both regimes) and the growth-rate figures (the PNG
+    names; other formats of ``options`` are written beside them)."""
     import matplotlib.pyplot as plt
 
     from ..plotting.campaign import plot_vs_mass_flow
@@ -38,7 +40,7 @@ def paper_figures(rep: PaperReproduction, folder: Path) -> list[str]:
                                 title=f"celerity of plugs, {regime} regime (paper's tables)",
                                 absolute=regime == "propagative")
         name = f"celerity_{regime}.png"
-        fig.savefig(folder / name, dpi=110)
+        save_figure(fig, folder, name, options)
         plt.close(fig)
         names.append(name)
         from .fits import fit_line
@@ -49,26 +51,27 @@ def paper_figures(rep: PaperReproduction, folder: Path) -> list[str]:
         fig = plot_vs_mass_flow(ldata, lfits, ylabel="λ (mm)", title=f"plug length, {regime} regime",
                                 hline=10 * D_MM, hline_label="10 D")
         name = f"length_{regime}.png"
-        fig.savefig(folder / name, dpi=110)
+        save_figure(fig, folder, name, options)
         plt.close(fig)
         names.append(name)
     for variant in ("printed", "frozen-friction"):
         fig = plot_growth_rates(analyze_stability(ModelParams(variant=variant), k_min=1e-3, k_max=3.0, n_k=1500))
         name = f"growth_rates_{variant.replace('-', '_')}.png"
-        fig.savefig(folder / name, dpi=110)
+        save_figure(fig, folder, name, options)
         plt.close(fig)
         names.append(name)
     if rep.model_panel is not None:
         from ..plotting.model_panel import plot_model_panel
 
         fig = plot_model_panel(rep.model_panel.measured, rep.model_panel.predictions, diameter_mm=D_MM)
-        fig.savefig(folder / MODEL_FIGURE, dpi=110)
+        save_figure(fig, folder, MODEL_FIGURE, options)
         plt.close(fig)
         names.append(MODEL_FIGURE)
     return names
 
 
-def write_paper(rep: PaperReproduction, out_dir: str | Path, *, figures: bool = True) -> dict[str, Path]:
+def write_paper(rep: PaperReproduction, out_dir: str | Path, *, figures: bool = True,
+                figure_options: FigureOptions | None = None) -> dict[str, Path]:
     """Write ``paper.json``, ``reproduction.md``, the figures and ``report.html`` into ``out_dir``."""
     from ..reports import images, page, provenance, table
 
@@ -78,7 +81,7 @@ def write_paper(rep: PaperReproduction, out_dir: str | Path, *, figures: bool = 
         (tmp / "paper.json").write_text(dumps(data))
         text = reproduction_text(rep)
         (tmp / "reproduction.md").write_text(text)
-        names = paper_figures(rep, tmp) if figures else []
+        names = paper_figures(rep, tmp, figure_options) if figures else []
         rows = [[c.claim, c.where, json.dumps(c.paper, default=str), json.dumps(c.reproduced, default=str),
                  "yes" if c.agrees else "NO", c.note] for c in rep.checks]
         fit_rows = [[g, f"{f.slope:+.4f} ± {f.slope_stderr:.4f}", f"{f.intercept:+.4f} ± {f.intercept_stderr:.4f}",

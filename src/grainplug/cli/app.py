@@ -502,11 +502,12 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
               help="Open pipe: mass flow rate of the grains fed at the top (sets their velocity).")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Folder for fields.nc, summary.json and diagram.png (replaced as a whole).")
+@click.option("--publication", is_flag=True, help="The figure also as SVG and PDF, and PNG at 200 dpi.")
 @click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, output_interval_tc: float, cfl: float,
              noise: float, seed: int, feed_c: float | None, feed_v: float | None, feed_rate_g_s: float | None,
-             out_dir: Path, overwrite: bool, as_json: bool, **model: object) -> None:
+             out_dir: Path, publication: bool, overwrite: bool, as_json: bool, **model: object) -> None:
     """Integrate the paper's 1D model in time (finite volumes) and measure what it forms.
 
     Conservative in grain and air mass (the air's mass balance replaces the printed
@@ -542,7 +543,8 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
 
     fig = plot_simulation(res)
     try:
-        save_simulation(res, out_dir, summary, figure=fig)
+        save_simulation(res, out_dir, summary, figure=fig, figure_options=_figure_options(None, None, publication,
+                                                                                           None))
     finally:
         plt.close(fig)
     if as_json:
@@ -767,8 +769,10 @@ def resonance(as_json: bool, **kwargs: object) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print fits, lengths, stability and checks as JSON.")
 @click.option("--no-simulations", is_flag=True,
               help="Compare the measurements with the linear theory only (skip the ~20 s of nonlinear runs).")
+@click.option("--publication", is_flag=True, help="Every figure also as SVG and PDF, and PNG at 200 dpi.")
 @click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
-def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, overwrite: bool) -> None:
+def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publication: bool,
+          overwrite: bool) -> None:
     """Reproduce the paper's numbers and figures from its own Tables 1 and 2, and put the model's
     predictions (linear and simulated) beside the measurements."""
     from .._atomic import check_output_place
@@ -778,7 +782,8 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, over
     check_output_place(out)
     _refuse_existing(out, overwrite)
     rep = reproduce(simulate=not no_simulations)
-    write_paper(rep, out, figures=not no_figures)
+    write_paper(rep, out, figures=not no_figures,
+                figure_options=_figure_options(None, None, publication, None))
     if as_json:
         _echo_json({"grainplug_version": __version__, **rep.as_dict()})
         return
@@ -810,8 +815,9 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, over
 @click.option("--json", "as_json", is_flag=True, help="Print the fits as JSON.")
 @click.option("--no-simulations", is_flag=True,
               help="In the report, compare with the model's linear theory only (skip ~20 s of simulations).")
+@click.option("--publication", is_flag=True, help="Every figure also as SVG and PDF, and PNG at 200 dpi.")
 def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_figures: bool, verify: bool,
-          as_json: bool, no_simulations: bool) -> None:
+          as_json: bool, no_simulations: bool, publication: bool) -> None:
     """Analyse every run of MANIFEST (CSV or TOML), then tabulate, fit and report.
 
     One row per run: movie (relative to the manifest), fps, mm_per_px or tube_diameter_mm,
@@ -834,7 +840,8 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
 
         try:
             camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,
-                                verify=verify, simulate=not no_simulations, progress=progress)
+                                verify=verify, simulate=not no_simulations, progress=progress,
+                                figure_options=_figure_options(None, None, publication, None))
         except CampaignInterrupted as exc:  # before click's own handler, which prints a blank line
             raise Interrupted(str(exc)) from None
     t = camp.table

@@ -49,14 +49,16 @@ def to_xarray(res: SimulationResult) -> xr.Dataset:
 
 
 def save_simulation(res: SimulationResult, out_dir: str | Path, summary: dict[str, object], *,
-                    figure: object | None = None) -> dict[str, Path]:
-    """Write ``fields.nc``, ``summary.json`` (and ``diagram.png``) into ``out_dir`` atomically."""
+                    figure: object | None = None, figure_options: object | None = None) -> dict[str, Path]:
+    """Write ``fields.nc``, ``summary.json`` (and ``diagram.png``, in the formats of ``figure_options``)
+    into ``out_dir`` atomically."""
     from ..jsonio import dumps
+    from ..outputs import save_figure
 
     written: dict[str, Path] = {}
     with atomic_directory(out_dir, written, replace=True) as tmp:
         to_xarray(res).to_netcdf(tmp / FIELDS_FILE, engine="scipy")
         (tmp / SUMMARY_FILE).write_text(dumps(summary), encoding="utf-8")
         if figure is not None:
-            figure.savefig(tmp / DIAGRAM_FILE, dpi=120)
+            save_figure(figure, tmp, DIAGRAM_FILE, figure_options)  # type: ignore[arg-type]
     return written
