@@ -172,7 +172,9 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
     assert list(t.scale_source) == ["user"] * 5 and list(t.scale_rel_sd) == [0.0] * 5
     report = (out / "report.html").read_text()
     assert "warnings" in t and "scale from" in report and "celerity (m/s)" in report
-    tables = report.split("<h2>Figures")[0]  # (the figures are base64 text, the provenance raw JSON)
+    tables = re.sub(r'(src="data:image/png;base64,|data-v=")[^"]*"', "", report.split("<details>")[0])
+    # (the figures are base64 text, sort keys full precision, the provenance raw JSON: left out)
+    assert 'href="runs/a/report.html"' in report  # each run links to its own report
     assert "nan" not in tables.lower() and not re.search(r"\d\.\d{6,}", tables)  # rounded, "—" when missing
     assert pd.read_parquet(out / "campaign.parquet").shape[0] == 5
     for name in ("campaign.csv", "fits.json", "report.html", "celerity_vs_mass_flow.png",

@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..reports import images, page, provenance, table
+from ..reports.html import _SORT_JS as SORT_JS
 from ..reports.html import number
 from .model_panel import ModelPanel, panel_html
 
@@ -25,17 +26,32 @@ RUN_COLUMNS = (
 def _cell(value: object, decimals: int | None) -> str:
     if decimals is not None:
         return number(value, decimals)  # "—" when missing
-    return "—" if value is None or (isinstance(value, float) and pd.isna(value)) else str(value)
+    return "—" if value is None or pd.isna(value) else str(value)
 
 
 def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[str], meta: dict, *,
                     panel: ModelPanel | None = None) -> str:
-    """The report of a campaign: one row per run, the fits against mass flow rate, the figures,
-    the warnings and errors of each run, and the provenance."""
+    """The report of a campaign, for people: the campaign in a sentence, the fits against mass flow
+    rate, the runs (each linking to its own report; sortable), the warnings and errors in a box,
+    captioned figures, the model against the measurements, the provenance folded at the end."""
     cols = [(c, h, d) for c, h, d in RUN_COLUMNS if c in tab]
-    rows = [[_cell(r[c], d) for c, _, d in cols] for _, r in tab.iterrows()]
-    links = "".join(f'<li><a href="runs/{html.escape(str(r))}/report.html">{html.escape(str(r))}</a></li>'
-                    for r, s in zip(tab.run, tab.status, strict=True) if s == "ok")
+    head = "".join(f"<th class='sort{' n' if d is not None else ''}'>{html.escape(h)}</th>" for _, h, d in cols)
+    body_rows = []
+    for _, r in tab.iterrows():
+        cells = []
+        for c, _, d in cols:
+            text = html.escape(_cell(r[c], d))
+            if c == "scale_source" and ":" in text:  # the kind in the table, the whole sentence on hover
+                text = f'<span title="{text}">{text.split(":")[0]}</span>'
+            if c == "run" and r.get("status") == "ok":
+                text = f'<a href="runs/{html.escape(str(r[c]))}/report.html">{text}</a>'
+            v = r[c]
+            sort = "" if d is None or pd.isna(v) else f' data-v="{float(v)}"'
+            klass = ' class="n"' if d is not None else ""
+            cells.append(f"<td{klass}{sort}>{text}</td>")
+        body_rows.append("<tr>" + "".join(cells) + "</tr>")
+    runs_table = (f'<table class="sortable"><thead><tr>{head}</tr></thead>'
+                  f'<tbody>{"".join(body_rows)}</tbody></table>')
     fit_rows = []
     for g, f in fits.items():
         c = f.get("celerity") or {}
@@ -53,16 +69,31 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
                     notes.append(f"<li><b>{html.escape(str(r['run']))}</b> ({what}): {html.escape(line)}</li>")
     inputs = {r: {"movie": m, "sha256_sampled": h} for r, m, h in
               zip(tab.run, tab.movie, tab.get("input_sha256_sampled", [None] * len(tab)), strict=True)}
-    body = ("<h2>Runs</h2>" + table([h for _, h, _ in cols], rows)
-            + "<p>Celerity is positive downstream (plugs climbing the tube are negative); "
-              "lengths along the tube; “—”: not measured.</p>"
-            + (f'<h2>Warnings and errors</h2><ul class="note">{"".join(notes)}</ul>' if notes else "")
-            + f"<p>Per-run reports:</p><ul>{links}</ul>"
+    n_ok = int((tab.status == "ok").sum())
+    n_fail = len(tab) - n_ok
+    regimes = tab[tab.status == "ok"].regime.value_counts() if "regime" in tab else pd.Series(dtype=int)
+    said = ", ".join(f"{int(n)} {k}" for k, n in regimes.items()) or "none measured"
+    sentence = (f"{len(tab)} runs: {n_ok} analysed ({said})"
+                + (f", {n_fail} failed (see below)" if n_fail else "") + ".")
+    captions = {"celerity_vs_mass_flow.png": "Celerity of the plugs against the mass flow rate, each run with its "
+                "95 % interval, each group's least-squares line and its 95 % band.",
+                "length_vs_mass_flow.png": "Mean plug length against the mass flow rate, with each run's 95 % "
+                "interval; the dotted line is 10 D."}
+    figs = "".join(f"<figure>{images(folder, [n])}<figcaption>{html.escape(captions.get(n, ''))}"
+                   "</figcaption></figure>" for n in figures)
+    prov = provenance({k: v for k, v in meta.items() if k not in ("fits", "model_vs_experiment")}
+                      | {"inputs": inputs})
+    body = (f'<p class="sentence">{html.escape(sentence)}</p>'
+            + (f'<div class="warnbox"><h2>Warnings and errors</h2><ul>{"".join(notes)}</ul></div>' if notes else "")
             + "<h2>Fits against mass flow rate</h2>"
             + table(["group", "slope (m/s per g/s)", "± se", "intercept (m/s)", "± se", "R²", "n",
                      "mean λ (mm)", "sd λ (mm)", "λ/D"], fit_rows)
-            + "<h2>Figures</h2>" + images(folder, figures)
+            + "<h2>Figures</h2>" + (figs or "<p>No figures.</p>")
+            + "<h2>Runs</h2><p>Click a run for its own report, a column to sort. Celerity is positive downstream "
+              "(plugs climbing the tube are negative); lengths along the tube; “—”: not measured.</p>"
+            + runs_table
             + ("" if panel is None else panel_html(panel, "model_vs_experiment.png"))
-            + provenance({k: v for k, v in meta.items() if k not in ("fits", "model_vs_experiment")}
-                         | {"inputs": inputs}))
+            + prov.replace("<h2>Provenance</h2><pre>", "<details><summary>Provenance (version, manifest, inputs)"
+                           "</summary><pre>").replace("</pre>", "</pre></details>")
+            + SORT_JS)
     return page("grainplug campaign", body)

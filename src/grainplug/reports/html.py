@@ -59,7 +59,7 @@ def number(value: object, decimals: int = 3) -> str:
     """A number as people read it in a table: fixed decimals, a minus sign, "—" when missing."""
     import math
 
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+    if value is None or type(value).__name__ == "NAType" or (isinstance(value, float) and not math.isfinite(value)):
         return "—"
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return str(value)
