@@ -119,16 +119,18 @@ def test_a_moved_movie_is_said_and_the_rest_still_works(copy, tmp_path):
 
 def test_http_answers_errors_as_json(copy):
     with ReviewServer(copy) as srv:
-        runs = json.loads(urllib.request.urlopen(srv.url + "api/runs").read())
-        assert runs == {"runs": ["run1"]}
+        with urllib.request.urlopen(srv.url + "api/runs") as r:
+            assert json.loads(r.read()) == {"runs": ["run1"]}
         req = urllib.request.Request(srv.url + "api/run/run1/edit", data=b'{"action": "merge", "track": 1}',
                                      headers={"Content-Type": "application/json"})
         with pytest.raises(urllib.error.HTTPError) as err:
             urllib.request.urlopen(req)
-        assert err.value.code == 400 and "merge needs other" in json.loads(err.value.read())["error"]
+        with err.value:  # an error response holds its connection until closed
+            assert err.value.code == 400 and "merge needs other" in json.loads(err.value.read())["error"]
         with pytest.raises(urllib.error.HTTPError) as err:
             urllib.request.urlopen(srv.url + "api/run/nope/state")
-        assert err.value.code == 400
+        with err.value:
+            assert err.value.code == 400
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
@@ -184,7 +186,8 @@ def test_review_command_serves_until_ctrl_c(analysis):
         line = proc.stdout.readline()
         url = line.split()[1]
         assert url.startswith("http://127.0.0.1:")
-        assert json.loads(urllib.request.urlopen(url + "api/runs", timeout=10).read()) == {"runs": ["run1"]}
+        with urllib.request.urlopen(url + "api/runs", timeout=10) as r:
+            assert json.loads(r.read()) == {"runs": ["run1"]}
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=20)
     finally:

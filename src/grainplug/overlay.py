@@ -163,7 +163,9 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
     from fractions import Fraction
 
     with movie, atomic_file(target) as tmp:
-        offset = _offset(movie, p)
+        from .pipeline import window_start
+
+        offset = window_start(movie, p)
         container = av.open(str(tmp), mode="w", format="mp4")
         try:
             stream = None
@@ -185,12 +187,3 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
         finally:
             container.close()
     return target
-
-
-def _offset(movie: object, params: object) -> int:
-    if getattr(params, "start_frame", None) is not None:
-        return int(params.start_frame)  # type: ignore[attr-defined]
-    if getattr(params, "start_s", None) is not None:
-        fps = getattr(params, "fps", None) or movie.info.fps  # type: ignore[attr-defined]
-        return int(math.ceil(params.start_s * fps - 1e-6))  # type: ignore[attr-defined]
-    return 0

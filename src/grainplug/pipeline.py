@@ -184,8 +184,7 @@ def _window(movie: Movie, params: AnalysisParams) -> Movie:
     if (params.start_s is not None or params.end_s is not None) and not fps:
         raise ParameterError("a window in seconds needs the frame rate — give fps, or the window in frames",
                              param="start_s" if params.start_s is not None else "end_s")
-    start = params.start_frame if params.start_frame is not None else (
-        math.ceil(params.start_s * fps - 1e-6) if params.start_s is not None else 0)
+    start = window_start(movie, params)
     stop = params.end_frame if params.end_frame is not None else (
         math.ceil(params.end_s * fps - 1e-6) if params.end_s is not None else n)
     stop = min(stop, n)
@@ -229,6 +228,15 @@ def _other_moving_regions(frames: list[np.ndarray], tube: TubeGeometry) -> list[
     return [f"the frames change as much around {name} = {int(where.min())}-{int(where.max())} px as in the tube "
             f"analysed (at {name} = {float(axis.mean()):.0f} px): a second tube? Only this one is analysed — "
             "give --roi X0,Y0,X1,Y1 to choose"]
+
+
+def window_start(movie: Movie, params: AnalysisParams) -> int:
+    """The movie frame that is frame 0 of an analysis made with ``params`` (its ``--start``; 0 without one)."""
+    if params.start_frame is not None:
+        return int(params.start_frame)
+    if params.start_s is not None:
+        return math.ceil(params.start_s * (params.fps or movie.info.fps) - 1e-6)
+    return 0
 
 
 def _roi(movie: Movie, params: AnalysisParams) -> Movie:

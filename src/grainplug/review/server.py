@@ -126,7 +126,9 @@ class ReviewSession:
                 try:
                     p = run.result.params
                     run.movie = open_movie(path, fps=p.fps, glob=p.glob, allow_truncated=True)
-                    run.offset = _window_start(run.movie, p)
+                    from ..pipeline import window_start
+
+                    run.offset = window_start(run.movie, p)
                 except (GrainplugError, OSError) as exc:
                     run.movie_error = f"cannot open the movie {path}: {exc}"
         return run.movie
@@ -228,18 +230,6 @@ class ReviewSession:
 
         run = self.run(name)
         run.result = remeasure(run.folder)
-
-
-def _window_start(movie: Any, params: Any) -> int:
-    """First movie frame of the analysis' window (0 without one)."""
-    import math
-
-    if params.start_frame is not None:
-        return int(params.start_frame)
-    if params.start_s is not None:
-        fps = params.fps or movie.info.fps
-        return int(math.ceil(params.start_s * fps - 1e-6))
-    return 0
 
 
 def _excluded(corr: Corrections) -> set[int]:
