@@ -226,7 +226,7 @@ def test_compiled_step_equals_the_numpy_reference(setup, kind):
     n, dx = 64, 0.3
     bc = Boundary(kind, inlet_c=0.5, inlet_v=0.9, P_end=cl.P0) if kind != "periodic" else Boundary()
     integ = Integrator(cl, n, dx, bc)
-    consts = _kernel.pack(cl, bc.kind, integ._inlet, bc.P_end, dx)
+    consts = _kernel.pack(cl, bc.kind, integ.inlet, bc.P_end, dx)
     for _ in range(3):
         c = np.clip(0.55 + 0.05 * rng.standard_normal(n), 0.3, 0.63)
         v = 0.8 + 0.5 * rng.standard_normal(n)

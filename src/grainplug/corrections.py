@@ -98,6 +98,17 @@ class Corrections:
     def describe(self) -> list[str]:
         return [e.describe() for e in self.edits]
 
+    @property
+    def excluded(self) -> frozenset[int]:
+        """Tracks excluded once every edit is replayed (a merged track's exclusion goes with it)."""
+        out: set[int] = set()
+        for e in self.edits:
+            if e.action == "exclude":
+                out.add(e.track)
+            elif e.action in ("restore", "merge"):
+                out.discard(e.track if e.action == "restore" else e.other)
+        return frozenset(out)
+
     def as_dict(self) -> dict[str, object]:
         return {"format": "grainplug-corrections", "format_version": FORMAT_VERSION,
                 "edits": [e.as_dict() for e in self.edits]}
@@ -164,18 +175,11 @@ class _State:
 
 def _replay(runs: Runs, links: Tracks, corr: Corrections) -> _State:
     track = links.run_track.astype(np.int64).copy()
-    excluded: set[int] = set()
     window: tuple[float | None, float | None] = (None, None)
     spans: list[tuple[float, float]] = []
     for e in corr.edits:
-        if e.action == "exclude":
-            excluded.add(e.track)
-        elif e.action == "restore":
-            excluded.discard(e.track)
-        elif e.action == "merge":
+        if e.action == "merge":
             track[track == e.other] = e.track
-            if e.other in excluded:
-                excluded.discard(e.other)
         elif e.action == "split":
             new = int(track.max()) + 1 if track.size else 0
             track[(track == e.track) & (runs.frame >= e.frame)] = new
@@ -183,9 +187,9 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections) -> _State:
             window = (e.start_s, e.end_s)
         elif e.action == "no_plugs":
             spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
-        else:
+        elif e.action == "clear_no_plugs":
             spans.clear()
-    return _State(track, frozenset(excluded), window, tuple(spans))
+    return _State(track, corr.excluded, window, tuple(spans))
 
 
 def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks) -> Tracks:

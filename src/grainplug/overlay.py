@@ -25,6 +25,7 @@ import numpy as np
 from .errors import GrainplugError, ParameterError
 from .params import runs_backwards
 from .plotting import palette
+from .plotting.figures import crop_box
 from .plotting.palette import bgr
 
 if TYPE_CHECKING:
@@ -34,18 +35,6 @@ if TYPE_CHECKING:
 RED, BLUE, ORANGE, WHITE = bgr(palette.UPPER), bgr(palette.LOWER), bgr(palette.WALL), (255, 255, 255)
 #: default output frame rate when no slow-down is given: at most this many frames per second
 DEFAULT_MAX_FPS = 30.0
-
-
-def crop_box(res: AnalysisResult) -> tuple[int, int]:
-    """Columns (vertical tube) or rows (horizontal) ``[lo, hi)`` kept around the tube."""
-    tube = res.tube
-    h = tube.canonical_shape[0]
-    ends = tube.axis_x(np.array([0.0, h - 1.0]))
-    margin = 6 * tube.inner_diameter_px + 10
-    width = tube.canonical_shape[1]
-    lo = int(max(0, math.floor(ends.min() - margin)))
-    hi = int(min(width, math.ceil(ends.max() + margin) + 1))
-    return lo, hi
 
 
 def analysed_region(res: AnalysisResult, frame: np.ndarray) -> np.ndarray:

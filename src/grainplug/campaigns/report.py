@@ -82,7 +82,7 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
     figs = "".join(f"<figure>{images(folder, [n])}<figcaption>{html.escape(captions.get(n, ''))}"
                    "</figcaption></figure>" for n in figures)
     prov = provenance({k: v for k, v in meta.items() if k not in ("fits", "model_vs_experiment")}
-                      | {"inputs": inputs})
+                      | {"inputs": inputs}, folded="Provenance (version, manifest, inputs)")
     body = (f'<p class="sentence">{html.escape(sentence)}</p>'
             + (f'<div class="warnbox"><h2>Warnings and errors</h2><ul>{"".join(notes)}</ul></div>' if notes else "")
             + "<h2>Fits against mass flow rate</h2>"
@@ -93,7 +93,6 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
               "(plugs climbing the tube are negative); lengths along the tube; “—”: not measured.</p>"
             + runs_table
             + ("" if panel is None else panel_html(panel, "model_vs_experiment.png"))
-            + prov.replace("<h2>Provenance</h2><pre>", "<details><summary>Provenance (version, manifest, inputs)"
-                           "</summary><pre>").replace("</pre>", "</pre></details>")
+            + prov
             + SORT_JS)
     return page("grainplug campaign", body)

@@ -101,6 +101,16 @@ def plot_spectrum(res: AnalysisResult) -> Figure:
     return fig
 
 
+def crop_box(res: AnalysisResult) -> tuple[int, int]:
+    """Columns (vertical tube) or rows (horizontal) ``[lo, hi)`` shown around the tube: six diameters
+    either side, not the whole sensor (the annotated frame, the overlay video)."""
+    tube = res.tube
+    h, width = tube.canonical_shape[:2]
+    ends = tube.axis_x(np.array([0.0, h - 1.0]))
+    margin = 6 * tube.inner_diameter_px + 10
+    return int(max(0, np.floor(ends.min() - margin))), int(min(width, np.ceil(ends.max() + margin) + 1))
+
+
 def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None,
                          index: int | None = None) -> Figure:
     """One frame with the detected tube (inner walls, axis) and plugs (edges), the paper's Fig 4.
@@ -114,11 +124,7 @@ def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None
     tube = res.tube
     h = tube.canonical_shape[0]
     vertical = tube.orientation == "vertical"
-    # show the tube and its surroundings (six diameters either side), not the whole sensor
-    axis_ends = tube.axis_x(np.array([0.0, h - 1.0]))
-    margin = 6 * tube.inner_diameter_px + 10
-    lo = int(max(0, np.floor(axis_ends.min() - margin)))
-    hi = int(np.ceil(axis_ends.max() + margin)) + 1
+    lo, hi = crop_box(res)
     crop = frame[:, lo:hi] if vertical else frame[lo:hi]
     img = crop.astype(np.float32)
     if img.ndim == 3:

@@ -79,9 +79,14 @@ def table(header: list[str], rows: list[list[object]]) -> str:
     return f"<table><tr>{head}</tr>{body}</table>"
 
 
-def provenance(data: dict) -> str:
+def provenance(data: dict, *, folded: str | None = None) -> str:
+    """The provenance as JSON with the time it was written; ``folded``: inside a closed ``<details>``
+    with this summary line instead of under a heading."""
     data = {**data, "generated": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
-    return f"<h2>Provenance</h2><pre>{html.escape(json.dumps(data, indent=2, default=str))}</pre>"
+    text = f"<pre>{html.escape(json.dumps(data, indent=2, default=str))}</pre>"
+    if folded:
+        return f"<details><summary>{html.escape(folded)}</summary>{text}</details>"
+    return f"<h2>Provenance</h2>{text}"
 
 
 def with_uncertainty(value: float | None, lo: float | None, hi: float | None, *, scale: float = 1.0) -> str:
@@ -117,14 +122,12 @@ def _regime_sentence(res: AnalysisResult) -> str:
     m = res.motion
     if m is None:
         return res.statement or "No plug could be followed over time."
-    speed = abs(m.celerity_m_s) * 1000
     lo, hi = m.celerity_ci95_m_s
     way = "climb the tube (against the flow)" if m.celerity_m_s < 0 else "move down the tube (with the flow)"
     rng = with_uncertainty(abs(m.celerity_m_s), abs(lo), abs(hi), scale=1000)
     if m.regime == "oscillating" and m.oscillation_frequency_hz:
         return (f"Oscillating regime: the plugs oscillate at {m.oscillation_frequency_hz:.2f} Hz "
                 f"(amplitude {m.oscillation_amplitude_mm:.2f} mm) while they {way} at {rng} mm/s on average.")
-    del speed
     return f"Propagative regime: the plugs {way} at a steady {rng} mm/s."
 
 
@@ -172,8 +175,7 @@ def _plug_table(res: AnalysisResult) -> str:
     return f'<table class="sortable"><thead>{head}</thead><tbody>{"".join(body)}</tbody></table>'
 
 
-def _details(res: AnalysisResult) -> str:
-    s = res.summary
+def _details(res: AnalysisResult, s: dict) -> str:
     D = res.params.tube_diameter_mm
     rows = [
         ("scale", f"{number(res.mm_per_px, 5)} mm/px ± {number(100 * res.scale_rel_sd, 2)} %"),
@@ -200,11 +202,11 @@ CAPTIONS = (
 )
 
 
-def run_report(res: AnalysisResult, folder: Path) -> str:
+def run_report(res: AnalysisResult, folder: Path, *, summary: dict | None = None) -> str:
     """HTML text of the report of one analysis (figures read from ``folder``): headline numbers rounded to
     their uncertainty, the regime in a sentence, warnings and corrections in boxes, a sortable table of the
     plugs, captioned figures, details, and the provenance folded at the end."""
-    s = res.summary
+    s = summary if summary is not None else res.summary
     name = Path(res.info.path).name if res.info.path else "frames in memory"
     warnings = "".join(f"<li>{html.escape(w)}</li>" for w in res.warnings)
     if warnings:
@@ -219,9 +221,9 @@ def run_report(res: AnalysisResult, folder: Path) -> str:
     figs = "".join(
         f"<figure>{_img(folder / f)}<figcaption>{html.escape(c)}</figcaption></figure>"
         for f, c in CAPTIONS if (folder / f).exists())
-    prov = {"grainplug_version": s["grainplug_version"], "input": s["input"],
-            "parameters": s["parameters"], "movie": s["movie"],
-            "generated": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
+    prov = provenance({"grainplug_version": s["grainplug_version"], "input": s["input"],
+                       "parameters": s["parameters"], "movie": s["movie"]},
+                      folded="Provenance (version, input, parameters)")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>grainplug: {html.escape(name)}</title>
 <style>{_CSS}</style></head><body>
@@ -235,10 +237,9 @@ def run_report(res: AnalysisResult, folder: Path) -> str:
 <p>One row per plug followed over time; click a column to sort. Celerity: the slope of its upper edge;
 length: the median over the frames where both edges are in view.</p>
 {_plug_table(res)}
-<h2>How it was measured</h2>{_details(res)}
+<h2>How it was measured</h2>{_details(res, s)}
 <p>Positions in mm along the tube from the upstream end of the view, increasing with the flow;
 celerity positive downstream (plugs climbing the tube are negative).</p>
-<details><summary>Provenance (version, input, parameters)</summary>
-<pre>{html.escape(json.dumps(prov, indent=2, default=str))}</pre></details>
+{prov}
 {_SORT_JS}
 </body></html>"""

@@ -137,14 +137,13 @@ class ReviewSession:
     def state(self, name: str) -> dict[str, object]:
         run = self.run(name)
         res = run.result
+        from ..result import track_rows
+
         s = res.summary
-        tracks = res.tracks
-        excluded = _excluded(run.corrections)
-        detected_runs, detected_links = res.detected if res.detected is not None else (res.runs, res.links)
-        rows = []
-        for _, t in tracks.iterrows():
-            rows.append({k: (None if isinstance(v, float) and not np.isfinite(v) else
-                             (v.item() if hasattr(v, "item") else v)) for k, v in t.items()})
+        excluded = run.corrections.excluded
+        detected_links = res.detected[1] if res.detected is not None else res.links
+        rows = [{k: None if isinstance(v, float) and not np.isfinite(v) else v for k, v in r.items()}
+                for r in track_rows(res)]
         shown = {int(r["plug_id"]) for r in rows}
         for tid in sorted(excluded - shown):
             rows.append({"plug_id": tid, "n_frames": int(np.sum(detected_links.run_track == tid)), "excluded": True})
@@ -159,7 +158,6 @@ class ReviewSession:
             edges[int(tid)] = {"t": _list(t[res.runs.frame[sel]]), "top": _list(res.runs.top_mm[sel]),
                                "bottom": _list(res.runs.bottom_mm[sel])}
         self._movie(run)
-        del detected_runs
         return {
             "run": name, "runs": list(self.targets),
             "measures": {k: s.get(k) for k in ("regime", "celerity_m_s", "celerity_ci95_m_s", "plug_length_mm",
@@ -230,16 +228,6 @@ class ReviewSession:
 
         run = self.run(name)
         run.result = remeasure(run.folder)
-
-
-def _excluded(corr: Corrections) -> set[int]:
-    out: set[int] = set()
-    for e in corr.edits:
-        if e.action == "exclude":
-            out.add(e.track)
-        elif e.action == "restore":
-            out.discard(e.track)
-    return out
 
 
 def _list(a: np.ndarray) -> list[float | None]:

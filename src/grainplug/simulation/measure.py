@@ -80,8 +80,8 @@ class SimulationMeasures:
     def as_dict(self) -> dict[str, object]:
         return {"from_t_tc": self.t_from_tc, "regime": self.regime, "celerity_m_s": self.celerity_m_s,
                 "frequency_hz": self.frequency_hz, "plug_length_mm": self.plug_length_mm,
-                "bubble_length_mm": self.bubble_length_mm, "n_tracks": int(self.measures.links.n_tracks)
-                if hasattr(self.measures.links, "n_tracks") else None, "statement": self.measures.statement}
+                "bubble_length_mm": self.bubble_length_mm, "n_tracks": len(self.measures.links),
+                "statement": self.measures.statement}
 
 
 def measure(res: SimulationResult, *, t_from_tc: float | None = None, px_per_D: int = 16) -> SimulationMeasures:

@@ -230,28 +230,22 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
     totals[0] = U[0].sum() * params.dx, U[2].sum() * params.dx
     t, steps, t0 = 0.0, 0, time.perf_counter()
     c_peak = float(U[0].max())
-    kernel = None
     if params.engine == "numba":
         from . import _kernel
 
-        consts = _kernel.pack(closure, bc.kind, integ._inlet, bc.P_end, params.dx)
-        kernel = _kernel.advance
+        consts = _kernel.pack(closure, bc.kind, integ.inlet, bc.P_end, params.dx)
+
+        def advance(U: np.ndarray, t: float, t_end: float) -> tuple[np.ndarray, float, int]:
+            return _kernel.advance(U, t, t_end, params.cfl, consts)
+    else:
+        def advance(U: np.ndarray, t: float, t_end: float) -> tuple[np.ndarray, float, int]:
+            return integ.advance(U, t, t_end, params.cfl)
     for j in range(1, n_out):
-        if kernel is not None:
-            U, t, n = kernel(U, t, float(times[j]), params.cfl, consts)
-            if n < 0:
-                raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (non-finite wave speed): "
-                                     "try more cells or a smaller --cfl")
-            steps += n
-        while kernel is None and t < times[j] - 1e-12:
-            speed = integ.max_speed(U)
-            if not math.isfinite(speed):
-                raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (non-finite wave speed): "
-                                     "try more cells or a smaller --cfl")
-            dt = min(params.cfl * params.dx / speed, times[j] - t)
-            U = integ.step(U, dt)
-            t += dt
-            steps += 1
+        U, t, n = advance(U, t, float(times[j]))
+        if n < 0:
+            raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (non-finite wave speed): "
+                                 "try more cells or a smaller --cfl")
+        steps += n
         fields[j] = np.stack(closure.primitive(U))
         totals[j] = U[0].sum() * params.dx, U[2].sum() * params.dx
         c_peak = max(c_peak, float(U[0].max()))

@@ -101,7 +101,7 @@ class Integrator:
         self.bc = boundary or Boundary()
         self.periodic = self.bc.kind == "periodic"
         # inlet ghost state (open pipe)
-        self._inlet = np.array([self.bc.inlet_c, self.bc.inlet_c * self.bc.inlet_v,
+        self.inlet = np.array([self.bc.inlet_c, self.bc.inlet_c * self.bc.inlet_v,
                                 float(closure.air_density(np.array(self.bc.P_end))) * (1 - self.bc.inlet_c)])
 
     # -- ghost cells ---------------------------------------------------------------
@@ -112,7 +112,7 @@ class Integrator:
         # inlet: the fed grains with air at the end pressure; outlet: copy the last cell
         # (zero gradient) so that grains and air leave freely
         left = (np.repeat(U[:, :1], g, axis=1) if self.bc.kind == "outflow"
-                else np.repeat(self._inlet[:, None], g, axis=1))
+                else np.repeat(self.inlet[:, None], g, axis=1))
         right = np.repeat(U[:, -1:], g, axis=1)
         return np.concatenate([left, U, right], axis=1)
 
@@ -142,7 +142,7 @@ class Integrator:
         span = np.where(span > 0, span, 1.0)
         H = (ap * fl - am * fr + ap * am * (ur - ul)) / span
         if self.bc.kind == "open":  # the feed: exactly the fed grains enter, whatever waves leave upward
-            H[0, 0] = self._inlet[1]
+            H[0, 0] = self.inlet[1]
         return H
 
     def hyperbolic_rate(self, U: np.ndarray) -> np.ndarray:
@@ -183,8 +183,8 @@ class Integrator:
         return np.stack([c, np.where(c > C_FLOOR, c * v1, 0.0), m])
 
     # -- air diffusion ------------------------------------------------------------------
-    def _diffusion_parts(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Face coefficients ``D`` (``n + 1`` faces), cell pressures ``P`` and ``J = dP/dm``, padded ``P``."""
+    def _diffusion_parts(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Face coefficients ``D`` (``n + 1`` faces), ``J = dP/dm`` of the cells, and ``P`` padded with the ends."""
         cl = self.cl
         c, _, m = U
         r = m / (1 - c)
@@ -202,7 +202,7 @@ class Integrator:
         elif self.bc.kind == "outflow":
             D[[0, -1]] = 0.0
         J = cl.gamma * P / np.maximum(m, 1e-300)
-        return D, P, J, P_ext
+        return D, J, P_ext
 
     def _laplacian(self, D: np.ndarray, x_ext: np.ndarray) -> np.ndarray:
         flux = -D * np.diff(x_ext) / self.dx
@@ -237,7 +237,7 @@ class Integrator:
 
     def diffusion(self, U: np.ndarray, dt: float) -> np.ndarray:
         """TR-BDF2 step of the air's Darcy flux (the increments are flux differences: air is conserved)."""
-        D, _, J, P_ext = self._diffusion_parts(U)
+        D, J, P_ext = self._diffusion_parts(U)
         LP = self._laplacian(D, P_ext)
         beta = _BETA * dt
         dg = self._solve(D, J, beta, _G2 * dt * LP)
@@ -246,7 +246,22 @@ class Integrator:
         out[2] = U[2] + d
         return out
 
-    # -- one step --------------------------------------------------------------------
+    # -- steps --------------------------------------------------------------------
+    def advance(self, U: np.ndarray, t: float, t_end: float, cfl: float) -> tuple[np.ndarray, float, int]:
+        """Steps of CFL-limited length from ``t`` to exactly ``t_end``: the state, the time reached and the
+        number of steps (negative, with the time it stopped, when the state blew up), as
+        :func:`grainplug.simulation._kernel.advance`."""
+        steps = 0
+        while t < t_end - 1e-12:
+            speed = self.max_speed(U)
+            if not math.isfinite(speed) or speed <= 0:
+                return U, t, -1 - steps
+            dt = min(cfl * self.dx / speed, t_end - t)
+            U = self.step(U, dt)
+            t += dt
+            steps += 1
+        return U, t, steps
+
     def step(self, U: np.ndarray, dt: float) -> np.ndarray:
         """One Strang-split step of length ``dt``."""
         U = self.sources(U, 0.5 * dt)
