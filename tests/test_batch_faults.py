@@ -329,3 +329,49 @@ def test_a_run_that_kills_its_worker_fails_alone(campaign, tmp_path, monkeypatch
     assert status == {f"r{i}": "failed" if i == 2 else "ok" for i in range(N_RUNS)}
     assert "died twice" in camp.table.set_index("run").loc["r2", "error"]
     assert camp.n_failed == 1 and camp.worker_deaths >= 3
+
+
+def _workers_of(pid: int) -> list[int]:
+    """The batch's worker processes (forked: the same command line as the batch)."""
+    cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
+    kids = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+    return [int(k) for k in kids if Path(f"/proc/{k}/cmdline").read_bytes() == cmd]
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
+def test_workers_stopped_again_and_again_mid_run_leave_nothing_behind(campaign, undisturbed, tmp_path):
+    """The executor terminates every worker again when one ends: a worker hit by SIGTERM while it
+    removes its temporary folder must still remove it whole (the batch itself, paused, cannot)."""
+    out = tmp_path / "out"
+    proc = start(campaign, out, "--workers", "2")
+
+    def writing() -> list[str]:
+        runs = out / "runs"
+        return [p.name for p in runs.iterdir() if ".grainplug-new-" in p.name] if runs.is_dir() else []
+
+    end = time.monotonic() + 60
+    while time.monotonic() < end and not writing():
+        time.sleep(0.005)
+    workers = _workers_of(proc.pid)
+    assert workers and writing(), "no worker process found writing"
+    os.kill(proc.pid, signal.SIGSTOP)  # the batch cannot clean up after them nor start new workers
+    try:
+        storm_end = time.monotonic() + 0.5
+        while time.monotonic() < storm_end:  # SIGTERM again and again, as from the executor and the batch
+            for w in workers:
+                try:
+                    os.kill(w, signal.SIGTERM)
+                except ProcessLookupError:
+                    pass
+        for w in workers:
+            end = time.monotonic() + 10
+            while Path(f"/proc/{w}/status").exists() and "zombie" not in Path(f"/proc/{w}/status").read_text() \
+                    and time.monotonic() < end:
+                time.sleep(0.01)
+        left = writing()
+    finally:
+        os.kill(proc.pid, signal.SIGCONT)
+    assert not left, "a stopped worker left its temporary folder"
+    code, _, err = finish(proc)
+    assert code == 0, err
+    assert (out / "campaign.csv").read_bytes() == undisturbed

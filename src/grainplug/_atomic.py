@@ -146,7 +146,7 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _recover(out: Path) -> None:
+def recover(out: Path) -> None:
     """Clean what a killed run left beside ``out``; put back a previous result caught mid-swap."""
     parent, name = out.parent, out.name
     if not parent.is_dir():
@@ -197,7 +197,7 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
     out = check_output_place(out_dir, inputs=inputs, replace=replace)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        _recover(out)
+        recover(out)
         if replace:
             tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.grainplug-new-{os.getpid()}-", dir=out.parent))
         else:

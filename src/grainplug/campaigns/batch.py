@@ -301,7 +301,31 @@ def _dask_client(address: str):
 
 
 class _Stop(SystemExit):
-    """Raised in a worker by SIGTERM: unwinds (temporary folders removed), then the worker ends."""
+    """Raised in a worker by SIGTERM during a run: unwinds (temporary folders removed), then the worker ends."""
+
+
+class _StopOnTerm:
+    """A worker's SIGTERM handler, and the state of its stop.
+
+    Idle (between runs, or in the executor's own code), the worker ends at once: it has
+    nothing to clean, and an exception raised there would be caught by the executor and
+    sent to the batch as a run's result. During a run, :class:`_Stop` unwinds it so the
+    run's temporary folder is removed. Only the first SIGTERM acts: the executor terminates
+    every worker again when one of them ends, and a second exception raised while the
+    first unwinds would cut the removal short.
+    """
+
+    def __init__(self) -> None:
+        self.in_run = False
+        self.stopping = False
+
+    def __call__(self, signum: int, frame: object) -> None:
+        if self.stopping:
+            return
+        self.stopping = True
+        if not self.in_run:
+            os._exit(143)
+        raise _Stop(143)
 
 
 def _worker_start(parent_pid: int) -> None:
@@ -312,11 +336,7 @@ def _worker_start(parent_pid: int) -> None:
     import time
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-    def stop(signum: int, frame: object) -> None:
-        raise _Stop(143)
-
-    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGTERM, _StopOnTerm())
 
     def watch() -> None:  # ends with the worker's main thread, or stops the worker when orphaned
         main = threading.main_thread()
@@ -330,10 +350,25 @@ def _worker_start(parent_pid: int) -> None:
 
 
 def _worker_run(spec: RunSpec, out_dir: str, **kw: object) -> dict[str, object]:
+    import signal
+
+    stop = signal.getsignal(signal.SIGTERM)
+    if not isinstance(stop, _StopOnTerm):  # not in a worker started by _worker_start
+        return process_run(spec, out_dir, threads=1, **kw)
+    stop.in_run = True
     try:
         return process_run(spec, out_dir, threads=1, **kw)
-    except _Stop:  # the run's temporary folder is gone (unwound): end the process, take no more work
+    except _Stop:
+        from .._atomic import recover
+
+        # the run unwound (its temporary folder removed); also what a stop between the folder's
+        # creation and its cleanup block left
+        recover(Path(out_dir) / "runs" / run_folder_name(spec.run))
         os._exit(143)
+    finally:
+        stop.in_run = False
+        if stop.stopping:  # a stop swallowed on the way (by a library's handler): end now all the same
+            os._exit(143)
 
 
 def _in_pool(specs: list[RunSpec], out: str, *, workers: int, done: Callable[[dict], None],
