@@ -6,9 +6,11 @@ import csv
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 from test_cli_basics import assert_one_line_error, run
 
+from grainplug.result import EDGE_SCHEMA, TABLES_SCHEMA_VERSION, TRACK_SCHEMA
 from grainplug.synthetic import SynthConfig, synthesize
 
 
@@ -44,6 +46,11 @@ def test_outputs(tmp_path, capsys, movie):
     with open(out / "tracks.csv") as fh:
         tracks = list(csv.DictReader(fh))
     assert {"plug_id", "first_frame", "last_frame", "celerity_m_s", "mean_length_mm"} <= set(tracks[0])
+    for name, schema in (("plug_edges.csv", EDGE_SCHEMA), ("tracks.csv", TRACK_SCHEMA)):
+        table = pd.read_csv(out / name)  # read with no hints: every column in its documented type
+        read = {c: "string" if pd.api.types.is_string_dtype(t) else str(t) for c, t in table.dtypes.items()}
+        assert read == {c: d for c, (d, _) in schema.items()}, name
+    assert on_disk["tables_schema_version"] == TABLES_SCHEMA_VERSION
     z = np.load(out / "diagram.npz")
     assert z["values"].shape == (200, len(z["position_mm"]))
     assert len(z["time_s"]) == 200

@@ -1,4 +1,5 @@
-"""The README's Python examples, run as they are written, in order, in one namespace."""
+"""The docs against the code: the README's Python examples, run as written, in order, in one namespace;
+the tables documented."""
 
 from __future__ import annotations
 
@@ -35,3 +36,14 @@ def test_readme_python_examples_run(tmp_path, monkeypatch):
     assert (tmp_path / "out" / "sample" / "result.npz").exists()
     res = namespace["res"]
     assert res.info.format.startswith("array") and res.has_plugs
+
+
+def test_the_tables_documented_are_the_tables_written():
+    from grainplug.result import EDGE_SCHEMA, TRACK_SCHEMA
+
+    text = (ROOT / "docs" / "analysis.md").read_text()
+    for name, schema in (("plug_edges.csv", EDGE_SCHEMA), ("tracks.csv", TRACK_SCHEMA)):
+        section = text.split(f"`{name}`:\n\n", 1)[1].split("\n\n", 1)[0]
+        documented = [line.split("|")[1:4] for line in section.splitlines()[2:]]
+        assert [(c.strip().strip("`"), d.strip(), m.strip()) for c, d, m in documented] == \
+            [(c, d, m) for c, (d, m) in schema.items()], name

@@ -40,7 +40,7 @@ FILES = {
 
 
 def edges_table(res: AnalysisResult) -> str:
-    """CSV of the plug edges per frame: frame, time_s, plug_id, top_mm, bottom_mm."""
+    """CSV of the plug edges per frame (:data:`grainplug.result.EDGE_SCHEMA`)."""
     r = res.runs
     t = res.diagram.time_s[r.frame]
 
@@ -52,20 +52,25 @@ def edges_table(res: AnalysisResult) -> str:
     rows = np.stack([r.frame.astype(str), np.char.mod("%.6f", t), res.links.run_track.astype(str),
                      col(r.top_mm, "%.4f"), col(r.bottom_mm, "%.4f")], axis=1) if len(r) else np.empty((0, 5), str)
     lines = [",".join(row) for row in rows.tolist()]
-    return "frame,time_s,plug_id,top_mm,bottom_mm\n" + "".join(line + "\n" for line in lines)
+    from .result import EDGE_SCHEMA
+
+    return ",".join(EDGE_SCHEMA) + "\n" + "".join(line + "\n" for line in lines)
 
 
 def tracks_table(res: AnalysisResult) -> str:
-    """CSV with one row per plug track (:func:`grainplug.result.track_rows`), empty where NaN."""
+    """CSV with one row per plug track (:func:`grainplug.result.track_rows`), empty where NaN; columns
+    and types in :data:`grainplug.result.TRACK_SCHEMA`."""
     from .result import TRACK_COLUMNS, track_rows
 
     formats = {"first_time_s": "{:.6f}", "last_time_s": "{:.6f}", "celerity_m_s": "{:.6f}",
-               "mean_length_mm": "{:.4f}", "median_length_mm": "{:.4f}", "composite": "{:d}"}
+               "mean_length_mm": "{:.4f}", "median_length_mm": "{:.4f}"}
 
     def cell(key: str, v: object) -> object:
         if isinstance(v, float) and not np.isfinite(v):
             return ""
-        return formats[key].format(int(v) if key == "composite" else v) if key in formats else v
+        if isinstance(v, (bool, np.bool_)):
+            return "True" if v else "False"  # as pandas writes and reads a bool column
+        return formats[key].format(v) if key in formats else v
 
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")

@@ -317,9 +317,38 @@ class AnalysisResult:
 
 
 #: columns of :attr:`AnalysisResult.tracks` and ``tracks.csv``
-TRACK_COLUMNS = ("plug_id", "first_frame", "last_frame", "first_time_s", "last_time_s", "n_frames",
-                 "n_frames_whole", "celerity_m_s", "mean_length_mm", "median_length_mm", "started_by",
-                 "ended_by", "composite")
+#: version of the run's tables (``plug_edges.csv``, ``tracks.csv``; in ``summary.json``): it changes
+#: whenever a column changes meaning or type
+TABLES_SCHEMA_VERSION = 1
+
+#: ``plug_edges.csv``: column -> (type as ``pandas.read_csv`` reads it, meaning)
+EDGE_SCHEMA: dict[str, tuple[str, str]] = {
+    "frame": ("int64", "frame index in the movie"),
+    "time_s": ("float64", "time of the frame, s"),
+    "plug_id": ("int64", "the plug's track (tracks.csv)"),
+    "top_mm": ("float64", "upstream edge, mm from the upstream end of the view; empty where cut by the view"),
+    "bottom_mm": ("float64", "downstream edge, mm; empty where cut by the view"),
+}
+
+#: ``tracks.csv``: column -> (type as ``pandas.read_csv`` reads it: int64, float64, bool or string; meaning)
+TRACK_SCHEMA: dict[str, tuple[str, str]] = {
+    "plug_id": ("int64", "the track's id (plug_edges.csv)"),
+    "first_frame": ("int64", "first frame it is seen in"),
+    "last_frame": ("int64", "last frame it is seen in"),
+    "first_time_s": ("float64", "time of its first frame, s"),
+    "last_time_s": ("float64", "time of its last frame, s"),
+    "n_frames": ("int64", "frames it is seen in"),
+    "n_frames_whole": ("int64", "frames where both its edges are in view"),
+    "celerity_m_s": ("float64", "slope of its upstream edge (downstream edge if fewer seen), m/s, positive "
+                                "downstream; empty with fewer than two edges"),
+    "mean_length_mm": ("float64", "mean length over the frames where it is whole, mm; empty if never whole"),
+    "median_length_mm": ("float64", "median of the same, mm"),
+    "started_by": ("string", "start (first frame), entered (the view), merge or split"),
+    "ended_by": ("string", "end (last frame), left (the view), merge or split"),
+    "composite": ("bool", "True when born of a merge or ended by a split (left out of length averages)"),
+}
+
+TRACK_COLUMNS = tuple(TRACK_SCHEMA)
 
 
 def track_rows(res: AnalysisResult) -> list[dict[str, Any]]:
@@ -396,6 +425,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
     plug_len = ln.plug_length_mm if ln else None
     return {
         "grainplug_version": __version__,
+        "tables_schema_version": TABLES_SCHEMA_VERSION,
         "input": res.input,
         "movie": res.info.as_dict(),
         "parameters": res.params.as_record(),
