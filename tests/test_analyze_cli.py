@@ -182,3 +182,35 @@ def test_publication_figures_png_svg_pdf_at_200_dpi(movie, tmp_path, capsys):
     code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "y", "--style", "no-such-style")
     assert_one_line_error(code, err, "--style", "no-such-style")
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
+def test_progress_on_a_terminal_counts_to_the_real_total(tmp_path):
+    """In a terminal, the progress bar counts the frames of the window analysed, to their real total."""
+    import os
+    import pty
+    import re
+    import subprocess
+    import sys
+
+    movie = synthesize(SynthConfig(n_frames=150, seed=3), tmp_path / "m", fmt="tiff").movie
+    master, slave = pty.openpty()
+    proc = subprocess.Popen([sys.executable, "-m", "grainplug", "analyze", str(movie), "--out", str(tmp_path / "o"),
+                             "--start", "20", "--end", "130", "--no-figures"],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=slave,
+                            env={**os.environ, "MPLBACKEND": "Agg", "TERM": "xterm", "COLUMNS": "120"})
+    os.close(slave)
+    seen = bytearray()
+    while True:
+        try:
+            chunk = os.read(master, 1 << 16)
+        except OSError:  # the terminal closed with the process
+            break
+        if not chunk:
+            break
+        seen += chunk
+    os.close(master)
+    assert proc.wait(timeout=120) == 0, seen.decode(errors="replace")
+    counts = [(int(a), int(b)) for a, b in re.findall(rb"(\d+)/(\d+) frames", bytes(seen))]
+    assert counts, seen.decode(errors="replace")
+    assert {total for _, total in counts} == {110}  # the window, not the movie's 150
+    assert counts[-1] == (110, 110), counts
