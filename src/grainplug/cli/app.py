@@ -260,7 +260,6 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
 
     from .._atomic import check_output_place
     from ..params import AnalysisParams
-    from ..pipeline import analyze as run_analysis
     from ..plotting.worker import FigureWorker
 
     check_output_place(out, inputs=[movie], replace=True)  # before the analysis, not after it
@@ -288,8 +287,11 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_,
                             allow_truncated=allow_truncated, calibration=cal, background=light, roi=roi_px,
                             **_window_params(start, end))
-    # the figures' worker starts now: it imports matplotlib while the frames stream
+    # the figures' worker starts now, before the analysis' own imports: it imports matplotlib
+    # while the tube is found and the frames stream
     with FigureWorker() if not no_figures else contextlib.nullcontext() as figure_worker:
+        from ..pipeline import analyze as run_analysis
+
         with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
                       TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
                       console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
