@@ -43,6 +43,7 @@ from grainplug.synthetic import SynthConfig, synthesize
 #: PYTHONDONTWRITEBYTECODE set would have every module compiled again at each start, ~0.1 s)
 USER_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
+
 def movie_config(n_frames: int, *, horizontal: bool = False) -> SynthConfig:
     # 1280 px along the tube (the paper's 237 mm field of view at 0.185 mm/px), 1024 across;
     # horizontal: the same view with the camera turned a quarter (1280 x 1024 landscape frames)
