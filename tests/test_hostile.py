@@ -210,7 +210,9 @@ def test_hostile_movies(tmp_path, capsys, frames, kind):
     ("m.csv", b"run,movie\n..,movie.tif\n", "column run: '..' cannot name a run's folder"),
     ("m.csv", b"run,movie\na/b,movie.tif\n", "column run: 'a/b' cannot name a run's folder"),
     ("m.csv", b"run,movie\na b,movie.tif\na_b,movie.tif\n", "would share the folder runs/a_b"),
-    ("m.csv", b'run,movie\n"a,movie.tif\n', "not valid CSV"),
+    ("m.csv", b'run,movie\nr0,movie.tif\n"a,movie.tif\nr2,movie.tif\n', "m.csv, line 3: not valid CSV"),
+    # a record is named by the line it starts on, though a quoted field spans two
+    ("m.csv", b'run,movie,mm_per_px\nr0,movie.tif,0.1\nr1,"movie\n.tif",abc\n', "m.csv, line 3, column mm_per_px"),
     ("m.csv", b"run,movie,fps\na,movie.tif,inf\n", "m.csv, line 2, column fps"),
     ("m.csv", b"run,movie\na,movie.tif,extra\n", "more values than the header"),
 ])

@@ -169,13 +169,16 @@ def read_manifest(path: str | Path) -> list[RunSpec]:
         import io
 
         reader = csv.DictReader(io.StringIO(text, newline=""), strict=True)
+        start = 1  # the line where the record being read starts (a quoted field may span lines)
         try:
             if not reader.fieldnames or "movie" not in reader.fieldnames:
                 raise ParameterError(f"{p}: the header has no 'movie' column — see `grainplug batch --help`")
+            start = reader.line_num + 1
             for row in reader:
-                specs.append(_spec(dict(row), len(specs) + 1, base, f"{p.name}, line {reader.line_num}"))
+                specs.append(_spec(dict(row), len(specs) + 1, base, f"{p.name}, line {start}"))
+                start = reader.line_num + 1
         except csv.Error as exc:
-            raise ParameterError(f"{p}, line {reader.line_num}: not valid CSV ({exc}) — check the quotes") from None
+            raise ParameterError(f"{p}, line {start}: not valid CSV ({exc}) — check the quotes") from None
     if not specs:
         raise ParameterError(f"{p} lists no runs")
     names = [s.run for s in specs]
