@@ -152,3 +152,38 @@ def test_batch_honours_each_runs_corrections(movie, tmp_path):
     third = gp.run_campaign(manifest, out, figures=False)  # nothing changed: plain reuse
     assert third.n_reused == 1 and third.table.celerity_m_s.tolist() == second.table.celerity_m_s.tolist()
     assert np.isfinite(third.table.celerity_m_s.iloc[0])
+
+
+def test_an_edit_replayed_on_another_analysis_never_falls_on_another_plug(movie, result):
+    """Edits keep where their tracks were: replayed on a re-analysis whose tracker numbered the
+    plugs otherwise, an edit whose track is now another plug is not applied, and a warning says so;
+    on a re-analysis of another window, the same plug keeps the edit."""
+    rows = result.tracks.set_index("plug_id")
+    short = int(rows.median_length_mm.idxmin())  # the shorter of the two whole plugs
+    corr = Corrections().add("exclude", track=short, on=result)
+    trace = corr.edits[0].track_trace
+    assert trace[0][0] == pytest.approx(rows.first_time_s[short])
+    same = apply_corrections(gp.analyze(movie.movie), corr)  # the same analysis again: the edit applies
+    assert short not in set(same.links.run_track) and not [w for w in same.warnings if "no longer fits" in w]
+    # a larger --min-plug-mm drops the shorter plug: the tracker gives its number to another plug
+    fewer = gp.analyze(movie.movie, min_plug_mm=float(rows.median_length_mm[short]) + 1)
+    assert short in set(fewer.links.run_track), "the number is not reused: the test shows nothing"
+    applied = apply_corrections(fewer, corr)
+    assert len(applied.runs) == len(fewer.runs)  # nothing excluded: that number is another plug here
+    [note] = [w for w in applied.warnings if "no longer fits" in w]
+    assert f"excluded track {short}" in note and "was not applied" in note
+    again = apply_corrections(applied, corr)  # replaying again does not repeat the warning
+    assert sum("no longer fits" in w for w in again.warnings) == 1
+    # another window of the same movie: the plug that entered late is excluded there too
+    late = int(rows.first_time_s.idxmax())
+    corr_late = Corrections().add("exclude", track=late, on=result)
+    window = apply_corrections(gp.analyze(movie.movie, start_frame=100), corr_late)
+    assert late not in set(window.links.run_track) and not [w for w in window.warnings if "no longer fits" in w]
+    # the file keeps the traces (format 2) and reads back; format 1 files (no traces) are replayed as they are
+    back = Corrections.from_dict(json.loads(json.dumps(corr.as_dict())))
+    assert back == corr and corr.as_dict()["format_version"] == 2
+    old = Corrections.from_dict({"format": "grainplug-corrections", "format_version": 1,
+                                 "edits": [{"action": "exclude", "track": short, "at": ""}]})
+    assert short not in set(apply_corrections(fewer, old).links.run_track)
+    with pytest.raises(ParameterError, match="no track 999"):
+        Corrections().add("exclude", track=999, on=result)

@@ -93,7 +93,9 @@ def test_edits_are_kept_at_once_and_measures_recomputed(copy):
         assert after["measures"]["n_edges_used"] < before["n_edges_used"]
         assert [t["excluded"] for t in after["tracks"] if t["plug_id"] == tid] == [True]
         kept = json.loads((copy / "corrections.json").read_text())
-        assert kept["edits"][0] == {"action": "exclude", "track": tid, "at": kept["edits"][0]["at"]}
+        edit = kept["edits"][0]
+        assert {k: edit[k] for k in ("action", "track")} == {"action": "exclude", "track": tid}
+        assert edit["track_trace"][0][0] == pytest.approx(after["tracks"][0]["first_time_s"])  # where it was
         with pytest.raises(ParameterError, match="unknown correction"):
             s.edit("run1", {"action": "explode"})
         s.save("run1")  # the outputs, as grainplug remeasure

@@ -22,6 +22,16 @@ functions as the analysis, without reading the movie again.
 The file ``corrections.json`` beside an analysis holds the edits (format
 :data:`FORMAT_VERSION`); ``grainplug remeasure DIR`` reapplies it, and ``grainplug
 batch`` honours it for every run.
+
+An edit made on an analysis (``Corrections.add(..., on=result)``, as the review page
+does) also keeps where each track it names was: the centre of the plug (mm along the
+tube) at the track's first, middle and last frame. Replayed on another analysis of the
+run (the movie or the parameters changed, and the tracker may have numbered the plugs
+otherwise), the edit is applied only if, at each of those times inside the analysis, the
+plug nearest to the kept centre (and within :data:`TRACE_TOLERANCE_MM`) belongs to the
+track of that number; otherwise it is not applied and the result says so in a warning: a
+reviewer's exclusion never falls on another plug. Edits without this trace (format 1, or
+made without ``on``) are replayed as they are.
 """
 
 from __future__ import annotations
@@ -39,10 +49,15 @@ from .measures import measure_lengths, measure_motion
 from .plugs import Runs, Tracks
 
 if TYPE_CHECKING:
+    from .diagram import Diagram
     from .result import AnalysisResult
 
-#: version of the format of ``corrections.json``
-FORMAT_VERSION = 1
+#: version of the format of ``corrections.json`` (2: where the tracks were; 1 is read too)
+FORMAT_VERSION = 2
+#: how far (mm along the tube) a plug may be from where an edit saw its track, and still be it
+TRACE_TOLERANCE_MM = 10.0
+#: the start of the warnings about edits not applied (replaced at each replay)
+NOT_APPLIED = "a correction no longer fits this analysis"
 CORRECTIONS_FILE = "corrections.json"
 ACTIONS = ("exclude", "restore", "merge", "split", "window", "no_plugs", "clear_no_plugs")
 
@@ -57,6 +72,8 @@ class Edit:
     frame: int = -1
     start_s: float | None = None
     end_s: float | None = None
+    track_trace: tuple[tuple[float, float], ...] | None = None
+    other_trace: tuple[tuple[float, float], ...] | None = None
     at: str = ""
 
     def describe(self) -> str:
@@ -76,8 +93,11 @@ class Edit:
         return "cleared the spans marked as not plugs"
 
     def as_dict(self) -> dict[str, object]:
-        return {k: v for k, v in dataclasses.asdict(self).items()
-                if v not in (-1, None) or k in ("action", "at")}
+        out = {k: v for k, v in dataclasses.asdict(self).items() if v not in (-1, None) or k in ("action", "at")}
+        for k in ("track_trace", "other_trace"):
+            if k in out:
+                out[k] = [[round(float(t), 6), round(float(x), 4)] for t, x in out[k]]  # type: ignore[union-attr]
+        return out
 
 
 @dataclass(frozen=True)
@@ -86,9 +106,25 @@ class Corrections:
 
     edits: tuple[Edit, ...] = field(default=())
 
-    def add(self, action: str, *, at: str | None = None, **args: object) -> Corrections:
-        """A copy with one more edit (checked); ``at`` defaults to now."""
+    def add(self, action: str, *, at: str | None = None, on: AnalysisResult | None = None,
+            **args: object) -> Corrections:
+        """A copy with one more edit (checked); ``at`` defaults to now.
+
+        ``on``: the analysis the edit is made on (with these corrections applied or not):
+        the edit then keeps where each track it names was, and is not applied to another
+        analysis whose track of that number is another plug.
+        """
         edit = _edit(action, at=at or datetime.now(UTC).isoformat(timespec="seconds"), **args)
+        if on is not None and action in ("exclude", "restore", "merge", "split"):
+            runs, links = on.detected if on.detected is not None else (on.runs, on.links)
+            st = _replay(runs, links, self, on.diagram)
+            traces = {}
+            for name, tid in (("track_trace", edit.track), ("other_trace", edit.other)):
+                if tid >= 0:
+                    traces[name] = _trace(runs, st.run_track, on.diagram, tid)
+                    if not traces[name]:
+                        raise ParameterError(f"{action}: there is no track {tid}")
+            edit = dataclasses.replace(edit, **traces)
         return Corrections((*self.edits, edit))
 
     def undo(self) -> Corrections:
@@ -100,14 +136,11 @@ class Corrections:
 
     @property
     def excluded(self) -> frozenset[int]:
-        """Tracks excluded once every edit is replayed (a merged track's exclusion goes with it)."""
-        out: set[int] = set()
-        for e in self.edits:
-            if e.action == "exclude":
-                out.add(e.track)
-            elif e.action in ("restore", "merge"):
-                out.discard(e.track if e.action == "restore" else e.other)
-        return frozenset(out)
+        """Tracks excluded once every edit is replayed (a merged track's exclusion goes with it).
+
+        What the edits ask; :func:`excluded_tracks` gives what was applied to an analysis.
+        """
+        return _excluded(self.edits)
 
     def as_dict(self) -> dict[str, object]:
         return {"format": "grainplug-corrections", "format_version": FORMAT_VERSION,
@@ -153,6 +186,17 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
     for k, v in ints.items():
         if v < 0:
             raise ParameterError(f"{action}: {k} must be >= 0")
+    spans = {}
+    for k in ("track_trace", "other_trace"):
+        v = args.get(k)
+        if v is not None:
+            try:
+                pts = tuple((float(t), float(x)) for t, x in v)  # type: ignore[union-attr, misc]
+            except (TypeError, ValueError):
+                raise ParameterError(f"{action}: {k} must be a list of [time_s, position_mm] pairs") from None
+            if not pts or not all(math.isfinite(t) and math.isfinite(x) for t, x in pts):
+                raise ParameterError(f"{action}: {k} must hold finite [time_s, position_mm] pairs")
+            spans[k] = pts
     times = {k: (None if args.get(k) is None else float(args[k])) for k in ("start_s", "end_s")}  # type: ignore[arg-type]
     for k, v in times.items():
         if v is not None and not math.isfinite(v):
@@ -162,7 +206,59 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
                              f"({times['start_s']:g} s)")
     if action == "merge" and ints["track"] == ints["other"]:
         raise ParameterError("merge: a track cannot be merged into itself")
-    return Edit(action, at=at, **ints, **times)
+    return Edit(action, at=at, **ints, **times, **spans)
+
+
+def _excluded(edits: tuple[Edit, ...] | list[Edit]) -> frozenset[int]:
+    out: set[int] = set()
+    for e in edits:
+        if e.action == "exclude":
+            out.add(e.track)
+        elif e.action in ("restore", "merge"):
+            out.discard(e.track if e.action == "restore" else e.other)
+    return frozenset(out)
+
+
+def _centres(runs: Runs, diagram: Diagram) -> np.ndarray:
+    """Centre of every run, mm along the tube."""
+    pos = diagram.position_mm
+    return 0.5 * (pos[runs.start] + pos[np.maximum(runs.stop - 1, runs.start)])
+
+
+def _trace(runs: Runs, track: np.ndarray, diagram: Diagram, tid: int) -> tuple[tuple[float, float], ...]:
+    """Where track ``tid`` was: (time, centre mm) at its first, middle and last frame (empty: no such track)."""
+    sel = np.flatnonzero(track == tid)
+    if not sel.size:
+        return ()
+    order = sel[np.argsort(runs.frame[sel], kind="stable")]
+    picks = sorted({order[0], order[len(order) // 2], order[-1]})
+    centre = _centres(runs, diagram)
+    # rounded as in the file, so that an edit read back equals the edit made
+    return tuple((round(float(diagram.time_s[runs.frame[i]]), 6), round(float(centre[i]), 4)) for i in picks)
+
+
+def _fits(runs: Runs, track: np.ndarray, diagram: Diagram, tid: int,
+          kept: tuple[tuple[float, float], ...] | None) -> bool:
+    """Whether track ``tid`` is the plug an edit saw at ``kept`` (no trace: yes)."""
+    if kept is None:
+        return True
+    t = diagram.time_s
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    centre = _centres(runs, diagram)
+    checked = 0
+    for when, where in kept:
+        k = int(np.clip(np.searchsorted(t, when), 0, len(t) - 1))
+        k = min((k, max(k - 1, 0)), key=lambda j: abs(t[j] - when))
+        if abs(t[k] - when) > 1.5 * dt + 1e-9:
+            continue  # outside this analysis (another window): nothing to compare
+        here = np.flatnonzero(runs.frame == k)
+        if not here.size:
+            return False
+        near = here[np.argmin(np.abs(centre[here] - where))]
+        if track[near] != tid or abs(centre[near] - where) > TRACE_TOLERANCE_MM:
+            return False
+        checked += 1
+    return checked > 0
 
 
 @dataclass(frozen=True)
@@ -171,13 +267,27 @@ class _State:
     excluded: frozenset[int]
     window: tuple[float | None, float | None]
     spans: tuple[tuple[float, float], ...]
+    not_applied: tuple[str, ...] = ()
 
 
-def _replay(runs: Runs, links: Tracks, corr: Corrections) -> _State:
+def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _State:
     track = links.run_track.astype(np.int64).copy()
     window: tuple[float | None, float | None] = (None, None)
     spans: list[tuple[float, float]] = []
-    for e in corr.edits:
+    applied: list[Edit] = []
+    skipped: list[str] = []
+    for k, e in enumerate(corr.edits, 1):
+        if e.action in ("exclude", "restore", "merge", "split"):
+            ok = _fits(runs, track, diagram, e.track, e.track_trace)
+            if e.action == "merge":
+                ok = ok and _fits(runs, track, diagram, e.other, e.other_trace)
+            if not ok:
+                seen = " and ".join(f"{trace[0][0]:.3f}–{trace[-1][0]:.3f} s" for trace in
+                                    filter(None, (e.track_trace, e.other_trace)))
+                skipped.append(f"edit {k}, {e.describe()} (made on plugs seen {seen}), was not applied: "
+                               "the track of that number is another plug now")
+                continue
+        applied.append(e)
         if e.action == "merge":
             track[track == e.other] = e.track
         elif e.action == "split":
@@ -189,7 +299,15 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections) -> _State:
             spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
         elif e.action == "clear_no_plugs":
             spans.clear()
-    return _State(track, corr.excluded, window, tuple(spans))
+    return _State(track, _excluded(applied), window, tuple(spans), tuple(skipped))
+
+
+def excluded_tracks(res: AnalysisResult) -> frozenset[int]:
+    """The tracks of ``res`` its corrections exclude (edits that no longer fit it left out)."""
+    if res.corrections is None:
+        return frozenset()
+    runs, links = res.detected if res.detected is not None else (res.runs, res.links)
+    return _replay(runs, links, res.corrections, res.diagram).excluded
 
 
 def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks) -> Tracks:
@@ -216,7 +334,7 @@ def apply_corrections(res: AnalysisResult, corr: Corrections) -> AnalysisResult:
     ``apply_corrections(apply_corrections(r, a), b)`` is ``apply_corrections(r, b)``.
     """
     runs, links = res.detected if res.detected is not None else (res.runs, res.links)
-    st = _replay(runs, links, corr)
+    st = _replay(runs, links, corr, res.diagram)
     t = res.diagram.time_s[runs.frame]
     keep = ~np.isin(st.run_track, np.fromiter(st.excluded, np.int64, len(st.excluded)))
     lo, hi = st.window
@@ -239,6 +357,8 @@ def apply_corrections(res: AnalysisResult, corr: Corrections) -> AnalysisResult:
         statement = "" if motion is not None else "plugs were seen but no plug edge could be followed over time"
     elif res.has_plugs:
         statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
+    warnings = [w for w in res.warnings if not w.startswith(NOT_APPLIED)]  # those of an earlier replay go
+    warnings += [f"{NOT_APPLIED}: {note} — review the run again" for note in st.not_applied]
     return dataclasses.replace(res, runs=new_runs, links=new_links, motion=motion, lengths=lengths,
                                has_plugs=has_plugs, statement=statement, detected=(runs, links),
-                               corrections=corr)
+                               corrections=corr, warnings=warnings)

@@ -109,10 +109,14 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
     try:
         res = analyze(spec.movie, spec.params, threads=threads)
         if corr is not None and corr.edits:
-            res = apply_corrections(res, corr)
-            res = dataclasses.replace(res, warnings=[*res.warnings, (
-                f"{len(corr.edits)} corrections from an earlier analysis of this run were applied again "
-                "(corrections.json): the movie or parameters changed, check that they still fit the tracks")])
+            res = apply_corrections(res, corr)  # edits that keep where their tracks were are checked there
+            unchecked = sum(e.action in ("exclude", "restore", "merge", "split") and e.track_trace is None
+                            for e in corr.edits)
+            if unchecked:
+                res = dataclasses.replace(res, warnings=[*res.warnings, (
+                    f"{unchecked} corrections of tracks from an earlier analysis of this run were applied again "
+                    "by their numbers (corrections.json, written without where the tracks were): the movie or "
+                    "parameters changed, check that they still fit the tracks")])
         write_outputs(res, run_dir, figures=figures, report=figures, extra=extra, figure_options=figure_options)
         return {**record, "status": "ok", "reused": False, **_flat(res.summary)}
     except GrainplugError as exc:

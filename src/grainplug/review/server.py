@@ -40,7 +40,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from .._atomic import atomic_file
-from ..corrections import CORRECTIONS_FILE, Corrections, apply_corrections
+from ..corrections import CORRECTIONS_FILE, Corrections, apply_corrections, excluded_tracks
 from ..errors import GrainplugError, ParameterError
 from ..jsonio import dumps
 from ..result import AnalysisResult
@@ -140,7 +140,7 @@ class ReviewSession:
         from ..result import track_rows
 
         s = res.summary
-        excluded = run.corrections.excluded
+        excluded = excluded_tracks(res)
         detected_links = res.detected[1] if res.detected is not None else res.links
         rows = [{k: None if isinstance(v, float) and not np.isfinite(v) else v for k, v in r.items()}
                 for r in track_rows(res)]
@@ -217,7 +217,8 @@ class ReviewSession:
         if not isinstance(edit, dict) or "action" not in edit:
             raise ParameterError("an edit is a JSON object with an \"action\"")
         args = {k: v for k, v in edit.items() if k != "action"}
-        self._set(name, self.run(name).corrections.add(str(edit["action"]), **args))
+        run = self.run(name)  # the edit keeps the spans of its tracks in this analysis
+        self._set(name, run.corrections.add(str(edit["action"]), on=run.result, **args))
 
     def undo(self, name: str) -> None:
         self._set(name, self.run(name).corrections.undo())
