@@ -491,7 +491,8 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
               help="Simulated time in units of t_c = sqrt(D/g).")
 @click.option("--output-interval-tc", type=Number(1e-4, 1e7, unit="t_c"), default=0.5, show_default=True,
               help="Time between saved fields.")
-@click.option("--cfl", type=Number(0.01, 0.5), default=0.4, show_default=True, help="Courant number.")
+@click.option("--cfl", type=Number(0.01, 0.5), default=0.4, show_default=True,
+              help="Courant number of each Runge-Kutta stage (a step is 3 stages long).")
 @click.option("--noise", type=Number(0, 0.099), default=1e-9, show_default=True,
               help="Standard deviation of the initial compactness noise.")
 @click.option("--seed", type=Number(0, 2**32 - 1, integer=True), default=0, show_default=True,

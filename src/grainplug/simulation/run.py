@@ -51,7 +51,8 @@ class SimulationParams:
     output_interval_tc : float
         Time between saved fields.
     cfl : float
-        Courant number of the explicit fluxes (at most 0.5).
+        Courant number of each stage of the explicit fluxes (at most 0.5); a time step is
+        ``SSP_STAGES - 1`` such stages long (:mod:`grainplug.simulation.scheme`).
     noise : float
         Standard deviation of the initial compactness perturbation (white noise, zero
         mean: the grain content is exactly ``c0`` times the box).

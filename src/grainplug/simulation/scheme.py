@@ -12,8 +12,14 @@ of three second-order parts, so the step is second order:
 
 - ``H``, the hyperbolic fluxes: MUSCL reconstruction of ``(c, v, P)`` with the
   monotonized-central limiter, the central-upwind numerical flux of Kurganov, Noelle &
-  Petrova (2001) with the one-sided local speeds of :meth:`Closure.speeds`, and Heun's
-  two-stage strong-stability-preserving Runge-Kutta method;
+  Petrova (2001) with the one-sided local speeds of :meth:`Closure.speeds`, and the
+  optimal second-order strong-stability-preserving Runge-Kutta method of
+  :data:`SSP_STAGES` stages, SSPRK(s,2): ``s - 1`` forward-Euler stages of
+  ``dt / (s - 1)``, then ``U_new = U / s + (s - 1) / s (U_{s-1} + dt / (s - 1) L(U_{s-1}))``.
+  Each stage is a forward-Euler step under the Courant number ``cfl``, so the step is
+  ``s - 1`` times as long as one of Heun's method (``s = 2``) for ``s`` flux evaluations
+  instead of two: half the flux work, and a third of the diffusion and source work, per
+  unit time at ``s = 4``;
 - ``D``, Darcy diffusion of the air mass, implicit (TR-BDF2 with ``gamma = 2 - sqrt 2``,
   L-stable, second order), the pressure linearised about the start of the sub-step;
   with the atmospheric base pressure it is stiff by a factor of a thousand;
@@ -30,6 +36,8 @@ References
 A. Kurganov, S. Noelle, G. Petrova, SIAM J. Sci. Comput. 23 (2001) 707-740.
 R. J. LeVeque, Finite Volume Methods for Hyperbolic Problems (CUP, 2002), ch. 6, 17.
 R. E. Bank et al., IEEE Trans. CAD 4 (1985) 436 (TR-BDF2).
+S. Gottlieb, D. I. Ketcheson, C.-W. Shu, Strong Stability Preserving Runge-Kutta and
+Multistep Time Discretizations (World Scientific, 2011), §6.2 (SSPRK(s,2)).
 """
 
 from __future__ import annotations
@@ -48,6 +56,8 @@ _A = 1.0 / (_G2 * (2.0 - _G2))
 
 #: how many ghost cells sit at each end of the padded arrays
 N_GHOST = 2
+#: stages of the SSPRK(s,2) method of the fluxes (its step is ``SSP_STAGES - 1`` Courant-limited stages long)
+SSP_STAGES = 4
 
 
 @dataclass(frozen=True)
@@ -150,12 +160,16 @@ class Integrator:
         return -(H[:, 1:] - H[:, :-1]) / self.dx
 
     def hyperbolic(self, U: np.ndarray, dt: float) -> np.ndarray:
-        """Heun's SSP-RK2 step of the fluxes."""
-        U1 = U + dt * self.hyperbolic_rate(U)
-        U1[0] = np.clip(U1[0], 0.0, 1.0 - 1e-9)
-        U2 = 0.5 * (U + U1 + dt * self.hyperbolic_rate(U1))
-        U2[0] = np.clip(U2[0], 0.0, 1.0 - 1e-9)
-        return U2
+        """The SSPRK(s,2) step of the fluxes (``s`` = :data:`SSP_STAGES`)."""
+        s = SSP_STAGES
+        h = dt / (s - 1)
+        V = U
+        for _ in range(s - 1):
+            V = V + h * self.hyperbolic_rate(V)
+            V[0] = np.clip(V[0], 0.0, 1.0 - 1e-9)
+        out = U / s + (s - 1) / s * (V + h * self.hyperbolic_rate(V))
+        out[0] = np.clip(out[0], 0.0, 1.0 - 1e-9)
+        return out
 
     # -- sources ---------------------------------------------------------------------
     def sources(self, U: np.ndarray, dt: float) -> np.ndarray:
@@ -256,7 +270,7 @@ class Integrator:
             speed = self.max_speed(U)
             if not math.isfinite(speed) or speed <= 0:
                 return U, t, -1 - steps
-            dt = min(cfl * self.dx / speed, t_end - t)
+            dt = min((SSP_STAGES - 1) * cfl * self.dx / speed, t_end - t)
             U = self.step(U, dt)
             t += dt
             steps += 1
