@@ -24,14 +24,15 @@ BCS = {"periodic": 0, "open": 1, "outflow": 2}
 
 # indices into the constants array
 (K_C0, K_P0, K_GAMMA, K_KAPPA, K_COS, K_LAW, K_F0, K_ALPHA, K_K0, K_BAL, K_JAM, K_FR, K_CMIN, K_CMAX, K_BC,
- K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX) = range(20)
+ K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX, K_STAGES) = range(21)
 
 
 def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float) -> np.ndarray:
-    """The constants of one integration as a float array."""
+    """The constants of one integration as a float array (the scheme's constants too: a compiled
+    function keeps the value of a module global it read, even from its on-disk cache)."""
     return np.array([cl.c0, cl.P0, cl.gamma, cl.kappa, cl.cos_theta, LAWS[cl.law], cl.F0, cl.alpha, cl.K0,
                      cl.balance_force, 1.0 if cl.jamming else 0.0, cl.jam_fr, cl.jam_c_min, cl.jam_c_max,
-                     BCS[bc_kind], inlet[0], inlet[1], inlet[2], P_end, dx], dtype=np.float64)
+                     BCS[bc_kind], inlet[0], inlet[1], inlet[2], P_end, dx, SSP_STAGES], dtype=np.float64)
 
 
 @njit(cache=True, inline="always")
@@ -133,7 +134,7 @@ def _rate(U, k, Upad, W, out):
 def _hyperbolic(U, dt, k, Upad, W):
     """SSPRK(s,2), as :meth:`Integrator.hyperbolic`."""
     n = U.shape[1]
-    s = SSP_STAGES
+    s = int(k[K_STAGES])
     h = dt / (s - 1)
     R = np.empty((3, n))
     V = U.copy()
@@ -337,7 +338,7 @@ def advance(U, t, t_end, cfl, k):
         s = max_speed(U, k)
         if not math.isfinite(s) or s <= 0:
             return U, t, -1 - steps
-        dt = min((SSP_STAGES - 1) * cfl * dx / s, t_end - t)
+        dt = min((k[K_STAGES] - 1) * cfl * dx / s, t_end - t)
         U = step(U, dt, k)
         t += dt
         steps += 1
