@@ -187,3 +187,31 @@ def test_an_edit_replayed_on_another_analysis_never_falls_on_another_plug(movie,
     assert short not in set(apply_corrections(fewer, old).links.run_track)
     with pytest.raises(ParameterError, match="no track 999"):
         Corrections().add("exclude", track=999, on=result)
+
+
+def test_edits_replayed_on_another_window_keep_their_plug_and_their_time(movie, result):
+    """A split is kept by its time (another window numbers the frames otherwise); a window that
+    holds only the middle of a plug's life still finds the plug; a restore may name a track left
+    without plugs."""
+    rows = result.tracks.set_index("plug_id")
+    tid = int(rows.n_frames.idxmax())  # a plug seen over the whole movie
+    corr = Corrections().add("split", track=tid, frame=130, on=result)
+    t_split = float(result.diagram.time_s[130])
+    assert corr.edits[0].frame_time_s == pytest.approx(t_split)
+    later = gp.analyze(movie.movie, start_frame=20)
+    after = apply_corrections(later, corr)
+    assert not [w for w in after.warnings if "no longer fits" in w]
+    new_id = int(after.links.run_track.max())
+    new_first = after.diagram.time_s[after.runs.frame[after.links.run_track == new_id]].min()
+    assert new_first == pytest.approx(t_split)  # cut at 0.52 s, not at the window's frame 130
+    middle = gp.analyze(movie.movie, start_frame=84, end_frame=156)  # between the ends of every track
+    ex = Corrections().add("exclude", track=tid, on=result)
+    kept = apply_corrections(middle, ex)
+    assert not [w for w in kept.warnings if "no longer fits" in w]
+    assert len(kept.runs) < len(middle.runs)  # the plug was found and excluded there too
+    # a track emptied by a split at its first frame can still be restored from the page
+    first = int(result.runs.frame[result.links.run_track == tid].min())
+    emptied = Corrections().add("exclude", track=tid, on=result).add("split", track=tid, frame=first, on=result)
+    emptied.add("restore", track=tid, on=apply_corrections(result, emptied))
+    with pytest.raises(ParameterError, match="outside the analysis"):
+        Corrections().add("split", track=tid, frame=10_000, on=result)

@@ -25,7 +25,8 @@ batch`` honours it for every run.
 
 An edit made on an analysis (``Corrections.add(..., on=result)``, as the review page
 does) also keeps where each track it names was: the centre of the plug (mm along the
-tube) at the track's first, middle and last frame. Replayed on another analysis of the
+tube) at up to :data:`TRACE_POINTS` of its frames, evenly spread (and a split, the time
+of its frame: another window numbers the frames otherwise). Replayed on another analysis of the
 run (the movie or the parameters changed, and the tracker may have numbered the plugs
 otherwise), the edit is applied only if, at each of those times inside the analysis, the
 plug nearest to the kept centre (and within :data:`TRACE_TOLERANCE_MM`) belongs to the
@@ -56,6 +57,8 @@ if TYPE_CHECKING:
 FORMAT_VERSION = 2
 #: how far (mm along the tube) a plug may be from where an edit saw its track, and still be it
 TRACE_TOLERANCE_MM = 10.0
+#: how many of a track's frames an edit keeps its plug's place at
+TRACE_POINTS = 16
 #: the start of the warnings about edits not applied (replaced at each replay)
 NOT_APPLIED = "a correction no longer fits this analysis"
 CORRECTIONS_FILE = "corrections.json"
@@ -74,6 +77,7 @@ class Edit:
     end_s: float | None = None
     track_trace: tuple[tuple[float, float], ...] | None = None
     other_trace: tuple[tuple[float, float], ...] | None = None
+    frame_time_s: float | None = None
     at: str = ""
 
     def describe(self) -> str:
@@ -114,17 +118,25 @@ class Corrections:
         the edit then keeps where each track it names was, and is not applied to another
         analysis whose track of that number is another plug.
         """
+        if on is not None:  # the places are computed here, never taken from the caller
+            args = {k: v for k, v in args.items() if k not in ("track_trace", "other_trace", "frame_time_s")}
         edit = _edit(action, at=at or datetime.now(UTC).isoformat(timespec="seconds"), **args)
         if on is not None and action in ("exclude", "restore", "merge", "split"):
             runs, links = on.detected if on.detected is not None else (on.runs, on.links)
             st = _replay(runs, links, self, on.diagram)
-            traces = {}
+            extra: dict[str, object] = {}
             for name, tid in (("track_trace", edit.track), ("other_trace", edit.other)):
                 if tid >= 0:
-                    traces[name] = _trace(runs, st.run_track, on.diagram, tid)
-                    if not traces[name]:
+                    trace = _trace(runs, st.run_track, on.diagram, tid)
+                    if trace:
+                        extra[name] = trace
+                    elif action != "restore":  # a restore may name a track left without plugs
                         raise ParameterError(f"{action}: there is no track {tid}")
-            edit = dataclasses.replace(edit, **traces)
+            if action == "split":
+                if not 0 <= edit.frame < len(on.diagram.time_s):
+                    raise ParameterError(f"split: frame {edit.frame} is outside the analysis")
+                extra["frame_time_s"] = round(float(on.diagram.time_s[edit.frame]), 6)
+            edit = dataclasses.replace(edit, **extra)
         return Corrections((*self.edits, edit))
 
     def undo(self) -> Corrections:
@@ -197,6 +209,11 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
             if not pts or not all(math.isfinite(t) and math.isfinite(x) for t, x in pts):
                 raise ParameterError(f"{action}: {k} must hold finite [time_s, position_mm] pairs")
             spans[k] = pts
+    if args.get("frame_time_s") is not None:
+        ft = float(args["frame_time_s"])  # type: ignore[arg-type]
+        if not math.isfinite(ft):
+            raise ParameterError(f"{action}: frame_time_s must be a finite time in seconds")
+        spans["frame_time_s"] = ft
     times = {k: (None if args.get(k) is None else float(args[k])) for k in ("start_s", "end_s")}  # type: ignore[arg-type]
     for k, v in times.items():
         if v is not None and not math.isfinite(v):
@@ -226,39 +243,46 @@ def _centres(runs: Runs, diagram: Diagram) -> np.ndarray:
 
 
 def _trace(runs: Runs, track: np.ndarray, diagram: Diagram, tid: int) -> tuple[tuple[float, float], ...]:
-    """Where track ``tid`` was: (time, centre mm) at its first, middle and last frame (empty: no such track)."""
+    """Where track ``tid`` was: (time, centre mm) at up to :data:`TRACE_POINTS` of its frames (empty: no such track)."""
     sel = np.flatnonzero(track == tid)
     if not sel.size:
         return ()
     order = sel[np.argsort(runs.frame[sel], kind="stable")]
-    picks = sorted({order[0], order[len(order) // 2], order[-1]})
+    picks = order[np.unique(np.linspace(0, len(order) - 1, min(TRACE_POINTS, len(order))).round().astype(int))]
     centre = _centres(runs, diagram)
     # rounded as in the file, so that an edit read back equals the edit made
     return tuple((round(float(diagram.time_s[runs.frame[i]]), 6), round(float(centre[i]), 4)) for i in picks)
 
 
-def _fits(runs: Runs, track: np.ndarray, diagram: Diagram, tid: int,
-          kept: tuple[tuple[float, float], ...] | None) -> bool:
-    """Whether track ``tid`` is the plug an edit saw at ``kept`` (no trace: yes)."""
-    if kept is None:
-        return True
-    t = diagram.time_s
+def _nearest_row(t: np.ndarray, when: float) -> int | None:
+    """The row of ``t`` at time ``when`` (None when no row is within 1.5 frame periods of it)."""
+    if not len(t):
+        return None
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    k = int(np.clip(np.searchsorted(t, when), 0, len(t) - 1))
+    k = min((k, max(k - 1, 0)), key=lambda j: abs(t[j] - when))
+    return k if abs(t[k] - when) <= 1.5 * dt + 1e-6 else None
+
+
+def _misfit(runs: Runs, track: np.ndarray, diagram: Diagram, tid: int,
+            kept: tuple[tuple[float, float], ...] | None) -> str | None:
+    """Why track ``tid`` is not the plug an edit saw at ``kept`` (None: it is, or nothing was kept)."""
+    if kept is None:
+        return None
     centre = _centres(runs, diagram)
     checked = 0
     for when, where in kept:
-        k = int(np.clip(np.searchsorted(t, when), 0, len(t) - 1))
-        k = min((k, max(k - 1, 0)), key=lambda j: abs(t[j] - when))
-        if abs(t[k] - when) > 1.5 * dt + 1e-9:
+        k = _nearest_row(diagram.time_s, when)
+        if k is None:
             continue  # outside this analysis (another window): nothing to compare
         here = np.flatnonzero(runs.frame == k)
         if not here.size:
-            return False
+            return f"track {tid}'s plug is not seen at {when:.3f} s now"
         near = here[np.argmin(np.abs(centre[here] - where))]
         if track[near] != tid or abs(centre[near] - where) > TRACE_TOLERANCE_MM:
-            return False
+            return f"track {tid} is another plug now"
         checked += 1
-    return checked > 0
+    return None if checked else f"track {tid}'s plug is outside this analysis"
 
 
 @dataclass(frozen=True)
@@ -277,22 +301,29 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
     applied: list[Edit] = []
     skipped: list[str] = []
     for k, e in enumerate(corr.edits, 1):
+        split_at = e.frame
         if e.action in ("exclude", "restore", "merge", "split"):
-            ok = _fits(runs, track, diagram, e.track, e.track_trace)
-            if e.action == "merge":
-                ok = ok and _fits(runs, track, diagram, e.other, e.other_trace)
-            if not ok:
+            why = _misfit(runs, track, diagram, e.track, e.track_trace)
+            if why is None and e.action == "merge":
+                why = _misfit(runs, track, diagram, e.other, e.other_trace)
+            if why is None and e.action == "split" and e.frame_time_s is not None:
+                row = _nearest_row(diagram.time_s, e.frame_time_s)  # the same time, whatever the window
+                if row is None:
+                    why = f"its time, {e.frame_time_s:.3f} s, is outside this analysis"
+                else:
+                    split_at = row
+            if why is not None:
                 seen = " and ".join(f"{trace[0][0]:.3f}–{trace[-1][0]:.3f} s" for trace in
                                     filter(None, (e.track_trace, e.other_trace)))
-                skipped.append(f"edit {k}, {e.describe()} (made on plugs seen {seen}), was not applied: "
-                               "the track of that number is another plug now")
+                made = f" (made on plugs seen {seen})" if seen else ""
+                skipped.append(f"edit {k}, {e.describe()}{made}, was not applied: {why}")
                 continue
         applied.append(e)
         if e.action == "merge":
             track[track == e.other] = e.track
         elif e.action == "split":
             new = int(track.max()) + 1 if track.size else 0
-            track[(track == e.track) & (runs.frame >= e.frame)] = new
+            track[(track == e.track) & (runs.frame >= split_at)] = new
         elif e.action == "window":
             window = (e.start_s, e.end_s)
         elif e.action == "no_plugs":

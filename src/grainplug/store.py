@@ -18,8 +18,8 @@ import numpy as np
 
 from .errors import GrainplugError
 
-#: version of the layout of ``result.npz``
-FORMAT_VERSION = 1
+#: version of the layout of ``result.npz`` (2: corrections keep where their tracks were; 1 is read too)
+FORMAT_VERSION = 2
 RESULT_FILE = "result.npz"
 
 

@@ -359,9 +359,11 @@ def _worker_run(spec: RunSpec, out_dir: str, **kw: object) -> dict[str, object]:
     stop = signal.getsignal(signal.SIGTERM)
     if not isinstance(stop, _StopOnTerm):  # not in a worker started by _worker_start
         return process_run(spec, out_dir, threads=1, **kw)
-    stop.in_run = True
-    try:
-        return process_run(spec, out_dir, threads=1, **kw)
+    try:  # the flag inside the try: a stop caught at any point of the run is handled here, not by the pool
+        stop.in_run = True
+        record = process_run(spec, out_dir, threads=1, **kw)
+        stop.in_run = False
+        return record
     except _Stop:
         from .._atomic import recover
 
