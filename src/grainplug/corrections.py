@@ -63,6 +63,8 @@ TRACE_POINTS = 16
 NOT_APPLIED = "a correction no longer fits this analysis"
 CORRECTIONS_FILE = "corrections.json"
 ACTIONS = ("exclude", "restore", "merge", "split", "window", "no_plugs", "clear_no_plugs")
+#: the actions that name tracks (by their number, checked against where they were when traced)
+TRACK_ACTIONS = ("exclude", "restore", "merge", "split")
 
 
 @dataclass(frozen=True)
@@ -121,13 +123,14 @@ class Corrections:
         if on is not None:  # the places are computed here, never taken from the caller
             args = {k: v for k, v in args.items() if k not in ("track_trace", "other_trace", "frame_time_s")}
         edit = _edit(action, at=at or datetime.now(UTC).isoformat(timespec="seconds"), **args)
-        if on is not None and action in ("exclude", "restore", "merge", "split"):
+        if on is not None and action in TRACK_ACTIONS:
             runs, links = on.detected if on.detected is not None else (on.runs, on.links)
             st = _replay(runs, links, self, on.diagram)
+            centre = _centres(runs, on.diagram)
             extra: dict[str, object] = {}
             for name, tid in (("track_trace", edit.track), ("other_trace", edit.other)):
                 if tid >= 0:
-                    trace = _trace(runs, st.run_track, on.diagram, tid)
+                    trace = _trace(runs, st.run_track, on.diagram.time_s, centre, tid)
                     if trace:
                         extra[name] = trace
                     elif action != "restore":  # a restore may name a track left without plugs
@@ -198,7 +201,7 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
     for k, v in ints.items():
         if v < 0:
             raise ParameterError(f"{action}: {k} must be >= 0")
-    spans = {}
+    places: dict[str, object] = {}  # where the edit's tracks were (made with ``on``)
     for k in ("track_trace", "other_trace"):
         v = args.get(k)
         if v is not None:
@@ -208,12 +211,12 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
                 raise ParameterError(f"{action}: {k} must be a list of [time_s, position_mm] pairs") from None
             if not pts or not all(math.isfinite(t) and math.isfinite(x) for t, x in pts):
                 raise ParameterError(f"{action}: {k} must hold finite [time_s, position_mm] pairs")
-            spans[k] = pts
+            places[k] = pts
     if args.get("frame_time_s") is not None:
         ft = float(args["frame_time_s"])  # type: ignore[arg-type]
         if not math.isfinite(ft):
             raise ParameterError(f"{action}: frame_time_s must be a finite time in seconds")
-        spans["frame_time_s"] = ft
+        places["frame_time_s"] = ft
     times = {k: (None if args.get(k) is None else float(args[k])) for k in ("start_s", "end_s")}  # type: ignore[arg-type]
     for k, v in times.items():
         if v is not None and not math.isfinite(v):
@@ -223,7 +226,7 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
                              f"({times['start_s']:g} s)")
     if action == "merge" and ints["track"] == ints["other"]:
         raise ParameterError("merge: a track cannot be merged into itself")
-    return Edit(action, at=at, **ints, **times, **spans)
+    return Edit(action, at=at, **ints, **times, **places)
 
 
 def _excluded(edits: tuple[Edit, ...] | list[Edit]) -> frozenset[int]:
@@ -242,16 +245,16 @@ def _centres(runs: Runs, diagram: Diagram) -> np.ndarray:
     return 0.5 * (pos[runs.start] + pos[np.maximum(runs.stop - 1, runs.start)])
 
 
-def _trace(runs: Runs, track: np.ndarray, diagram: Diagram, tid: int) -> tuple[tuple[float, float], ...]:
+def _trace(runs: Runs, track: np.ndarray, time_s: np.ndarray, centre: np.ndarray,
+           tid: int) -> tuple[tuple[float, float], ...]:
     """Where track ``tid`` was: (time, centre mm) at up to :data:`TRACE_POINTS` of its frames (empty: no such track)."""
     sel = np.flatnonzero(track == tid)
     if not sel.size:
         return ()
     order = sel[np.argsort(runs.frame[sel], kind="stable")]
     picks = order[np.unique(np.linspace(0, len(order) - 1, min(TRACE_POINTS, len(order))).round().astype(int))]
-    centre = _centres(runs, diagram)
     # rounded as in the file, so that an edit read back equals the edit made
-    return tuple((round(float(diagram.time_s[runs.frame[i]]), 6), round(float(centre[i]), 4)) for i in picks)
+    return tuple((round(float(time_s[runs.frame[i]]), 6), round(float(centre[i]), 4)) for i in picks)
 
 
 def _nearest_row(t: np.ndarray, when: float) -> int | None:
@@ -264,15 +267,14 @@ def _nearest_row(t: np.ndarray, when: float) -> int | None:
     return k if abs(t[k] - when) <= 1.5 * dt + 1e-6 else None
 
 
-def _misfit(runs: Runs, track: np.ndarray, diagram: Diagram, tid: int,
+def _misfit(runs: Runs, track: np.ndarray, time_s: np.ndarray, centre: np.ndarray, tid: int,
             kept: tuple[tuple[float, float], ...] | None) -> str | None:
     """Why track ``tid`` is not the plug an edit saw at ``kept`` (None: it is, or nothing was kept)."""
     if kept is None:
         return None
-    centre = _centres(runs, diagram)
     checked = 0
     for when, where in kept:
-        k = _nearest_row(diagram.time_s, when)
+        k = _nearest_row(time_s, when)
         if k is None:
             continue  # outside this analysis (another window): nothing to compare
         here = np.flatnonzero(runs.frame == k)
@@ -300,12 +302,13 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
     spans: list[tuple[float, float]] = []
     applied: list[Edit] = []
     skipped: list[str] = []
+    centre = _centres(runs, diagram)
     for k, e in enumerate(corr.edits, 1):
         split_at = e.frame
-        if e.action in ("exclude", "restore", "merge", "split"):
-            why = _misfit(runs, track, diagram, e.track, e.track_trace)
+        if e.action in TRACK_ACTIONS:
+            why = _misfit(runs, track, diagram.time_s, centre, e.track, e.track_trace)
             if why is None and e.action == "merge":
-                why = _misfit(runs, track, diagram, e.other, e.other_trace)
+                why = _misfit(runs, track, diagram.time_s, centre, e.other, e.other_trace)
             if why is None and e.action == "split" and e.frame_time_s is not None:
                 row = _nearest_row(diagram.time_s, e.frame_time_s)  # the same time, whatever the window
                 if row is None:

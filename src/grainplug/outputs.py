@@ -41,6 +41,8 @@ FILES = {
 
 def edges_table(res: AnalysisResult) -> str:
     """CSV of the plug edges per frame (:data:`grainplug.result.EDGE_SCHEMA`)."""
+    from .result import EDGE_SCHEMA
+
     r = res.runs
     t = res.diagram.time_s[r.frame]
 
@@ -52,8 +54,6 @@ def edges_table(res: AnalysisResult) -> str:
     rows = np.stack([r.frame.astype(str), np.char.mod("%.6f", t), res.links.run_track.astype(str),
                      col(r.top_mm, "%.4f"), col(r.bottom_mm, "%.4f")], axis=1) if len(r) else np.empty((0, 5), str)
     lines = [",".join(row) for row in rows.tolist()]
-    from .result import EDGE_SCHEMA
-
     return ",".join(EDGE_SCHEMA) + "\n" + "".join(line + "\n" for line in lines)
 
 

@@ -29,7 +29,7 @@ import pandas as pd
 
 from .._atomic import atomic_directory, is_complete
 from .._version import __version__
-from ..corrections import Corrections, apply_corrections
+from ..corrections import TRACK_ACTIONS, Corrections, apply_corrections
 from ..errors import CampaignInterrupted, GrainplugError
 from ..jsonio import dumps
 from ..outputs import FigureOptions, save_figure, write_outputs
@@ -110,8 +110,7 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
         res = analyze(spec.movie, spec.params, threads=threads)
         if corr is not None and corr.edits:
             res = apply_corrections(res, corr)  # edits that keep where their tracks were are checked there
-            unchecked = sum(e.action in ("exclude", "restore", "merge", "split") and e.track_trace is None
-                            for e in corr.edits)
+            unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)
             if unchecked:
                 res = dataclasses.replace(res, warnings=[*res.warnings, (
                     f"{unchecked} corrections of tracks from an earlier analysis of this run were applied again "
@@ -362,7 +361,7 @@ def _worker_run(spec: RunSpec, out_dir: str, **kw: object) -> dict[str, object]:
     try:  # the flag inside the try: a stop caught at any point of the run is handled here, not by the pool
         stop.in_run = True
         record = process_run(spec, out_dir, threads=1, **kw)
-        stop.in_run = False
+        stop.in_run = False  # before the finally: a stop from here on finds the worker idle
         return record
     except _Stop:
         from .._atomic import recover
