@@ -376,6 +376,17 @@ def test_a_simulated_plug_train_is_measured_like_a_movie(speed):
     assert m.bubble_length_mm == pytest.approx(18.0 * 3.0, rel=0.01)
 
 
+@pytest.mark.parametrize("plug_D", [12.1, 12.37])
+def test_dense_segments_are_measured_between_cells(plug_D):
+    """The dense length comes from the threshold crossings, not a count of 0.25 D cells; the front speed
+    from following the front."""
+    res = _moving_train(0.8, plug_D=plug_D)
+    w = wave_state(res)
+    assert w.n_waves == 4
+    assert w.dense_length_D == pytest.approx(plug_D, abs=0.01)
+    assert w.front_speed == pytest.approx(0.8, abs=1e-3)
+
+
 @pytest.mark.parametrize("ripple", [0.0, 1e-7])
 def test_a_uniform_flow_has_no_plugs(ripple):
     """A uniform flow (exactly, or up to rounding-level ripples) is a single phase, not a failure."""

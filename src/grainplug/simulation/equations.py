@@ -138,9 +138,10 @@ class Closure:
         """``U = (c, c v, r (1 - c))``."""
         return np.stack([c, c * v, self.air_density(P) * (1 - c)])
 
-    def flux(self, c: np.ndarray, v: np.ndarray, P: np.ndarray) -> np.ndarray:
-        """The hyperbolic flux ``(c v, c v^2 + v^2 / 2 kappa + P + p_j, m v)``."""
-        m = self.air_density(P) * (1 - c)
+    def flux(self, c: np.ndarray, v: np.ndarray, P: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
+        """The hyperbolic flux ``(c v, c v^2 + v^2 / 2 kappa + P + p_j, m v)``, ``m = r (1 - c)``; ``r`` defaults
+        to the air density of ``P``."""
+        m = (self.air_density(P) if r is None else r) * (1 - c)
         return np.stack([c * v, c * v * v + v * v / (2 * self.kappa) + P + self.jamming_pressure(c), m * v])
 
     def speeds(self, c: np.ndarray, v: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

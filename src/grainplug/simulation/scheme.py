@@ -6,12 +6,19 @@ One time step of length ``dt`` is the symmetric (Strang) composition
 
 .. math::
 
-    \\mathcal S_{dt/2}\\, \\mathcal D_{dt/2}\\, \\mathcal H_{dt}\\, \\mathcal D_{dt/2}\\, \\mathcal S_{dt/2}
+    \\mathcal D_{dt/2}\\, \\mathcal S_{dt/2}\\, \\mathcal H_{dt}\\, \\mathcal S_{dt/2}\\, \\mathcal D_{dt/2}
 
-of three second-order parts, so the step is second order:
+of three second-order parts, so the step is second order. Between two output times the
+closing ``D_{dt_n/2}`` of a step and the opening ``D_{dt_{n+1}/2}`` of the next are done as
+one ``D_{(dt_n + dt_{n+1})/2}``: exact for the exact flow of ``D``, a third-order local
+difference for its second-order solver, so the run stays second order for half the
+diffusion work (:meth:`Integrator.advance`). The parts:
 
-- ``H``, the hyperbolic fluxes: MUSCL reconstruction of ``(c, v, P)`` with the
-  monotonized-central limiter, the central-upwind numerical flux of Kurganov, Noelle &
+- ``H``, the hyperbolic fluxes: MUSCL reconstruction of ``(c, v, P)`` and of the air
+  density ``r`` with the monotonized-central limiter (``r`` and ``P`` are reconstructed
+  separately, so a face needs no power ``P^(1/gamma)``, the costliest operation of the
+  step; at a face they agree with ``P = P0 r^gamma`` to second order where the flow is
+  smooth, and the flux stays consistent and conservative), the central-upwind numerical flux of Kurganov, Noelle &
   Petrova (2001) with the one-sided local speeds of :meth:`Closure.speeds`, and the
   optimal second-order strong-stability-preserving Runge-Kutta method of
   :data:`SSP_STAGES` stages, SSPRK(s,2): ``s - 1`` forward-Euler stages of
@@ -135,19 +142,21 @@ class Integrator:
     def face_fluxes(self, U: np.ndarray) -> np.ndarray:
         """Central-upwind fluxes at the ``n + 1`` faces of the cells (shape ``(3, n + 1)``)."""
         cl = self.cl
-        c, v, P = cl.primitive(self.pad(U))
-        W = np.stack([c, v, P])
+        Up = self.pad(U)
+        c, v, P = cl.primitive(Up)
+        W = np.stack([c, v, P, np.maximum(Up[2] / (1 - c), 0.0)])  # r too: no power at the faces
         s = _mc_slopes(W)  # cells 1 .. n+2 of the padded array
         wl = W[:, 1:-2] + 0.5 * s[:, :-1]  # left state at the faces between cells i, i+1 (i = 1 .. n+1)
         wr = W[:, 2:-1] - 0.5 * s[:, 1:]
         wl[0] = np.clip(wl[0], 0.0, 1.0 - 1e-9)
         wr[0] = np.clip(wr[0], 0.0, 1.0 - 1e-9)
-        lo_l, hi_l = cl.speeds(*wl)
-        lo_r, hi_r = cl.speeds(*wr)
+        lo_l, hi_l = cl.speeds(*wl[:3])
+        lo_r, hi_r = cl.speeds(*wr[:3])
         ap = np.maximum(np.maximum(hi_l, hi_r), 0.0)
         am = np.minimum(np.minimum(lo_l, lo_r), 0.0)
         fl, fr = cl.flux(*wl), cl.flux(*wr)
-        ul, ur = cl.conserved(*wl), cl.conserved(*wr)
+        ul = np.stack([wl[0], wl[0] * wl[1], wl[3] * (1 - wl[0])])
+        ur = np.stack([wr[0], wr[0] * wr[1], wr[3] * (1 - wr[0])])
         span = ap - am
         span = np.where(span > 0, span, 1.0)
         H = (ap * fl - am * fr + ap * am * (ur - ul)) / span
@@ -264,22 +273,35 @@ class Integrator:
     def advance(self, U: np.ndarray, t: float, t_end: float, cfl: float) -> tuple[np.ndarray, float, int]:
         """Steps of CFL-limited length from ``t`` to exactly ``t_end``: the state, the time reached and the
         number of steps (negative, with the time it stopped, when the state blew up), as
-        :func:`grainplug.simulation._kernel.advance`."""
+        :func:`grainplug.simulation._kernel.advance`.
+
+        The steps are :meth:`step`, with the closing air-diffusion half-step of one step and the opening
+        one of the next merged into one ``D_{(dt_n + dt_{n+1})/2}`` (the diffusion is the costliest part
+        after the fluxes); the Courant limit of a step is taken on the state before that merged diffusion."""
         steps = 0
+        owed = 0.0  # the closing diffusion half-step of the previous step, not yet done
         while t < t_end - 1e-12:
             speed = self.max_speed(U)
             if not math.isfinite(speed) or speed <= 0:
                 return U, t, -1 - steps
             dt = min((SSP_STAGES - 1) * cfl * self.dx / speed, t_end - t)
-            U = self.step(U, dt)
+            U = self.diffusion(U, owed + 0.5 * dt)
+            U = self._core(U, dt)
+            owed = 0.5 * dt
             t += dt
             steps += 1
+        if owed > 0:
+            U = self.diffusion(U, owed)
         return U, t, steps
 
-    def step(self, U: np.ndarray, dt: float) -> np.ndarray:
-        """One Strang-split step of length ``dt``."""
+    def _core(self, U: np.ndarray, dt: float) -> np.ndarray:
+        """Sources, fluxes, sources: the middle of :meth:`step`."""
         U = self.sources(U, 0.5 * dt)
-        U = self.diffusion(U, 0.5 * dt)
         U = self.hyperbolic(U, dt)
-        U = self.diffusion(U, 0.5 * dt)
         return self.sources(U, 0.5 * dt)
+
+    def step(self, U: np.ndarray, dt: float) -> np.ndarray:
+        """One Strang-split step of length ``dt``: ``D_{dt/2} S_{dt/2} H_dt S_{dt/2} D_{dt/2}``."""
+        U = self.diffusion(U, 0.5 * dt)
+        U = self._core(U, dt)
+        return self.diffusion(U, 0.5 * dt)

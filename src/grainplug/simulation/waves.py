@@ -4,7 +4,9 @@ Notes
 -----
 A cell is *dense* when its compactness is above the midpoint of the final field's
 range, ``(min c + max c) / 2``. A dense segment is a run of dense cells (joined
-across the ends of a periodic box). Its *front* is its downstream end, where the
+across the ends of a periodic box); its length runs between the points where the
+compactness crosses that threshold, interpolated linearly between cell centres (a
+count of cells would move in steps of one cell between grids). Its *front* is its downstream end, where the
 compactness falls. Front speeds come from following each front between consecutive
 outputs (the nearest front to its last position, unwrapped across a periodic box) over
 the last quarter of the run, fitted by a straight line.
@@ -58,6 +60,27 @@ def _segments(dense: np.ndarray, periodic: bool) -> list[tuple[int, int]]:
     return [(int(s) + k, int(e) + k) for s, e in zip(starts, ends, strict=True)]
 
 
+def _length(c: np.ndarray, start: int, end: int, thr: float, periodic: bool) -> float:
+    """Length (in cells) of the dense run ``start .. end - 1``, from where ``c`` rises through ``thr`` to where
+    it falls through it, both interpolated between cell centres; a run that reaches an end of an open pipe
+    is measured from that end."""
+    n = len(c)
+    if end - start >= n:
+        return float(n)
+    # positions in cell widths from the upstream face of cell 0 (cell i's centre is at i + 0.5)
+    if periodic or start > 0:
+        a, b = c[(start - 1) % n], c[start % n]
+        lo = start + 0.5 - (b - thr) / max(b - a, 1e-300)
+    else:
+        lo = 0.0
+    if periodic or end < n:
+        a, b = c[(end - 1) % n], c[end % n]
+        hi = end - 0.5 + (a - thr) / max(a - b, 1e-300)
+    else:
+        hi = float(n)
+    return hi - lo
+
+
 def _fronts(c: np.ndarray, thr: float, dx: float, periodic: bool) -> np.ndarray:
     """Positions (units of D) where ``c`` falls through ``thr`` going downstream."""
     nxt = np.roll(c, -1) if periodic else np.concatenate([c[1:], c[-1:]])
@@ -76,7 +99,7 @@ def wave_state(res: SimulationResult) -> WaveState:
     if hi - lo < 1e-3:
         return WaveState(0, 0.0, 0.0, float("nan"), float("nan"), thr, lo, hi)
     segs = _segments(c_end > thr, periodic)
-    lengths = np.array([e - s for s, e in segs], float) * dx
+    lengths = np.array([_length(c_end, s, e, thr, periodic) for s, e in segs]) * dx
     n = len(segs)
     # fronts: the downstream end of each dense segment, where c falls through the threshold
     # (interpolated between cells), followed over the last quarter and fitted by a line
