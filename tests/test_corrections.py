@@ -154,6 +154,38 @@ def test_batch_honours_each_runs_corrections(movie, tmp_path):
     assert np.isfinite(third.table.celerity_m_s.iloc[0])
 
 
+def test_batch_says_when_edits_without_traces_meet_a_new_analysis_until_they_go(movie, tmp_path):
+    """Edits saved without where their tracks were (format 1) are replayed by number on a re-analysis, with a
+    warning; the warning stays through later remeasures while such edits remain, and goes with them."""
+    out = tmp_path / "camp"
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"run,movie\na,{movie.movie}\n")
+    gp.run_campaign(manifest, out, figures=False)
+    corr_file = out / "runs" / "a" / "corrections.json"
+    corr_file.write_text(json.dumps({"format": "grainplug-corrections", "format_version": 1,
+                                     "edits": [{"action": "exclude", "track": 0, "at": ""}]}))
+
+    def warned() -> list[str]:
+        return [w for w in json.loads((out / "runs" / "a" / "summary.json").read_text())["warnings"]
+                if "replayed by track number" in w]
+
+    gp.run_campaign(manifest, out, figures=False)  # same analysis: measured again, nothing to check
+    assert warned() == []
+    manifest.write_text(f"run,movie,start_frame\na,{movie.movie},2\n")  # parameters changed: analysed again
+    again = gp.run_campaign(manifest, out, figures=False)
+    assert again.n_reused == 0
+    [note] = warned()
+    assert note.split(": ")[1].startswith("1 edit(s)")
+    later = json.loads(corr_file.read_text())  # one more edit, with its trace: still one edit unchecked
+    later["edits"].append({"action": "window", "start_s": 0.0, "at": ""})
+    corr_file.write_text(json.dumps(later))
+    gp.run_campaign(manifest, out, figures=False)
+    assert len(warned()) == 1
+    corr_file.write_text(json.dumps(Corrections().as_dict()))  # the reviewer removed the edits
+    cleared = gp.run_campaign(manifest, out, figures=False)
+    assert cleared.n_reused == 1 and warned() == []
+
+
 def test_an_edit_replayed_on_another_analysis_never_falls_on_another_plug(movie, result):
     """Edits keep where their tracks were: replayed on a re-analysis whose tracker numbered the
     plugs otherwise, an edit whose track is now another plug is not applied, and a warning says so;

@@ -61,6 +61,8 @@ TRACE_TOLERANCE_MM = 10.0
 TRACE_POINTS = 16
 #: the start of the warnings about edits not applied (replaced at each replay)
 NOT_APPLIED = "a correction no longer fits this analysis"
+#: the start of the warning about edits without traces replayed by number on a new analysis (recounted at each replay)
+UNCHECKED = "corrections replayed by track number on a new analysis"
 CORRECTIONS_FILE = "corrections.json"
 ACTIONS = ("exclude", "restore", "merge", "split", "window", "no_plugs", "clear_no_plugs")
 #: the actions that name tracks (by their number, checked against where they were when traced)
@@ -361,11 +363,22 @@ def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks) -> Tracks
     return Tracks(track, first, last, started, ended)
 
 
-def apply_corrections(res: AnalysisResult, corr: Corrections) -> AnalysisResult:
+def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: bool = False) -> AnalysisResult:
     """The result with ``corr`` applied to its detected tracks and every measure recomputed.
 
     Applying to an already corrected result starts again from what was detected, so
     ``apply_corrections(apply_corrections(r, a), b)`` is ``apply_corrections(r, b)``.
+
+    Parameters
+    ----------
+    res : AnalysisResult
+    corr : Corrections
+    reanalysed : bool
+        ``res`` is a new analysis of the run, not the one ``corr`` was made on (a batch after
+        the movie or the parameters changed). Edits of tracks made without where the tracks
+        were (format 1, or :meth:`Corrections.add` without ``on``) cannot be checked against
+        it: a warning says how many were replayed by number. The warning stays on the result
+        through later replays while such edits remain, and goes with them.
     """
     runs, links = res.detected if res.detected is not None else (res.runs, res.links)
     st = _replay(runs, links, corr, res.diagram)
@@ -391,8 +404,16 @@ def apply_corrections(res: AnalysisResult, corr: Corrections) -> AnalysisResult:
         statement = "" if motion is not None else "plugs were seen but no plug edge could be followed over time"
     elif res.has_plugs:
         statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
-    warnings = [w for w in res.warnings if not w.startswith(NOT_APPLIED)]  # those of an earlier replay go
+    unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)
+    flagged = reanalysed or any(w.startswith(UNCHECKED) for w in res.warnings)
+    # those of an earlier replay go, and are said again if they still hold
+    warnings = [w for w in res.warnings if not w.startswith((NOT_APPLIED, UNCHECKED))]
     warnings += [f"{NOT_APPLIED}: {note} — review the run again" for note in st.not_applied]
+    if unchecked and flagged:
+        warnings.append(f"{UNCHECKED}: {unchecked} edit(s) in corrections.json name tracks of an earlier analysis "
+                        "of this run without where those tracks were, and the movie or the parameters have "
+                        "changed since — check them in `grainplug review` (edits made there again keep their "
+                        "tracks' place)")
     return dataclasses.replace(res, runs=new_runs, links=new_links, motion=motion, lengths=lengths,
                                has_plugs=has_plugs, statement=statement, detected=(runs, links),
                                corrections=corr, warnings=warnings)

@@ -14,7 +14,6 @@ on where it ran.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import logging
@@ -29,7 +28,7 @@ import pandas as pd
 
 from .._atomic import atomic_directory, is_complete
 from .._version import __version__
-from ..corrections import TRACK_ACTIONS, Corrections, apply_corrections
+from ..corrections import Corrections, apply_corrections
 from ..errors import CampaignInterrupted, GrainplugError
 from ..jsonio import dumps
 from ..outputs import FigureOptions, save_figure, write_outputs
@@ -108,14 +107,8 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
                 pass  # an unreadable result: analyse again below
     try:
         res = analyze(spec.movie, spec.params, threads=threads)
-        if corr is not None and corr.edits:
-            res = apply_corrections(res, corr)  # edits that keep where their tracks were are checked there
-            unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)
-            if unchecked:
-                res = dataclasses.replace(res, warnings=[*res.warnings, (
-                    f"{unchecked} corrections of tracks from an earlier analysis of this run were applied again "
-                    "by their numbers (corrections.json, written without where the tracks were): the movie or "
-                    "parameters changed, check that they still fit the tracks")])
+        if corr is not None and corr.edits:  # edits that keep where their tracks were are checked there
+            res = apply_corrections(res, corr, reanalysed=True)
         write_outputs(res, run_dir, figures=figures, report=figures, extra=extra, figure_options=figure_options)
         return {**record, "status": "ok", "reused": False, **_flat(res.summary)}
     except GrainplugError as exc:
