@@ -195,7 +195,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         (reads every movie whole); otherwise its size and sampled content must match.
     simulate : bool
         With figures, the report's model-against-experiment panel includes the
-        nonlinear simulations (about 20 s); otherwise linear theory only.
+        nonlinear simulations (about 4 s); otherwise linear theory only.
     figure_options : FigureOptions, optional
         Resolution and formats of every figure (``grainplug.outputs.PUBLICATION`` for print).
     progress : callable, optional

@@ -74,7 +74,7 @@ def _r(x: float, nd: int = 4) -> float:
 def reproduce(*, simulate: bool = True) -> PaperReproduction:
     """Fits, lengths, stated ranges, stability and resonance, each checked against the text, and the
     model against the measurements (:mod:`.model_panel`; ``simulate=False`` skips its nonlinear runs,
-    about 20 s)."""
+    about 4 s)."""
     runs = datasets.paper_runs()
     fits: dict[str, LinearFit] = {}
     lengths: dict[str, dict] = {}

@@ -771,7 +771,7 @@ def resonance(as_json: bool, **kwargs: object) -> None:
 @click.option("--no-figures", is_flag=True, help="Skip figures and report.")
 @click.option("--json", "as_json", is_flag=True, help="Print fits, lengths, stability and checks as JSON.")
 @click.option("--no-simulations", is_flag=True,
-              help="Compare the measurements with the linear theory only (skip the ~20 s of nonlinear runs).")
+              help="Compare the measurements with the linear theory only (skip the ~4 s of nonlinear runs).")
 @click.option("--publication", is_flag=True, help="Every figure also as SVG and PDF, and PNG at 200 dpi.")
 @click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
 def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publication: bool,
@@ -817,7 +817,7 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publ
               help="Reuse a finished run only if every byte of its movie is unchanged (reads every movie whole).")
 @click.option("--json", "as_json", is_flag=True, help="Print the fits as JSON.")
 @click.option("--no-simulations", is_flag=True,
-              help="In the report, compare with the model's linear theory only (skip ~20 s of simulations).")
+              help="In the report, compare with the model's linear theory only (skip ~4 s of simulations).")
 @click.option("--publication", is_flag=True, help="Every figure also as SVG and PDF, and PNG at 200 dpi.")
 def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_figures: bool, verify: bool,
           as_json: bool, no_simulations: bool, publication: bool) -> None:
