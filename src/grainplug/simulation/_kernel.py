@@ -7,8 +7,9 @@ random states. Constants come in one float array (see :func:`pack`).
 
 Two things make the loop over the faces, the hot spot, vectorize (four faces at a time,
 half the time of a flux evaluation): the ``numpy`` error model (a division by zero gives
-``inf`` or ``nan``, which the time loop's non-finite speed check catches, instead of a
-branch that raises) and the constants read into scalars before the loop (a load from the
+``inf`` or ``nan`` instead of a branch that raises; the largest speed is NaN as soon as one
+cell's is not finite, which stops the time loop, and :func:`~grainplug.simulation.simulate`
+checks every saved state) and the constants read into scalars before the loop (a load from the
 constants array inside it could alias the stores). Powers cannot vectorize (no vector
 ``pow`` without Intel's SVML), hence ``r`` reconstructed beside ``P`` and :func:`_pow`.
 """
@@ -53,8 +54,9 @@ def _pj(c, k):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _pow(x, e):
-    """``max(x, 0) ** e`` as ``exp(e log x)``: a third faster than ``pow``, within a few ulp."""
-    return math.exp(e * math.log(x)) if x > 0.0 else 0.0
+    """``max(x, 0) ** e`` as ``exp(e log x)``: a third faster than ``pow``, within a few ulp; NaN stays NaN
+    (so that the time loop's check sees it)."""
+    return 0.0 if x <= 0.0 else math.exp(e * math.log(x))
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -67,7 +69,7 @@ def _mc(dl, dr):
 
 @njit(cache=True, error_model="numpy")
 def _prim(U, k, W):
-    """Primitive (c, v, P) of the padded conserved state into ``W``."""
+    """Primitive ``(c, v, P)`` of the padded conserved state, and the air density ``r``, into ``W``."""
     P0, gam = k[K_P0], k[K_GAMMA]
     for i in range(U.shape[1]):
         c = U[0, i]
@@ -364,7 +366,10 @@ def _max_speed(U, P_cells, k):
         b = v / (k[K_KAPPA] * cs)
         a = k[K_GAMMA] * P / (cs * (1 - c)) + dpj
         root = math.sqrt(b * b + 4 * a)
-        best = max(best, abs(v + 0.5 * (b - root)), abs(v + 0.5 * (b + root)))
+        here = max(abs(v + 0.5 * (b - root)), abs(v + 0.5 * (b + root)))
+        if not math.isfinite(here):  # max() would drop a NaN: the blow-up must reach the time loop
+            return math.nan
+        best = max(best, here)
     return best
 
 

@@ -30,6 +30,8 @@ log = logging.getLogger(__name__)
 RANDOM_CLOSE_PACKING = 0.64
 #: relative drift of a conserved total that is reported
 DRIFT_WARN = 1e-10
+#: an air mass below minus this (units of the base state's) is reported
+AIR_NEGATIVE = 1e-9
 BOUNDARIES = ("periodic", "open")
 ENGINES = ("numba", "numpy")
 
@@ -223,6 +225,9 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
     U = initial_state(closure, params, rng) if initial is None else np.array(initial, dtype=float)
     if U.shape != (3, params.n_cells):
         raise ParameterError(f"the initial state must have shape (3, {params.n_cells})")
+    if not np.isfinite(U).all() or U[0].min() < 0 or U[0].max() >= 1 or U[2].min() < 0:
+        raise ParameterError("the initial state must be finite, with a compactness in [0, 1) and no negative "
+                             "air mass")
     n_out = int(round(params.duration_tc / params.output_interval_tc)) + 1
     times = np.linspace(0.0, params.output_interval_tc * (n_out - 1), n_out)
     fields = np.empty((n_out, 3, params.n_cells))
@@ -231,6 +236,7 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
     totals[0] = U[0].sum() * params.dx, U[2].sum() * params.dx
     t, steps, t0 = 0.0, 0, time.perf_counter()
     c_peak = float(U[0].max())
+    m_low = float(U[2].min())
     if params.engine == "numba":
         from . import _kernel
 
@@ -243,13 +249,14 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
             return integ.advance(U, t, t_end, params.cfl)
     for j in range(1, n_out):
         U, t, n = advance(U, t, float(times[j]))
-        if n < 0:
-            raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (non-finite wave speed): "
+        if n < 0 or not np.isfinite(U).all():
+            raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (a non-finite state): "
                                  "try more cells or a smaller --cfl")
         steps += n
         fields[j] = np.stack(closure.primitive(U))
         totals[j] = U[0].sum() * params.dx, U[2].sum() * params.dx
         c_peak = max(c_peak, float(U[0].max()))
+        m_low = min(m_low, float(U[2].min()))
         if callable(progress):
             progress(t, params.duration_tc)
     wall = time.perf_counter() - t0
@@ -257,11 +264,14 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
                            time=times, c=fields[:, 0], v=fields[:, 1], P=fields[:, 2], grain_total=totals[:, 0],
                            air_total=totals[:, 1], n_steps=steps, wall_s=wall)
     log.info("simulated %g t_c in %d steps, %.1f s", params.duration_tc, steps, wall)
-    return dataclasses.replace(res, warnings=tuple(_checks(res, closure, c_peak)))
+    return dataclasses.replace(res, warnings=tuple(_checks(res, closure, c_peak, m_low)))
 
 
-def _checks(res: SimulationResult, closure: Closure, c_peak: float) -> list[str]:
+def _checks(res: SimulationResult, closure: Closure, c_peak: float, m_low: float) -> list[str]:
     out = []
+    if m_low < -AIR_NEGATIVE:
+        out.append(f"the air mass went negative ({m_low:.3g}) in a saved state: the state left the model "
+                   "(emptied cells, or a step too long); use more cells or a smaller --cfl")
     p = res.params
     if p.boundary == "periodic":
         for name, drift in (("grain", res.grain_drift), ("air", res.air_drift)):
