@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 import tifffile
 
+import grainplug as gp
+from grainplug._atomic import OutputPlaceError
 from grainplug.cli import main
 from grainplug.synthetic import SynthConfig
 from grainplug.synthetic.render import Renderer
@@ -113,14 +115,24 @@ def test_a_rerun_is_refused_then_replaces_the_folder_whole_with_overwrite(tmp_pa
     out = tmp_path / "out"
     assert main(["analyze", str(movie), "--out", str(out)]) == 0
     assert (out / "diagram.png").exists()
-    (out / "stale.png").write_text("from an older run")
     before = (out / "summary.json").read_bytes()
     capsys.readouterr()
     assert main(["analyze", str(movie), "--out", str(out), "--no-figures"]) == 2  # not without asking
     one_line(capsys.readouterr().err, "already exists — pass --overwrite")
-    assert (out / "summary.json").read_bytes() == before and (out / "stale.png").exists()
+    assert (out / "summary.json").read_bytes() == before
+    # what grainplug did not write there (a user's notes, a reviewer's corrections) is never deleted
+    texts = {"notes.txt": "what I saw", "corrections.json": json.dumps(gp.Corrections().add("exclude", track=0)
+                                                                        .as_dict())}
+    for extra, text in texts.items():
+        (out / extra).write_text(text)
+        assert main(["analyze", str(movie), "--out", str(out), "--no-figures", "--overwrite"]) == 2
+        one_line(capsys.readouterr().err, f"holds what grainplug did not write there: {extra}")
+        assert (out / "summary.json").read_bytes() == before and (out / extra).exists()
+        with pytest.raises(OutputPlaceError, match=extra):
+            gp.load_result(out).save(out)  # the Python API too
+        (out / extra).unlink()
     assert main(["analyze", str(movie), "--out", str(out), "--no-figures", "--overwrite"]) == 0
-    assert not (out / "diagram.png").exists() and not (out / "stale.png").exists()
+    assert not (out / "diagram.png").exists()  # the earlier run's files go with it
     s = json.loads((out / "summary.json").read_text())
     assert set(s["outputs"].values()) <= {p.name for p in out.iterdir()}  # what it lists, it wrote
     assert not [p for p in tmp_path.iterdir() if ".grainplug-" in p.name]  # no temporary folder left

@@ -38,6 +38,8 @@ __all__ = ["OutputPlaceError", "atomic_directory", "atomic_file", "check_output_
 MARKER = ".grainplug"
 #: files that make a folder recognisably grainplug's even without the marker (older versions)
 OWN_FILES = ("summary.json", "campaign.csv", "paper_reproduction.json")
+#: files a user edits in place (a reviewer's corrections): not part of the completion check
+USER_FILES = ("corrections.json",)
 
 
 class OutputPlaceError(GrainplugError):
@@ -52,7 +54,8 @@ def _describe(exc: OSError, place: Path) -> str:
     return f"cannot write {place}: {why} — choose another --out (the previous result, if any, is intact)"
 
 
-def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), replace: bool = True) -> Path:
+def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), replace: bool = True,
+                       keeps: Iterable[str] = ()) -> Path:
     """The output folder, checked; raises :class:`OutputPlaceError` with the fix when it cannot be used.
 
     Parameters
@@ -62,7 +65,11 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
     inputs : paths
         Files the run reads: the folder must neither be one of them nor hold one.
     replace : bool
-        Whether the folder will be replaced whole (then it must be new, empty or grainplug's).
+        Whether the folder will be replaced whole. It must then be new, empty or grainplug's,
+        and hold nothing grainplug did not write there: anything its completion marker does not
+        list (a user's notes, a reviewer's ``corrections.json``) would be lost, so it is refused.
+    keeps : names
+        :data:`USER_FILES` the new output writes again (a result that carries its corrections).
     """
     if str(out).strip() == "" or (replace and str(out).strip() == "."):
         what = "empty" if str(out).strip() == "" else "the current folder (it would be replaced whole)"
@@ -93,7 +100,27 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
         if entries and not ours:
             raise OutputPlaceError(f"{p} holds files grainplug did not write ({entries[0].name}, ...) — give a new "
                                    "or empty folder (grainplug replaces its output folder whole)")
+        foreign = _foreign(resolved, entries, set(keeps))
+        if foreign:
+            names = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+            why = (" (a reviewer's corrections: `grainplug remeasure` applies them to the analysis there)"
+                   if any(f in USER_FILES for f in foreign) else "")
+            raise OutputPlaceError(f"{p} holds what grainplug did not write there: {names}{why} — move it out "
+                                   "first (the folder is replaced whole), or give another --out")
     return p
+
+
+def _foreign(folder: Path, entries: list[Path], keeps: set[str]) -> list[str]:
+    """Entries of an output folder that its completion marker does not list (nothing for a folder written
+    by a version without the list: it cannot tell)."""
+    try:
+        listed = json.loads((folder / MARKER).read_text())["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    if not isinstance(listed, dict):
+        return []
+    own = {name.split("/", 1)[0] for name in listed} | {MARKER} | keeps
+    return sorted(e.name for e in entries if e.name not in own and not e.name.startswith(".grainplug-"))
 
 
 def _fsync_tree(folder: Path) -> None:
@@ -107,10 +134,6 @@ def _fsync_tree(folder: Path) -> None:
             os.fsync(fd)
         finally:
             os.close(fd)
-
-
-#: files a user edits in place (a reviewer's corrections): not part of the completion check
-USER_FILES = ("corrections.json",)
 
 
 def _seal(folder: Path) -> None:
@@ -167,7 +190,7 @@ def recover(out: Path) -> None:
 
 @contextlib.contextmanager
 def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None, *, replace: bool = False,
-                     inputs: Iterable[str | Path] = ()) -> Iterator[Path]:
+                     inputs: Iterable[str | Path] = (), keeps: Iterable[str] = ()) -> Iterator[Path]:
     """Write files into a temporary folder, then move them all into ``out_dir``.
 
     Parameters
@@ -182,6 +205,8 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
         folder, which holds its runs) only the files written are replaced.
     inputs : paths
         Files the run reads (refused as output places, see :func:`check_output_place`).
+    keeps : names
+        User files (:data:`USER_FILES`) this block writes again, so their being there is no loss.
 
     Yields
     ------
@@ -194,7 +219,7 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
         When the place cannot be used or written (full disk, read-only): nothing
         of the previous result is changed.
     """
-    out = check_output_place(out_dir, inputs=inputs, replace=replace)
+    out = check_output_place(out_dir, inputs=inputs, replace=replace, keeps=keeps)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         recover(out)

@@ -183,7 +183,10 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
     t_write = time.perf_counter()
     written: dict[str, Path] = {}
     source = res.input.get("path") if isinstance(res.input, dict) else None
-    with atomic_directory(out_dir, written, replace=True, inputs=[source] if source else ()) as tmp:
+    from .corrections import CORRECTIONS_FILE
+
+    keeps = (CORRECTIONS_FILE,) if res.corrections is not None else ()
+    with atomic_directory(out_dir, written, replace=True, inputs=[source] if source else (), keeps=keeps) as tmp:
         summary = res.summary
         summary.update(extra or {})
         options = figure_options or FigureOptions()
@@ -206,8 +209,6 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
             )
         write_result(res, tmp / FILES["result"])
         if res.corrections is not None:
-            from .corrections import CORRECTIONS_FILE
-
             (tmp / CORRECTIONS_FILE).write_text(jsonio.dumps(res.corrections.as_dict()))
         if pending is not None:
             pending()

@@ -107,7 +107,7 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
                 pass  # an unreadable result: analyse again below
     try:
         res = analyze(spec.movie, spec.params, threads=threads)
-        if corr is not None and corr.edits:  # edits that keep where their tracks were are checked there
+        if corr is not None:  # edits that keep where their tracks were are checked there; the file is kept
             res = apply_corrections(res, corr, reanalysed=True)
         write_outputs(res, run_dir, figures=figures, report=figures, extra=extra, figure_options=figure_options)
         return {**record, "status": "ok", "reused": False, **_flat(res.summary)}

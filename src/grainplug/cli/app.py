@@ -51,7 +51,8 @@ def cli(debug: bool, verbose: bool) -> None:
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
 
 
-OVERWRITE_HELP = "Replace --out if it exists (the whole folder: files not written by this run go with it)."
+OVERWRITE_HELP = ("Replace --out if it holds an earlier result (the whole folder; refused if it holds anything "
+                  "grainplug did not write there, such as your notes or a reviewer's corrections.json).")
 
 
 def _refuse_existing(out: Path, overwrite: bool) -> None:

@@ -16,7 +16,6 @@ from pathlib import Path
 
 from ..errors import MovieError, ParameterError
 from .base import Movie, MovieInfo
-from .folder import IMAGE_SUFFIXES, ImageFolderMovie, list_images, natural_key
 
 log = logging.getLogger(__name__)
 
@@ -65,6 +64,8 @@ def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float
             return ArrayMovie(path, fps=fps)
         raise MovieError(f"cannot open a {type(path).__name__} as a movie — pass a path, a Movie or an array "
                          "of frames")
+    from .folder import IMAGE_SUFFIXES, ImageFolderMovie  # with tifffile and Pillow: only when opening
+
     p = Path(path).expanduser()
     if not p.exists():
         raise MovieError(f"no such file or folder: {p} — check the path")
@@ -131,10 +132,16 @@ def as_movie(source: object, *, fps: float | None = None, glob: str | None = Non
 
 
 def __getattr__(name: str) -> object:
+    """The readers' own names, imported when first used (``readers.base`` alone, as the figure worker
+    needs it to unpickle a result, then costs no TIFF or image library)."""
     if name == "ArrayMovie":
         from .array import ArrayMovie
 
         return ArrayMovie
+    if name in ("IMAGE_SUFFIXES", "ImageFolderMovie", "list_images", "natural_key"):
+        from . import folder
+
+        return getattr(folder, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
