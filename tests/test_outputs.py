@@ -48,3 +48,22 @@ def test_a_dead_worker_falls_back_to_drawing_here(result, tmp_path, caplog, when
     assert all(p.stat().st_size > 10_000 for p in paths)
     if when == "during the job":
         assert "drawing in this process" in caplog.text
+
+
+@pytest.mark.parametrize(("ci", "words"), [
+    ((-1.5e-5, 1.8e-5), "cannot be told from zero"),
+    ((-0.0530, -0.0490), "against the flow) at 0.0510 ± 0.0020 m/s"),
+])
+def test_the_report_sentence_keeps_the_interval_and_the_unit_of_the_card(result, tmp_path, ci, words):
+    """An interval that holds zero is said so (it used to collapse to ±0.0013 mm/s of a stationary object), and
+    the sentence's celerity has the card's unit and width."""
+    import dataclasses
+    import html
+
+    value = 1e-6 if ci[0] < 0 < ci[1] else -0.0510
+    motion = dataclasses.replace(result.motion, celerity_m_s=value, celerity_ci95_m_s=ci)
+    out = tmp_path / "r"
+    write_outputs(dataclasses.replace(result, motion=motion), out, figures=False)
+    sentence = html.unescape((out / "report.html").read_text()).split('<p class="sentence">')[1].split("</p>")[0]
+    assert words in sentence, sentence
+    assert "mm/s" not in sentence

@@ -123,12 +123,23 @@ def _regime_sentence(res: AnalysisResult) -> str:
     if m is None:
         return res.statement or "No plug could be followed over time."
     lo, hi = m.celerity_ci95_m_s
-    way = "climb the tube (against the flow)" if m.celerity_m_s < 0 else "move down the tube (with the flow)"
-    rng = with_uncertainty(abs(m.celerity_m_s), abs(lo), abs(hi), scale=1000)
+    vertical = res.tube.orientation != "horizontal"
+    if m.celerity_m_s < 0:
+        way = "climb the tube (against the flow)" if vertical else "move against the flow"
+    else:
+        way = "move down the tube (with the flow)" if vertical else "move with the flow"
+    if lo is not None and hi is not None and lo <= 0 <= hi:  # no direction can be told
+        speed = (f"their mean velocity, {with_uncertainty(m.celerity_m_s, lo, hi)} m/s (95 % interval), "
+                 "cannot be told from zero: no direction of travel is measured")
+        if m.regime == "oscillating" and m.oscillation_frequency_hz:
+            return (f"Oscillating regime: the plugs oscillate at {m.oscillation_frequency_hz:.2f} Hz "
+                    f"(amplitude {m.oscillation_amplitude_mm:.2f} mm); {speed}.")
+        return f"The plugs do not measurably travel: {speed}."
+    rng = with_uncertainty(abs(m.celerity_m_s), abs(lo), abs(hi))
     if m.regime == "oscillating" and m.oscillation_frequency_hz:
         return (f"Oscillating regime: the plugs oscillate at {m.oscillation_frequency_hz:.2f} Hz "
-                f"(amplitude {m.oscillation_amplitude_mm:.2f} mm) while they {way} at {rng} mm/s on average.")
-    return f"Propagative regime: the plugs {way} at a steady {rng} mm/s."
+                f"(amplitude {m.oscillation_amplitude_mm:.2f} mm) while they {way} at {rng} m/s on average.")
+    return f"Propagative regime: the plugs {way} at a steady {rng} m/s."
 
 
 def _cards(res: AnalysisResult) -> str:
@@ -161,14 +172,14 @@ def _plug_table(res: AnalysisResult) -> str:
     if not rows:
         return "<p>No plug tracks.</p>"
     head = ("<tr><th class='sort n'>plug</th><th class='sort n'>first seen (s)</th><th class='sort n'>last seen (s)"
-            "</th><th class='sort n'>frames</th><th class='sort n'>celerity (mm/s)</th>"
+            "</th><th class='sort n'>frames</th><th class='sort n'>celerity (m/s)</th>"
             "<th class='sort n'>length (mm)</th><th>note</th></tr>")
     body = []
     for r in rows:
         note = "two plugs joined (not in the mean length)" if r["composite"] else ""
         cells = [(r["plug_id"], number(int(r["plug_id"]))), (r["first_time_s"], number(r["first_time_s"], 3)),
                  (r["last_time_s"], number(r["last_time_s"], 3)), (r["n_frames"], number(int(r["n_frames"]))),
-                 (r["celerity_m_s"] * 1000, number(r["celerity_m_s"] * 1000, 1)),
+                 (r["celerity_m_s"], number(r["celerity_m_s"], 4)),
                  (r["median_length_mm"], number(r["median_length_mm"], 2))]
         body.append("<tr>" + "".join(f'<td class="n" data-v="{v}">{t}</td>' for v, t in cells)
                     + f"<td>{html.escape(note)}</td></tr>")
