@@ -495,3 +495,17 @@ def test_simulate_refuses_an_existing_folder_unless_overwrite(tmp_path, capsys):
     (theirs / "notes.txt").write_text("mine")
     assert main([*args[:-1], str(theirs), "--overwrite"]) == 2
     assert (theirs / "notes.txt").read_text() == "mine"
+
+
+def test_the_summary_is_strict_json_when_a_measure_is_undefined(tmp_path, capsys):
+    """A run without waves has no wavelength or front speed: null in summary.json, never a bare NaN."""
+    from grainplug.cli import main
+
+    out = tmp_path / "s"
+    assert main(["simulate", "--cells", "64", "--length-D", "20", "--duration-tc", "5", "--out", str(out)]) == 0
+
+    def refuse(word: str) -> None:
+        raise ValueError(f"not JSON: {word}")
+
+    summary = json.loads((out / "summary.json").read_text(), parse_constant=refuse)
+    assert summary["waves"]["front_speed_m_s"] is None
