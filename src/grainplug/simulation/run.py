@@ -322,6 +322,23 @@ def segment_counts(res: SimulationResult, *, threshold: float | None = None) -> 
     return starts.sum(axis=1)
 
 
+#: the compactness amplitude below which unstable waves are said not to have grown yet
+GROWN_AMPLITUDE = 0.01
+
+
+def _not_grown(rate: float, duration_tc: float, noise: float) -> str:
+    """The warning for a run too short (or too quiet) for its unstable waves to show."""
+    gain = math.exp(min(rate * duration_tc, 700.0))
+    head = (f"the unstable waves have not had time to grow: the fastest grows by e^(σT) = {gain:.3g} in "
+            f"{duration_tc:g} t_c (σ = {rate:.3g}/t_c)")
+    if noise > 0:
+        need = math.log(GROWN_AMPLITUDE / noise) / rate
+        return (f"{head}, from noise {noise:g} to about {noise * gain:.2g} in compactness: the flow only looks "
+                f"uniform; run longer (about --duration-tc {math.ceil(need)} to reach {GROWN_AMPLITUDE:g}) or start "
+                "from more noise (--noise)")
+    return f"{head}, and the run started without noise: give --noise (and a long enough --duration-tc)"
+
+
 def simulate_and_measure(model: ModelParams, params: SimulationParams | None = None, *,
                          rng: np.random.Generator | None = None,
                          progress: object = None) -> tuple[SimulationResult, dict[str, object]]:
@@ -339,6 +356,8 @@ def simulate_and_measure(model: ModelParams, params: SimulationParams | None = N
     waves = wave_state(res)
     seen = measure(res)
     warnings = list(res.warnings)
+    if mu is not None and mu.growth_rate > 0 and not waves.n_waves and res.params.boundary == "periodic":
+        warnings.append(_not_grown(mu.growth_rate, res.params.duration_tc, res.params.noise))
     if waves.n_waves and res.params.boundary == "periodic" and waves.n_waves == 1:
         warnings.append(f"one wave fills the box ({res.params.length_D:g} D): the dense-segment length "
                         f"({waves.dense_length_D:.0f} D) is set by the box, not selected by the flow; "
