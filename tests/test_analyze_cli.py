@@ -214,3 +214,16 @@ def test_progress_on_a_terminal_counts_to_the_real_total(tmp_path):
     assert counts, seen.decode(errors="replace")
     assert {total for _, total in counts} == {110}  # the window, not the movie's 150
     assert counts[-1] == (110, 110), counts
+
+
+def test_plugs_filtered_out_by_min_plug_mm_are_not_called_a_single_phase(tmp_path):
+    """Two phases seen, every run of grains shorter than --min-plug-mm: the statement says so and names the
+    parameter (it used to assert a compact flow)."""
+    import grainplug as gp
+    from grainplug.synthetic import SynthConfig, synthesize
+
+    movie = synthesize(SynthConfig(n_frames=40, seed=3), tmp_path / "m", fmt="tiff")
+    res = gp.analyze(movie.movie, min_plug_mm=500.0)
+    assert res.motion is None and "single phase" not in res.statement
+    assert "min_plug_mm = 500 mm" in res.statement and "longer than the" in res.statement
+    assert "--min-plug-mm" in res.statement

@@ -120,7 +120,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     runs, links = _plugs(norm, diagram, params)
     laps("plugs_s")
     motion, lengths, statement = _measures(norm, diagram, runs, links, tube.background_level, fps=info.fps,
-                                           mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
+                                           mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd, params=params)
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
     timings = dict(laps.timings, stream_fps=round(diagram.n_frames / max(laps.timings["stream_s"], 1e-9), 1))
@@ -506,12 +506,19 @@ def _plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams) -> tuple[
 
 
 def _measures(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, background_level: float, *, fps: float,
-              mm_per_px: float, scale_rel_sd: float) -> tuple[Motion | None, Lengths | None, str]:
+              mm_per_px: float, scale_rel_sd: float,
+              params: AnalysisParams) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity and oscillation of the plug train, plug and bubble lengths; or why there are none."""
-    if not (norm.two_phase and len(runs) > 0):
+    if not norm.two_phase:
         return None, None, (f"no plugs: the tube holds a single phase over the whole record "
                             f"({_single_phase(norm, background_level)}); "
                             "no celerity, length or frequency is measured")
+    if len(runs) == 0:
+        view = float(diagram.position_mm[-1] - diagram.position_mm[0]) if len(diagram.position_mm) > 1 else 0.0
+        longer = f", longer than the {view:.0f} mm in view" if params.min_plug_mm >= view else ""
+        return None, None, (f"no plugs: grains and air are both seen, but no run of grains is at least "
+                            f"min_plug_mm = {params.min_plug_mm:g} mm long{longer} — lower --min-plug-mm "
+                            "(or --min-gap-mm); no celerity, length or frequency is measured")
     # small least-squares problems: a BLAS thread pool would only add wake-up latency
     with threadpool_limits(limits=1, user_api="blas"):
         motion = measure_motion(diagram.time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
@@ -545,7 +552,7 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
     norm = normalize(diagram.values, background_level=background_level or None)
     runs, links = _plugs(norm, diagram, params)
     motion, lengths, statement = _measures(norm, diagram, runs, links, background_level, fps=fps,
-                                           mm_per_px=diagram.mm_per_px, scale_rel_sd=0.0)
+                                           mm_per_px=diagram.mm_per_px, scale_rel_sd=0.0, params=params)
     return DiagramMeasures(norm, runs, links, motion, lengths, statement)
 
 
@@ -555,7 +562,7 @@ def _single_phase(norm: Normalized, background: float) -> str:
         return "compact flow or empty tube"
     if 0.75 <= level / background <= 1.35:
         return "empty tube or dilute flow"
-    return "compact flow: grains fill the tube"
+    return "compact flow by its grey level: grains fill the tube"
 
 
 def _most_edges(runs: Runs, frames: np.ndarray) -> int:
