@@ -323,8 +323,9 @@ TABLES_SCHEMA_VERSION = 1
 
 #: ``plug_edges.csv``: column -> (type as ``pandas.read_csv`` reads it, meaning)
 EDGE_SCHEMA: dict[str, tuple[str, str]] = {
-    "frame": ("int64", "frame index in the movie"),
-    "time_s": ("float64", "time of the frame, s"),
+    "frame": ("int64", "index among the analysed frames (0 = the first); with a window (--start) the movie's "
+                       "frame is this plus summary.json's movie.details.window_frames[0]"),
+    "time_s": ("float64", "time of the frame on the movie's clock, s"),
     "plug_id": ("int64", "the plug's track (tracks.csv)"),
     "top_mm": ("float64", "upstream edge, mm from the upstream end of the view; empty where cut by the view"),
     "bottom_mm": ("float64", "downstream edge, mm; empty where cut by the view"),
@@ -333,8 +334,8 @@ EDGE_SCHEMA: dict[str, tuple[str, str]] = {
 #: ``tracks.csv``: column -> (type as ``pandas.read_csv`` reads it: int64, float64, bool or string; meaning)
 TRACK_SCHEMA: dict[str, tuple[str, str]] = {
     "plug_id": ("int64", "the track's id (plug_edges.csv)"),
-    "first_frame": ("int64", "first frame it is seen in"),
-    "last_frame": ("int64", "last frame it is seen in"),
+    "first_frame": ("int64", "first frame it is seen in (an index among the analysed frames, as in plug_edges.csv)"),
+    "last_frame": ("int64", "last frame it is seen in (the same index)"),
     "first_time_s": ("float64", "time of its first frame, s"),
     "last_time_s": ("float64", "time of its last frame, s"),
     "n_frames": ("int64", "frames it is seen in"),
