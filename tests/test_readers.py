@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from conftest import grey
 
+from grainplug.errors import MovieError
 from grainplug.readers import natural_key, open_movie
 from grainplug.synthetic import FORMATS, SynthConfig, synthesize
 from grainplug.synthetic.render import Renderer
@@ -135,3 +136,10 @@ def test_sample_frames_are_the_movie_frames(tmp_path, fmt):
     assert idx[-1] - idx[0] >= (30 if fmt != "h264" else 8)
     for k, frame in zip(idx, sample, strict=True):
         np.testing.assert_array_equal(frame, every[k])
+
+
+def test_a_file_named_tif_that_is_not_one_is_named_so(tmp_path):
+    fake = tmp_path / "run.tif"
+    fake.write_text("hello, these are my notes")
+    with pytest.raises(MovieError, match="is not a TIFF file"):
+        open_movie(fake)

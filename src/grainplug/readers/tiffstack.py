@@ -45,6 +45,11 @@ class TiffStackMovie(Movie):
         try:
             self._tif = tifffile.TiffFile(str(path))
         except (tifffile.TiffFileError, ValueError, OSError) as exc:
+            with open(path, "rb") as fh:
+                head = fh.read(4)
+            if head[:4] not in (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+"):
+                raise MovieError(f"{path} is not a TIFF file (it does not start as one: {head!r}) — check that it "
+                                 "is the movie, or give it its real extension") from None
             raise MovieError(f"cannot read {path} as a TIFF stack ({exc}) — is the file complete?") from None
         try:
             series = self._tif.series[0]
