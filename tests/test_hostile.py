@@ -67,7 +67,7 @@ def test_analyze_numbers_are_checked_before_anything_runs(tmp_path, capsys, movi
 
 @pytest.mark.parametrize(("args", "words"), [
     (["--k-max", "inf"], "--k-max"),
-    (["--n-k", "1000000000000"], "between 2 and 1e+06 wavenumbers"),
+    (["--n-k", "1000000000000"], "between 10 and 1e+06 wavenumbers"),
     (["--plot", "x.xyz"], "--plot must name a .png, .svg or .pdf file"),
 ])
 def test_stability_numbers_and_plot_names(tmp_path, capsys, args, words):

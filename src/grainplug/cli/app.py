@@ -157,14 +157,16 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
 @cli.command()
 @click.argument("image", type=click.Path(path_type=Path))
 @click.option("--pitch-mm", type=Number(1e-3, 1e4, unit="mm"), required=True,
-              help="Distance between neighbouring checkerboard corners (a square's side) or dot centres, in mm.")
+              help="Distance between neighbouring checkerboard corners (a square's side), dot centres, graph-paper "
+                   "lines or ruler ticks, in mm.")
 @click.option("--pattern", type=click.Choice(["auto", "checkerboard", "dots", "graph", "ruler"]), default="auto",
               show_default=True, help="The pattern in the image (graph: graph paper; ruler: a ruler's ticks).")
 @click.option("--out", "out", type=click.Path(path_type=Path), default=Path("calibration.json"), show_default=True,
               help="Where to write the calibration; a PNG of what was found is written beside it.")
 @click.option("--json", "as_json", is_flag=True, help="Print the calibration as JSON.")
 def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bool) -> None:
-    """The scale (mm per pixel) from IMAGE of a checkerboard or dot grid held at the tube's plane.
+    """The scale (mm per pixel) from IMAGE of a checkerboard, a dot grid, graph paper or a ruler held at the
+    tube's plane.
 
     IMAGE is a picture (PNG, TIFF, JPEG, BMP) or a short movie of the pattern taken with the
     camera and lens of the experiment (its first frames are averaged). Writes OUT (JSON, with the
@@ -218,7 +220,9 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.option("--glass-index", type=param_number("glass_index"), default=1.47, show_default=True,
               help="Refractive index of the tube's glass (1.47 borosilicate, 1.52 soda-lime), for the tube model.")
 @click.option("--flow-direction", type=click.Choice(FLOW_DIRECTIONS), default=None,
-              help="Direction of the grain flow in the image [default: down for a vertical tube].")
+              help="Direction of the grain flow in the image [default: the way the grains fall through the "
+                   "bubbles; if none are seen, down a vertical tube, or right along a horizontal one, with a "
+                   "warning].")
 @click.option("--min-plug-mm", type=param_number("min_plug_mm"), default=3.0, show_default=True,
               help="Shortest grain region counted as a plug.")
 @click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
@@ -361,8 +365,10 @@ _MODEL_OPTIONS = [
               help="printed: the paper's equations as printed; frozen-friction: wall friction not perturbed "
                    "(= --friction-law coulomb-frozen)."),
     click.option("--friction-law", type=click.Choice(["v2", "v|v|", "coulomb-frozen", "coulomb-weight"]), default=None,
-              help="Wall friction F(c, v): v2 as printed (2 b mu_s v^2), v|v| (signed), coulomb-frozen (held at "
-                   "its base value), coulomb-weight (following the local weight) [default: v2, or the variant's]."),
+              metavar="LAW",
+              help="Wall friction F(c, v), one of: v2 as printed (2 b mu_s v^2), v|v| (signed), coulomb-frozen "
+                   "(held at its base value), coulomb-weight (following the local weight) [default: v2, or the "
+                   "variant's]."),
     click.option("--base-pressure", "base_pressure", default="printed", show_default=True,
               metavar="printed|atmospheric|PA",
               help="Absolute air pressure of the base state: as printed (P* = 1, i.e. rho_s g D = 74 Pa), the "
@@ -411,9 +417,11 @@ def _model_params(diameter_mm: float, grain_diameter_um: float, c0: float, kappa
 
 @cli.command()
 @_model_options
-@click.option("--k-min", type=Number(1e-6, 1e4), default=0.001, show_default=True)
-@click.option("--k-max", type=Number(1e-6, 1e4), default=3.0, show_default=True)
-@click.option("--n-k", type=Number(2, 1e6, unit="wavenumbers", integer=True), default=1000, show_default=True)
+@click.option("--k-min", type=Number(1e-6, 1e4), default=0.001, show_default=True,
+              help="Smallest wavenumber, dimensionless (k* = k D; wavelength lambda/D = 2 pi / k*).")
+@click.option("--k-max", type=Number(1e-6, 1e4), default=3.0, show_default=True, help="Largest wavenumber k*.")
+@click.option("--n-k", type=Number(10, 1e6, unit="wavenumbers", integer=True), default=1000, show_default=True,
+              help="How many wavenumbers, evenly spread from --k-min to --k-max (10 to 10^6).")
 @click.option("--json", "as_json", is_flag=True, help="Print roots, most unstable mode, cut-offs and inputs as JSON.")
 @click.option("--plot", "plot", type=click.Path(path_type=Path), default=None,
               help="Write the paper's Fig. 9 (growth rates against k*) to this PNG (with --sweep: lambda/D).")
@@ -746,7 +754,7 @@ def _save_figure(fig, path: Path) -> None:
 @click.option("--plug-length-m", type=FINITE, default=0.03, show_default=True)
 @click.option("--air-column-m", type=FINITE, default=1.0, show_default=True,
               help="Length of the air column under the plug (the spring).")
-@click.option("--json", "as_json", is_flag=True)
+@click.option("--json", "as_json", is_flag=True, help="Print the inputs, sound speeds and modes as JSON.")
 def resonance(as_json: bool, **kwargs: object) -> None:
     """Acoustic resonance of the grain-air column (Wood's sound speed, pipe modes, plug on air spring)."""
     from ..stability.resonance import ResonanceInputs
