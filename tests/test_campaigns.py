@@ -258,3 +258,6 @@ def test_paper_figures_for_print(tmp_path, capsys):
     for stem in pngs:
         for ext in ("svg", "pdf"):
             assert (tmp_path / "p" / f"{stem}.{ext}").stat().st_size > 1000, (stem, ext)
+    # without simulations the report does not describe simulations
+    page = (tmp_path / "p" / "report.html").read_text()
+    assert "No simulation was run" in page and "Simulated: grainplug.simulation" not in page
