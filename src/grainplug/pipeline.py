@@ -342,7 +342,7 @@ def _tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, params: AnalysisP
                    f"--tube-outer-diameter-mm to check it against the tube's outer silhouette, or {fix}")
     elif not math.isfinite(bore.agreement):
         out.append(f"the scale comes from the tube model alone ({bore.method}: bore {bore.diameter_px:.1f} px, "
-                   f"about ±{100 * bore.rel_sd:.0f} %, glass index {params.glass_index:g} assumed), not cross-checked "
+                   f"about ±{100 * bore.rel_sd:.2g} %, glass index {params.glass_index:g} assumed), not cross-checked "
                    "— give --tube-outer-diameter-mm to check it against the outer silhouette, or " + fix)
     elif bore.agreement > AGREEMENT:
         parts = ", ".join(f"{m} {v:.1f} px" for m, v in est.items() if m != "contents")
