@@ -323,11 +323,17 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
         def fmt(v: object, unit: str = "", nd: int = 4) -> str:
             return "—" if v is None else f"{v:.{nd}f}{unit}" if isinstance(v, float) else f"{v}{unit}"
 
+        def speed(v: object) -> str:  # three significant digits: a slow plug is not -0.0000
+            return "—" if v is None else f"{v:+.3g}" if isinstance(v, float) else str(v)
+
         ci = s.get("celerity_ci95_m_s") or [None, None]
-        click.echo(f"regime          {s['regime']}")
-        click.echo(f"celerity        {fmt(s['celerity_m_s'], ' m/s')}  (95% CI {fmt(ci[0])} to {fmt(ci[1])})")
+        still = ci[0] is not None and ci[1] is not None and ci[0] <= 0 <= ci[1]
+        click.echo(f"regime          {s['regime']}" + ("  (no direction of travel: the celerity's 95% CI holds 0)"
+                                                        if still else ""))
+        click.echo(f"celerity        {speed(s['celerity_m_s'])} m/s  (95% CI {speed(ci[0])} to {speed(ci[1])})")
+        n_plugs = s["n_plugs"]
         click.echo(f"plug length     {fmt(s['plug_length_mm'], ' mm', 2)}  "
-                   f"({fmt(s['plug_length_over_diameter'], ' D', 2)}, {s['n_plugs']} plugs)")
+                   f"({fmt(s['plug_length_over_diameter'], ' D', 2)}, {n_plugs} plug{'' if n_plugs == 1 else 's'})")
         click.echo(f"bubble length   {fmt(s['bubble_length_mm'], ' mm', 2)}")
         if s["oscillation_frequency_hz"]:
             click.echo(f"oscillation     {fmt(s['oscillation_frequency_hz'], ' Hz', 3)}, "
