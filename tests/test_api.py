@@ -129,6 +129,9 @@ def test_result_displays_briefly(result):
     assert "celerity" in page and "data:image/png;base64," in page and len(page) < 200_000
     warned = dataclasses.replace(result, warnings=["check the scale"])
     assert "check the scale" in repr(warned) and "check the scale" in warned._repr_html_()
+    # its parts print their numbers, not their arrays; the headline numbers are attributes
+    assert len(repr(result.motion)) < 600 and "celerity_m_s" in repr(result.motion)
+    assert result.regime == result.motion.regime and result.bubble_length_mm == result.lengths.bubble_length_mm
 
 
 def test_plot_draws_into_given_axes(result):

@@ -140,6 +140,16 @@ class AnalysisResult:
         """Mean plug length (None without measured plugs)."""
         return None if self.lengths is None else self.lengths.plug_length_mm
 
+    @property
+    def bubble_length_mm(self) -> float | None:
+        """Mean bubble length (None without measured bubbles)."""
+        return None if self.lengths is None else self.lengths.bubble_length_mm
+
+    @property
+    def regime(self) -> str:
+        """``"propagative"``, ``"oscillating"``, ... or ``"none"`` when no plug was followed over time."""
+        return "none" if self.motion is None else self.motion.regime
+
     # -- tables -----------------------------------------------------------------
     @cached_property
     def edges(self) -> pd.DataFrame:

@@ -37,7 +37,7 @@ quadrature.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -78,10 +78,10 @@ class Motion:
     oscillation_frequency_hz: float | None
     oscillation_amplitude_mm: float
     explained_fraction: float
-    spectrum_hz: np.ndarray
-    spectrum_mm: np.ndarray
-    time_s: np.ndarray
-    displacement_mm: np.ndarray
+    spectrum_hz: np.ndarray = field(repr=False)  # arrays out of the repr: a print shows the numbers, not 10^4 values
+    spectrum_mm: np.ndarray = field(repr=False)
+    time_s: np.ndarray = field(repr=False)
+    displacement_mm: np.ndarray = field(repr=False)
     n_edges: int
     n_tracks_used: int
 
