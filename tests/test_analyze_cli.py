@@ -73,6 +73,8 @@ def test_no_plugs_statement(tmp_path, capsys):
     assert s["has_plugs"] is False and s["regime"] == "none"
     assert s["celerity_m_s"] is None and s["oscillation_frequency_hz"] is None
     assert "no plugs" in s["statement"]
+    page = (tmp_path / "o" / "report.html").read_text()  # the caption does not describe edges that are not drawn
+    assert "No plug edge is drawn" in page and "Vermillion" not in page
 
 
 def test_folder_needs_fps(tmp_path, capsys):

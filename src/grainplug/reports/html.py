@@ -213,6 +213,22 @@ CAPTIONS = (
 )
 
 
+def _captions(res: AnalysisResult) -> tuple[tuple[str, str], ...]:
+    """:data:`CAPTIONS`, the diagram's told what this run's diagram shows (its tube's orientation, edges and
+    mean-celerity line only when drawn)."""
+    along = ("vertical, from the top of the view" if res.tube.orientation != "horizontal"
+             else "horizontal, from the upstream end of the view")
+    drawn = []
+    if len(res.runs):
+        drawn.append("Vermillion: upper edges of the plugs, blue: lower edges")
+    if res.motion is not None:
+        drawn.append("the dashed green line has the mean celerity")
+    extra = ("; ".join(drawn) + ".") if drawn else "No plug edge is drawn: none was detected."
+    diagram = (f"Spatiotemporal diagram: the grey level along the tube ({along}, with the flow) against time. "
+               + extra[0].upper() + extra[1:])
+    return tuple((f, diagram if f == "diagram.png" else c) for f, c in CAPTIONS)
+
+
 def run_report(res: AnalysisResult, folder: Path, *, summary: dict | None = None) -> str:
     """HTML text of the report of one analysis (figures read from ``folder``): headline numbers rounded to
     their uncertainty, the regime in a sentence, warnings and corrections in boxes, a sortable table of the
@@ -231,7 +247,7 @@ def run_report(res: AnalysisResult, folder: Path, *, summary: dict | None = None
                        "corrections (corrections.json; <code>grainplug remeasure</code>).</p></div>")
     figs = "".join(
         f"<figure>{_img(folder / f)}<figcaption>{html.escape(c)}</figcaption></figure>"
-        for f, c in CAPTIONS if (folder / f).exists())
+        for f, c in _captions(res) if (folder / f).exists())
     prov = provenance({"grainplug_version": s["grainplug_version"], "input": s["input"],
                        "parameters": s["parameters"], "movie": s["movie"]},
                       folded="Provenance (version, input, parameters)")
