@@ -318,7 +318,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
         _echo_json(s)
         return
     if not result.has_plugs or s.get("celerity_m_s") is None:
-        err_console.print(result.statement)
+        err_console.print(result.statement, highlight=False, soft_wrap=True)
     if result.has_plugs:
         def fmt(v: object, unit: str = "", nd: int = 4) -> str:
             return "—" if v is None else f"{v:.{nd}f}{unit}" if isinstance(v, float) else f"{v}{unit}"
