@@ -131,3 +131,21 @@ def test_bubble_lengths_vectorised_equal_the_loop(rng):
             assert got.bubble_length_mm is None
         sizes.append(len(ref))
     assert sizes[0] > sizes[-1] > 0  # the threshold on frames seen does filter
+
+
+def test_a_length_interval_from_few_values_is_clipped_at_zero_and_shown_as_such():
+    """Two bubbles, 5 and 35 mm: the t-interval of their mean reaches below zero; a length cannot, so the
+    interval starts at 0, and the report shows it as an interval, not as a symmetric ±."""
+    from grainplug.reports.html import with_uncertainty
+
+    pos = np.arange(400) * 0.5
+    z = np.zeros((20, pos.size), np.float32)
+    for a, b in ((10, 40), (45, 75), (110, 140)):
+        z[:, (pos >= a) & (pos < b)] = 1.0
+    runs = find_runs(z, plug_mask(z, mm_per_sample=0.5), pos)
+    got = measure_lengths(runs, link(runs, z.shape[0]), min_frames=3)
+    assert got.n_bubbles_measured == 2 and got.bubble_length_mm == pytest.approx(20.0, abs=0.6)
+    lo, hi = got.bubble_length_ci95_mm
+    assert lo == 0.0 and hi > 150
+    assert with_uncertainty(got.bubble_length_mm, lo, hi) == f"20 (0 to {round(hi, -1):.0f})"  # to 2 digits of ±105
+    assert with_uncertainty(30.6, 29.9, 31.3) == "30.6 ± 0.7"  # a centred interval keeps its ±

@@ -50,7 +50,7 @@ def _mean_ci(values: np.ndarray, scale_rel_sd: float) -> tuple[float, tuple[floa
     sd = float(np.std(values, ddof=1))
     se = np.hypot(sd / np.sqrt(len(values)), m * scale_rel_sd)
     tq = t_quantile_975(len(values) - 1)
-    return m, (m - tq * se, m + tq * se), sd
+    return m, (max(m - tq * se, 0.0), m + tq * se), sd  # a length is never negative: few values, a clipped interval
 
 
 def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int) -> tuple[np.ndarray, np.ndarray]:

@@ -104,6 +104,11 @@ def with_uncertainty(value: float | None, lo: float | None, hi: float | None, *,
     lead = u / 10**exp
     digits = -exp + (1 if lead < 3 else 0)
     d = max(digits, 0)
+    lo, hi = min(lo, hi), max(lo, hi)
+    below, above = v - lo * scale, hi * scale - v
+    if abs(above - below) > 0.1 * max(above, below):  # an interval not centred on the value (clipped at 0)
+        return (f"{number(round(v, digits), d)} ({number(round(lo * scale, digits), d)} to "
+                f"{number(round(hi * scale, digits), d)})")
     return f"{number(round(v, digits), d)} ± {number(round(u, digits), d)}"
 
 
