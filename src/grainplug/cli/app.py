@@ -551,9 +551,12 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:g} t_c"),
                   TimeRemainingColumn(), console=err_console, transient=True,
                   disable=not err_console.is_terminal) as bar:
-        task = bar.add_task("simulating", total=duration_tc)
+        # the compiled kernel is built on the first run after an install (~15 s), before the first output
+        first = "simulating (compiles once after install, ~15 s)"
+        task = bar.add_task(first, total=duration_tc)
         res, summary = simulate_and_measure(p, sim, rng=np.random.default_rng(seed),
-                                            progress=lambda t, total: bar.update(task, completed=t))
+                                            progress=lambda t, total: bar.update(task, completed=t,
+                                                                                 description="simulating"))
     summary["seed"] = seed
     import matplotlib.pyplot as plt
 
