@@ -48,10 +48,11 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
     if len(runs):
         step = max(1, len(runs) // max_markers)
         tt = t[runs.frame[::step]]
-        ax.plot(tt, runs.top_mm[::step], "s", ms=2.2, mfc="none", mec=palette.UPPER, mew=0.6,
-                label="upper edge")
-        ax.plot(tt, runs.bottom_mm[::step], "o", ms=2.2, mfc="none", mec=palette.LOWER, mew=0.6,
-                label="lower edge")
+        top, bottom = runs.top_mm[::step], runs.bottom_mm[::step]
+        if np.isfinite(top).any():  # no legend entry for edges that are all out of view
+            ax.plot(tt, top, "s", ms=2.2, mfc="none", mec=palette.UPPER, mew=0.6, label="upper edge")
+        if np.isfinite(bottom).any():
+            ax.plot(tt, bottom, "o", ms=2.2, mfc="none", mec=palette.LOWER, mew=0.6, label="lower edge")
     m = res.motion
     title = "no plugs" if not res.has_plugs else ""
     if m is not None:
