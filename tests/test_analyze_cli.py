@@ -42,7 +42,7 @@ def test_outputs(tmp_path, capsys, movie):
     assert not [p for p in out.iterdir() if p.name.startswith(".grainplug-")]
     with open(out / "plug_edges.csv") as fh:
         rows = list(csv.DictReader(fh))
-    assert list(rows[0]) == ["frame", "time_s", "plug_id", "top_mm", "bottom_mm"]
+    assert list(rows[0]) == ["frame", "movie_frame", "time_s", "plug_id", "top_mm", "bottom_mm"]
     with open(out / "tracks.csv") as fh:
         tracks = list(csv.DictReader(fh))
     assert {"plug_id", "first_frame", "last_frame", "celerity_m_s", "mean_length_mm"} <= set(tracks[0])

@@ -106,7 +106,7 @@ def test_missing_frame_rate_and_bad_parameters_name_the_parameter(movie):
 
 def test_result_tables(result):
     e, t, p, b = result.edges, result.tracks, result.plugs, result.bubbles
-    assert list(e.columns) == ["frame", "time_s", "plug_id", "top_mm", "bottom_mm"]
+    assert list(e.columns) == ["frame", "movie_frame", "time_s", "plug_id", "top_mm", "bottom_mm"]
     assert len(e) == len(result.runs) and e.time_s.is_monotonic_increasing
     assert len(t) == len(result.links) and set(e.plug_id) == set(t.plug_id)
     # the lengths that make the means

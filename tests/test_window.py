@@ -61,6 +61,10 @@ def test_a_window_gives_the_numbers_of_the_cut_movie(movies):
         assert win.plug_length_mm == pytest.approx(cut.plug_length_mm, rel=1e-12)
         np.testing.assert_allclose(win.diagram.time_s, cut.diagram.time_s + START / fps)  # the movie's times
         assert win.summary["parameters"]["start_frame"] in (START, None)
+        # the tables give the movie's frame numbers beside the window's indices
+        assert (win.edges.movie_frame - win.edges.frame == START).all()
+        assert (cut.edges.movie_frame == cut.edges.frame).all()
+        assert (win.tracks.first_movie_frame - win.tracks.first_frame == START).all()
 
 
 def test_a_window_in_a_compressed_video(movies):

@@ -51,8 +51,9 @@ def edges_table(res: AnalysisResult) -> str:
         out[~np.isfinite(x)] = ""
         return out
 
-    rows = np.stack([r.frame.astype(str), np.char.mod("%.6f", t), res.links.run_track.astype(str),
-                     col(r.top_mm, "%.4f"), col(r.bottom_mm, "%.4f")], axis=1) if len(r) else np.empty((0, 5), str)
+    rows = np.stack([r.frame.astype(str), (r.frame.astype(np.int64) + res.first_movie_frame).astype(str),
+                     np.char.mod("%.6f", t), res.links.run_track.astype(str),
+                     col(r.top_mm, "%.4f"), col(r.bottom_mm, "%.4f")], axis=1) if len(r) else np.empty((0, 6), str)
     lines = [",".join(row) for row in rows.tolist()]
     return ",".join(EDGE_SCHEMA) + "\n" + "".join(line + "\n" for line in lines)
 

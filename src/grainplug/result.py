@@ -150,10 +150,16 @@ class AnalysisResult:
         """``"propagative"``, ``"oscillating"``, ... or ``"none"`` when no plug was followed over time."""
         return "none" if self.motion is None else self.motion.regime
 
+    @property
+    def first_movie_frame(self) -> int:
+        """The movie's number of the first analysed frame (the start of a ``--start`` window, else 0)."""
+        window = (self.info.details or {}).get("window_frames")
+        return int(window[0]) if window else 0
+
     # -- tables -----------------------------------------------------------------
     @cached_property
     def edges(self) -> pd.DataFrame:
-        """Plug edges in every frame: ``frame, time_s, plug_id, top_mm, bottom_mm``.
+        """Plug edges in every frame: ``frame, movie_frame, time_s, plug_id, top_mm, bottom_mm``.
 
         One row per plug per frame; ``top_mm``/``bottom_mm`` are NaN where the plug
         is cut by the end of the view. ``plug_id`` is the track (see :attr:`tracks`).
@@ -161,7 +167,9 @@ class AnalysisResult:
         import pandas as pd
 
         r = self.runs
-        return pd.DataFrame({"frame": r.frame.astype(np.int64), "time_s": self.diagram.time_s[r.frame],
+        return pd.DataFrame({"frame": r.frame.astype(np.int64),
+                             "movie_frame": r.frame.astype(np.int64) + self.first_movie_frame,
+                             "time_s": self.diagram.time_s[r.frame],
                              "plug_id": self.links.run_track.astype(np.int64), "top_mm": r.top_mm,
                              "bottom_mm": r.bottom_mm})
 
@@ -329,12 +337,12 @@ class AnalysisResult:
 #: columns of :attr:`AnalysisResult.tracks` and ``tracks.csv``
 #: version of the run's tables (``plug_edges.csv``, ``tracks.csv``; in ``summary.json``): it changes
 #: whenever a column changes meaning or type
-TABLES_SCHEMA_VERSION = 1
+TABLES_SCHEMA_VERSION = 2  # 2: movie_frame, first_movie_frame, last_movie_frame
 
 #: ``plug_edges.csv``: column -> (type as ``pandas.read_csv`` reads it, meaning)
 EDGE_SCHEMA: dict[str, tuple[str, str]] = {
-    "frame": ("int64", "index among the analysed frames (0 = the first); with a window (--start) the movie's "
-                       "frame is this plus summary.json's movie.details.window_frames[0]"),
+    "frame": ("int64", "index among the analysed frames (0 = the first)"),
+    "movie_frame": ("int64", "the frame's number in the movie (frame plus the first frame of a --start window)"),
     "time_s": ("float64", "time of the frame on the movie's clock, s"),
     "plug_id": ("int64", "the plug's track (tracks.csv)"),
     "top_mm": ("float64", "upstream edge, mm from the upstream end of the view; empty where cut by the view"),
@@ -346,6 +354,8 @@ TRACK_SCHEMA: dict[str, tuple[str, str]] = {
     "plug_id": ("int64", "the track's id (plug_edges.csv)"),
     "first_frame": ("int64", "first frame it is seen in (an index among the analysed frames, as in plug_edges.csv)"),
     "last_frame": ("int64", "last frame it is seen in (the same index)"),
+    "first_movie_frame": ("int64", "the number of its first frame in the movie"),
+    "last_movie_frame": ("int64", "the number of its last frame in the movie"),
     "first_time_s": ("float64", "time of its first frame, s"),
     "last_time_s": ("float64", "time of its last frame, s"),
     "n_frames": ("int64", "frames it is seen in"),
@@ -373,6 +383,7 @@ def track_rows(res: AnalysisResult) -> list[dict[str, Any]]:
     corrections (excluded, or merged into another) have no row.
     """
     r, tr, t = res.runs, res.links, res.diagram.time_s
+    off = res.first_movie_frame
     rows = []
     for tid in range(len(tr)):
         sel = tr.run_track == tid
@@ -389,6 +400,7 @@ def track_rows(res: AnalysisResult) -> list[dict[str, Any]]:
         lengths = (bot - top)[whole]
         rows.append({
             "plug_id": tid, "first_frame": int(tr.first_frame[tid]), "last_frame": int(tr.last_frame[tid]),
+            "first_movie_frame": int(tr.first_frame[tid]) + off, "last_movie_frame": int(tr.last_frame[tid]) + off,
             "first_time_s": float(t[tr.first_frame[tid]]), "last_time_s": float(t[tr.last_frame[tid]]),
             "n_frames": int(sel.sum()), "n_frames_whole": int(whole.sum()), "celerity_m_s": cel,
             "mean_length_mm": float(lengths.mean()) if lengths.size else np.nan,
