@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 import grainplug as gp
@@ -67,3 +68,17 @@ def test_the_report_sentence_keeps_the_interval_and_the_unit_of_the_card(result,
     sentence = html.unescape((out / "report.html").read_text()).split('<p class="sentence">')[1].split("</p>")[0]
     assert words in sentence, sentence
     assert "mm/s" not in sentence
+
+
+def test_the_frame_figure_has_a_scale_bar_of_a_round_length(result):
+    """The annotated frame carries a bar of 1, 2 or 5 x 10^n mm, as long as that many millimetres at the scale."""
+    from grainplug.plotting.figures import plot_annotated_frame
+
+    fig = plot_annotated_frame(result)
+    ax = fig.axes[0]
+    [label] = [t.get_text() for t in ax.texts if t.get_text().endswith(" mm")]
+    mm = float(label.split()[0])
+    assert mm / 10 ** np.floor(np.log10(mm)) in (1, 2, 5)
+    lengths = [float(np.hypot(*np.ptp(line.get_xydata(), axis=0))) for line in ax.lines]
+    assert any(abs(n - mm / result.mm_per_px) < 1e-6 for n in lengths)
+    assert "-0.00" not in fig.axes[0].get_title()

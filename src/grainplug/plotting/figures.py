@@ -3,6 +3,7 @@ oscillation spectrum, and an annotated frame (the paper's Fig 4)."""
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -164,9 +165,36 @@ def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None
             xc = tube.axis_x(row)
             draw([xc - half, xc + half], [row, row], "-", color=color, lw=1.6)
             draw([xc], [row], "*", color=color, ms=7)
-    ax.set_title(f"frame {index}: tube {tube.inner_diameter_px:.2f} px, "
-                 f"tilt {tube.tilt_deg:+.2f}°\nvermillion: upper edges, blue: lower edges", fontsize=8)
+    bore_px = res.bore.diameter_px if res.bore else res.params.tube_diameter_mm / res.mm_per_px
+    ax.set_title(f"frame {index}: bore {res.params.tube_diameter_mm:g} mm = {bore_px:.2f} px "
+                 f"(seen {tube.inner_diameter_px:.2f} px wide), tilt {round(tube.tilt_deg, 2) + 0.0:+.2f}°\n"
+                 "vermillion: upper edges, blue: lower edges", fontsize=8)
     ax.set_xticks([])
     ax.set_yticks([])
+    _scale_bar(ax, res.mm_per_px, vertical=vertical, along_px=h)
     ax.legend(loc="lower right", fontsize=7)
     return fig
+
+
+def _scale_bar(ax: Axes, mm_per_px: float, *, vertical: bool, along_px: int) -> None:
+    """A bar of a round length (1, 2 or 5 times a power of ten mm, about a tenth of the tube in view), drawn
+    along the tube near its start, in image pixels, labelled in mm."""
+    target = 0.1 * along_px * mm_per_px
+    mm = min((m * 10.0**e for e in range(-2, 4) for m in (1, 2, 5)), key=lambda x: abs(math.log(x / target)))
+    n_px = mm / mm_per_px
+    x0, x1 = sorted(ax.get_xlim())
+    y1, y0 = sorted(ax.get_ylim(), reverse=True)  # image axes: y grows downwards
+    if vertical:  # a vertical bar at the left edge of the crop
+        x = x0 + 0.12 * (x1 - x0)
+        y = y0 + 0.03 * (y1 - y0)
+        ax.plot([x, x], [y, y + n_px], "-", color="black", lw=4, solid_capstyle="butt")
+        ax.plot([x, x], [y, y + n_px], "-", color="white", lw=2, solid_capstyle="butt")
+        ax.text(x + 0.05 * (x1 - x0), y + n_px / 2, f"{mm:g} mm", color="white", fontsize=7, rotation=90,
+                va="center", ha="left", bbox={"facecolor": "black", "alpha": 0.6, "lw": 0, "pad": 1})
+    else:  # a horizontal bar at the top edge of the crop
+        x = x0 + 0.03 * (x1 - x0)
+        y = y0 + 0.12 * (y1 - y0)
+        ax.plot([x, x + n_px], [y, y], "-", color="black", lw=4, solid_capstyle="butt")
+        ax.plot([x, x + n_px], [y, y], "-", color="white", lw=2, solid_capstyle="butt")
+        ax.text(x + n_px / 2, y + 0.06 * (y1 - y0), f"{mm:g} mm", color="white", fontsize=7,
+                va="top", ha="center", bbox={"facecolor": "black", "alpha": 0.6, "lw": 0, "pad": 1})
