@@ -485,8 +485,9 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
             click.echo("note               the printed model does not give the paper's long-wave instability "
                        "(k* ~ 0.2, cut-off ~ 0.6); --variant frozen-friction does — see docs/stability.md")
     else:
-        click.echo(f"most unstable      k* = {m.k:.5f}  growth rate {m.growth_rate:.5f}  phase speed "
-                   f"{m.phase_speed:+.4f} v_c  lambda/D = {m.wavelength_over_diameter:.3f}")
+        click.echo(f"most unstable      k* = {m.k:.5f}  growth rate {m.growth_rate:.5f}/t_c "
+                   f"({m.growth_rate / p.t_c_s:.3g}/s)  phase speed {m.phase_speed:+.4f} v_c "
+                   f"({m.phase_speed * p.v_c_m_s:+.3f} m/s)  lambda/D = {m.wavelength_over_diameter:.3f}")
     for kc in res.cutoff_k:
         click.echo(f"cut-off            k* = {kc:.5f}  lambda/D = {2 * 3.141592653589793 / kc:.3f}")
     if plot is not None:
