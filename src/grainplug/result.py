@@ -334,7 +334,6 @@ class AnalysisResult:
                              figure_options=figure_options)
 
 
-#: columns of :attr:`AnalysisResult.tracks` and ``tracks.csv``
 #: version of the run's tables (``plug_edges.csv``, ``tracks.csv``; in ``summary.json``): it changes
 #: whenever a column changes meaning or type
 TABLES_SCHEMA_VERSION = 2  # 2: movie_frame, first_movie_frame, last_movie_frame
@@ -369,6 +368,7 @@ TRACK_SCHEMA: dict[str, tuple[str, str]] = {
     "composite": ("bool", "True when born of a merge or ended by a split (left out of length averages)"),
 }
 
+#: columns of :attr:`AnalysisResult.tracks` and ``tracks.csv``
 TRACK_COLUMNS = tuple(TRACK_SCHEMA)
 
 

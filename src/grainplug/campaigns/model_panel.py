@@ -236,12 +236,16 @@ class ModelPanel:
     verdict: list[str]
     diameter_mm: float
 
+    @property
+    def simulated(self) -> bool:
+        """Whether nonlinear simulations were run for the panel."""
+        return any(q.nonlinear for q in self.predictions)
+
     def as_dict(self) -> dict[str, object]:
-        ran = any(q.nonlinear for q in self.predictions)
         return {"measured": self.measured.as_dict(), "predictions": [q.as_dict() for q in self.predictions],
                 "verdict": self.verdict, "diameter_mm": self.diameter_mm,
                 "nonlinear_runs": {"boxes_D": list(BOXES_D), "cells_per_D": CELLS_PER_D, "duration_tc": DURATION_TC,
-                                   "noise": NOISE, "seed": 0} if ran else None}
+                                   "noise": NOISE, "seed": 0} if self.simulated else None}
 
 
 def model_panel(measured: Measured, *, diameter_mm: float = 3.0, simulate: bool = True) -> ModelPanel:
@@ -268,7 +272,7 @@ def panel_html(panel: ModelPanel, figure: str | None) -> str:
            + "<p>Linear theory: grainplug.stability with the paper's inputs. "
            + (f"Simulated: grainplug.simulation in periodic boxes of {' and '.join(f'{b:.0f}' for b in BOXES_D)} D "
               f"from noise of {NOISE:g}, {DURATION_TC:.0f} t_c; the dense segment is where c is above the middle of "
-              "its range. " if any(q.nonlinear for q in panel.predictions) else "No simulation was run. ")
+              "its range. " if panel.simulated else "No simulation was run. ")
            + "See docs/model.md.</p>")
     if figure:
         out += (f'<figure><img src="{html.escape(figure)}" alt="model against experiment" style="max-width:100%">'

@@ -15,7 +15,7 @@ import os
 from pathlib import Path
 
 from ..errors import MovieError, ParameterError
-from .base import Movie, MovieInfo
+from .base import TIFF_SIGNATURES, Movie, MovieInfo
 
 log = logging.getLogger(__name__)
 
@@ -118,7 +118,7 @@ def _sniff(path: Path) -> str | None:
         return "cine"
     if head[:4] == (0xFEED).to_bytes(4, "little"):
         return "seq"
-    if head[:4] in (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+"):
+    if head[:4] in TIFF_SIGNATURES:
         return "tiff"
     return None
 

@@ -19,6 +19,9 @@ from ..errors import MovieError
 
 log = logging.getLogger(__name__)
 
+#: the first four bytes of a TIFF file (classic and BigTIFF, either byte order)
+TIFF_SIGNATURES = (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+")
+
 
 @dataclass(frozen=True)
 class MovieInfo:

@@ -11,7 +11,7 @@ import numpy as np
 import tifffile
 
 from ..errors import MovieError
-from .base import Movie, MovieInfo, map_file, read_file
+from .base import TIFF_SIGNATURES, Movie, MovieInfo, map_file, read_file
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +47,7 @@ class TiffStackMovie(Movie):
         except (tifffile.TiffFileError, ValueError, OSError) as exc:
             with open(path, "rb") as fh:
                 head = fh.read(4)
-            if head[:4] not in (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+"):
+            if head not in TIFF_SIGNATURES:
                 raise MovieError(f"{path} is not a TIFF file (it does not start as one: {head!r}) — check that it "
                                  "is the movie, or give it its real extension") from None
             raise MovieError(f"cannot read {path} as a TIFF stack ({exc}) — is the file complete?") from None

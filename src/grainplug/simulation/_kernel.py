@@ -44,12 +44,14 @@ def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float) 
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _pj(c, k):
-    if k[K_JAM] == 0.0:
+def _pj(c, jam, fr, cmin, cmax):
+    """The jamming pressure and its slope (0 without jamming), as :meth:`Closure.jamming_pressure`; the
+    constants as scalars, so that a loop calling it still vectorizes."""
+    if not jam:
         return 0.0, 0.0
-    x = max(c - k[K_CMIN], 0.0)
-    y = max(k[K_CMAX] - c, 1e-4)
-    return k[K_FR] * x * x / y**5, k[K_FR] * (2 * x / y**5 + 5 * x * x / y**6)
+    x = max(c - cmin, 0.0)
+    y = max(cmax - c, 1e-4)
+    return fr * x * x / y**5, fr * (2 * x / y**5 + 5 * x * x / y**6)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -103,11 +105,7 @@ def _state(c, v, P, r, kap, gam, jam, fr, cmin, cmax):
     """Flux, conserved variables and the extreme speeds of one face state (the constants as scalars, so that
     the compiler keeps them in registers and vectorizes the loop over the faces)."""
     cs = max(c, C_FLOOR)
-    pj = dpj = 0.0
-    if jam:
-        x = max(c - cmin, 0.0)
-        y = max(cmax - c, 1e-4)
-        pj, dpj = fr * x * x / y**5, fr * (2 * x / y**5 + 5 * x * x / y**6)
+    pj, dpj = _pj(c, jam, fr, cmin, cmax)
     m = r * (1 - c)
     b = v / (kap * cs)
     a = gam * P / (cs * (1 - c)) + dpj
@@ -356,13 +354,14 @@ def max_speed(U, k):
 
 @njit(cache=True, error_model="numpy")
 def _max_speed(U, P_cells, k):
+    jam, fr, cmin, cmax = k[K_JAM] != 0.0, k[K_FR], k[K_CMIN], k[K_CMAX]
     best = 0.0
     for i in range(U.shape[1]):
         c = U[0, i]
         cs = max(c, C_FLOOR)
         v = U[1, i] / cs if c > C_FLOOR else 0.0
         P = P_cells[i]
-        _, dpj = _pj(c, k)
+        _, dpj = _pj(c, jam, fr, cmin, cmax)
         b = v / (k[K_KAPPA] * cs)
         a = k[K_GAMMA] * P / (cs * (1 - c)) + dpj
         root = math.sqrt(b * b + 4 * a)
