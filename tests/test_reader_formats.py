@@ -21,6 +21,7 @@ from grainplug.band import Band
 from grainplug.errors import MovieError
 from grainplug.readers import open_movie
 from grainplug.readers.base import map_file, read_file
+from grainplug.readers.cvvideo import OpenCVVideoMovie
 from grainplug.synthetic import FORMATS, MovieWriter, SynthConfig, synthesize
 from grainplug.synthetic.render import Renderer
 
@@ -133,6 +134,59 @@ def test_reader_contract(tmp_path, fmt):
         # image folders hold no frame rate; files hold the one written
         check_contract(m, truth, FPS if spec.suffix else None, spec.lossless, np.random.default_rng(1),
                        luma=fmt in LUMA)
+
+
+#: video formats as the contract writes them for the OpenCV reader (the default install's, without PyAV):
+#: what it reads as stored (8-bit colour, 8- and 16-bit grey)
+OPENCV_CONTRACT = {"avi": (True, 8), "mjpeg": (True, 8), "ffv1": (False, 16), "mov": (True, 8), "h264": (True, 8),
+                   "avi-grey": (False, 8), "ffv1-grey8": (False, 8)}
+
+
+@pytest.mark.parametrize("case", sorted(OPENCV_CONTRACT))
+def test_opencv_reader_contract(tmp_path, case):
+    """Without PyAV, videos are read through OpenCV: the same contract, and the same pixels as PyAV's reader."""
+    fmt = case.split("-")[0]
+    _skip_without_writer(fmt)
+    rgb, depth = OPENCV_CONTRACT[case]
+    cfg = SynthConfig(n_frames=N, width_px=WIDTH, height_px=HEIGHT, fps=FPS, rgb=rgb, bit_depth=depth, seed=4)
+    movie = synthesize(cfg, tmp_path, fmt=fmt).movie
+    truth = np.stack(list(Renderer(cfg).frames()))
+    with OpenCVVideoMovie(movie) as m, open_movie(movie) as ref:
+        assert m.info.format.startswith("video-opencv:") and m.info.warnings == ()
+        check_contract(m, truth, FPS, FORMATS[fmt].lossless, np.random.default_rng(1))
+        for k, (a, b) in enumerate(zip(m.frames(), ref.frames(), strict=True)):
+            np.testing.assert_array_equal(a, b, err_msg=f"frame {k}")
+        idx, sample = m.sample(8)
+        for k, frame in zip(idx, sample, strict=True):
+            np.testing.assert_array_equal(frame, truth[k] if FORMATS[fmt].lossless else ref.read(int(k)))
+
+
+def test_opencv_reader_says_when_it_reads_fewer_bits(tmp_path):
+    """16-bit colour FFV1 through OpenCV comes out as 8 bits: said in the movie's warnings, with the fix."""
+    cfg = SynthConfig(n_frames=6, width_px=WIDTH, height_px=HEIGHT, rgb=True, bit_depth=16, seed=2)
+    movie = synthesize(cfg, tmp_path, fmt="ffv1").movie
+    truth = np.stack(list(Renderer(cfg).frames()))
+    with OpenCVVideoMovie(movie) as m:
+        assert m.info.dtype == "uint8" and m.info.bit_depth == 8 and m.info.channels == 3
+        assert len(m.info.warnings) == 1 and 'pip install "grainplug[video]"' in m.info.warnings[0]
+        frame = m.read(3)
+        np.testing.assert_allclose(frame, truth[3] / 257.0, atol=1.5)  # 8 bits (FFmpeg dithers a little)
+
+
+def test_opencv_reader_refuses_a_truncated_video(tmp_path):
+    """A raw AVI cut in the middle: counted (``verify``) it is refused when opened, else when read."""
+    movie = synthesize(SynthConfig(n_frames=40, width_px=WIDTH, height_px=HEIGHT, seed=3), tmp_path, fmt="avi").movie
+    data = movie.read_bytes()
+    movie.write_bytes(data[: len(data) // 2])
+    with pytest.raises(MovieError, match="truncated"):
+        OpenCVVideoMovie(movie, verify=True)
+    try:
+        m = OpenCVVideoMovie(movie)
+    except MovieError as exc:  # the header's index is gone with the end of the file
+        assert "copy" in str(exc) or "corrupt" in str(exc) or "complete" in str(exc)
+        return
+    with m, pytest.raises(MovieError, match="truncated"):
+        list(m.frames())
 
 
 @pytest.mark.parametrize("kind", ["uint8 rgb", "uint16 grey", "float32 grey", "uint8 rgba"])

@@ -4,11 +4,20 @@ Notes
 -----
 Each frame of the analysis is cropped around the tube (six diameters either side, as
 the annotated figure), shown with the tube's inner walls (orange), every plug's upper
-(vermillion) and lower (blue) edge with its track number, a scale bar and the time stamp. It is written
-as H.264 in an MP4 file (PyAV's libx264, ``yuv420p``, CRF 18), which plays everywhere and
-is what labs check by eye and put in supplementary material. ``slowdown`` plays the
-movie that many times slower. Frames are read one at a time, so memory does not grow with
-the movie.
+(vermillion) and lower (blue) edge with its track number, a scale bar and the time stamp. ``slowdown``
+plays the movie that many times slower. Frames are read one at a time, so memory does not grow
+with the movie.
+
+The container follows the file name:
+
+- ``.mp4``: H.264 (PyAV's libx264, ``yuv420p``, CRF 18), which plays everywhere and is what
+  labs put in supplementary material. It needs PyAV (``pip install "grainplug[video]"``),
+  whose wheels bundle the GPL encoder x264, so it is not in the default install;
+- ``.webm``: VP8 through OpenCV's FFmpeg (in the default install), which plays in every
+  current browser (Chromium, Firefox, Safari 14.1+). VP9 would be smaller but is encoded
+  ten times slower by OpenCV's default settings.
+
+The default is ``overlay.mp4`` where PyAV is installed and ``overlay.webm`` otherwise.
 
 The drawing (:func:`draw_frame`) takes arrays only; :func:`write_overlay` opens the
 movie and writes the file atomically.
@@ -16,7 +25,10 @@ movie and writes the file atomically.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -114,17 +126,16 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
     folder : path
         An analysis (``grainplug analyze --out``); its movie must still be where it was analysed.
     out : path, optional
-        The MP4 file (default ``folder/overlay.mp4``).
+        The video file: ``.mp4`` (H.264, needs PyAV) or ``.webm`` (VP8); default
+        ``folder/overlay.mp4`` where PyAV is installed, else ``folder/overlay.webm``.
     slowdown : float, optional
         Play this many times slower than real time (default: slow enough for at most
         :data:`DEFAULT_MAX_FPS` frames per second, i.e. real time for slow cameras).
     every : int
         Keep one frame in ``every`` (a shorter video of a long record).
     """
-    import av
-
     from ._atomic import atomic_file
-    from .readers import open_movie
+    from .readers import open_movie, pyav_available
     from .store import load_result
 
     res = load_result(folder)
@@ -138,10 +149,14 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
     if not (math.isfinite(slow) and slow > 0):
         raise ParameterError("the slow-down must be a positive number", param="slowdown")
     out_fps = fps / slow / every
-    target = Path(out) if out is not None else Path(folder) / "overlay.mp4"
-    if target.suffix.lower() != ".mp4":
-        raise ParameterError(f"the overlay is an MP4 file: give a name ending in .mp4, not {target.name}",
-                             param="out")
+    target = Path(out) if out is not None else Path(folder) / ("overlay.mp4" if pyav_available() else "overlay.webm")
+    kind = target.suffix.lower()
+    if kind not in (".mp4", ".webm"):
+        raise ParameterError(f"the overlay is an MP4 or a WebM file: give a name ending in .mp4 or .webm, not "
+                             f"{target.name}", param="out")
+    if kind == ".mp4" and not pyav_available():
+        raise ParameterError('an MP4 (H.264) overlay needs PyAV: pip install "grainplug[video]", or give a name '
+                             "ending in .webm", param="out")
     top = float((1 << int(res.info.bit_depth)) - 1) if res.info.bit_depth else 255.0
     p = res.params
     try:
@@ -149,30 +164,79 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
     except (GrainplugError, OSError) as exc:
         raise GrainplugError(f"cannot open the movie {path} ({exc}) — the overlay draws on the analysed movie, "
                              "put it back where it was") from None
-    from fractions import Fraction
-
     with movie, atomic_file(target) as tmp:
         from .pipeline import window_start
 
         offset = window_start(movie, p)
-        container = av.open(str(tmp), mode="w", format="mp4")
-        try:
-            stream = None
-            for k in range(0, res.diagram.n_frames, every):
-                img = draw_frame(res, analysed_region(res, movie.read(offset + k)), k, top_value=top)
-                h, w = img.shape[:2]
-                img = np.ascontiguousarray(img[: h - h % 2, : w - w % 2])  # yuv420p: even sizes
-                if stream is None:
-                    stream = container.add_stream("libx264", rate=Fraction(out_fps).limit_denominator(1000))
-                    stream.width, stream.height = img.shape[1], img.shape[0]
-                    stream.pix_fmt = "yuv420p"
-                    stream.options = {"crf": "18", "preset": "veryfast"}
-                vf = av.VideoFrame.from_ndarray(img, format="bgr24")
-                for packet in stream.encode(vf):
-                    container.mux(packet)
-            if stream is not None:
-                for packet in stream.encode():
-                    container.mux(packet)
-        finally:
-            container.close()
+        n = res.diagram.n_frames
+        frames = (draw_frame(res, analysed_region(res, frame), k, top_value=top)
+                  for k, frame in zip(range(0, n, every), movie.frames(offset, offset + n, every), strict=False))
+        (_write_h264 if kind == ".mp4" else _write_vp8)(tmp, frames, out_fps)
     return target
+
+
+def _write_h264(path: Path, frames: Iterator[np.ndarray], fps: float) -> None:
+    """BGR frames as H.264 in an MP4 file (PyAV's libx264, ``yuv420p``, CRF 18)."""
+    from fractions import Fraction
+
+    import av
+
+    container = av.open(str(path), mode="w", format="mp4")
+    try:
+        stream = None
+        for img in frames:
+            h, w = img.shape[:2]
+            img = np.ascontiguousarray(img[: h - h % 2, : w - w % 2])  # yuv420p: even sizes
+            if stream is None:
+                stream = container.add_stream("libx264", rate=Fraction(fps).limit_denominator(1000))
+                stream.width, stream.height = img.shape[1], img.shape[0]
+                stream.pix_fmt = "yuv420p"
+                stream.options = {"crf": "18", "preset": "veryfast"}
+            for packet in stream.encode(av.VideoFrame.from_ndarray(img, format="bgr24")):
+                container.mux(packet)
+        if stream is not None:
+            for packet in stream.encode():
+                container.mux(packet)
+    finally:
+        container.close()
+
+
+def _write_vp8(path: Path, frames: Iterator[np.ndarray], fps: float) -> None:
+    """BGR frames as VP8 in a WebM file, through OpenCV's FFmpeg (about 1 bit per pixel per frame)."""
+    import cv2
+
+    writer = None
+    try:
+        for img in frames:
+            h, w = img.shape[:2]
+            img = np.ascontiguousarray(img[: h - h % 2, : w - w % 2])
+            if writer is None:
+                with _quiet_stderr():  # OpenCV prints a harmless note about WebM's codec tags
+                    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"VP80"), fps,
+                                             (img.shape[1], img.shape[0]))
+                if not writer.isOpened():
+                    raise GrainplugError("OpenCV cannot write WebM (VP8) video here — install PyAV and write an "
+                                         'MP4: pip install "grainplug[video]"')
+            writer.write(img)
+    finally:
+        if writer is not None:
+            writer.release()
+
+
+@contextlib.contextmanager
+def _quiet_stderr() -> Iterator[None]:
+    """Send what C libraries print on file descriptor 2 to nowhere while the block runs."""
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to silence
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+            try:
+                yield
+            finally:
+                os.dup2(saved, 2)
+    finally:
+        os.close(saved)

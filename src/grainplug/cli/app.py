@@ -674,14 +674,16 @@ def review(folder: Path, port: int, no_browser: bool) -> None:
 @cli.command()
 @click.argument("folder", type=click.Path(path_type=Path))
 @click.option("--out", "out", type=click.Path(path_type=Path), default=None,
-              help="The MP4 file [default: FOLDER/overlay.mp4].")
+              help="The video: .mp4 (H.264, needs PyAV: pip install \"grainplug[video]\") or .webm (VP8) "
+                   "[default: FOLDER/overlay.mp4 with PyAV, else FOLDER/overlay.webm].")
 @click.option("--slowdown", type=Number(0.01, 1e6), default=None,
               help="Play this many times slower than real time [default: at most 30 frames per second].")
 @click.option("--every", type=Number(1, 1e6, integer=True), default=1, show_default=True,
               help="Keep one frame in this many.")
 def overlay(folder: Path, out: Path | None, slowdown: float | None, every: int) -> None:
-    """Write an H.264 MP4 of the analysed movie around the tube with the detected edges, track numbers,
-    a scale bar and the time stamp (for checking by eye and for supplementary material)."""
+    """Write a video of the analysed movie around the tube with the detected edges, track numbers,
+    a scale bar and the time stamp (for checking by eye and for supplementary material): an H.264 MP4
+    where PyAV is installed, else a VP8 WebM."""
     from ..overlay import write_overlay
 
     if not folder.is_dir():

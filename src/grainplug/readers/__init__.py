@@ -30,7 +30,8 @@ def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float
     Parameters
     ----------
     path : str or Path or array
-        A video file (AVI, MP4, MKV, MOV...), a multi-page TIFF, a folder of
+        A video file (AVI, MP4, MKV, MOV...; through PyAV when it is installed, else
+        through OpenCV), a multi-page TIFF, a folder of
         numbered images, a Phantom ``.cine``, a Photron ``.mraw`` (or its
         ``.cih``/``.cihx`` header), a NorPix ``.seq``; or frames in memory,
         ``T x H x W`` or ``T x H x W x 3`` (numpy, dask).
@@ -101,9 +102,23 @@ def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float
         raise MovieError(
             f"{p} is a single image — pass the folder that holds the numbered frames instead"
         )
+    if not pyav_available():
+        from .cvvideo import OpenCVVideoMovie
+
+        return OpenCVVideoMovie(p, fps=fps, verify=verify)
     from .video import VideoMovie
 
     return VideoMovie(p, fps=fps, verify=verify)
+
+
+def pyav_available() -> bool:
+    """Whether PyAV (the ``video`` extra) is installed: videos are then read and written through
+    it; without it, through OpenCV (see :mod:`grainplug.readers.cvvideo`)."""
+    try:
+        import av  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 #: formats recognised by their first bytes, whatever the file's extension
@@ -146,4 +161,4 @@ def __getattr__(name: str) -> object:
 
 
 __all__ = ["ArrayMovie", "Movie", "MovieError", "MovieInfo", "as_movie", "list_images", "natural_key",
-           "open_movie"]
+           "open_movie", "pyav_available"]

@@ -145,7 +145,11 @@ class MovieWriter:
             self._open_av(frame)
 
     def _open_av(self, frame: np.ndarray) -> None:
-        import av
+        try:
+            import av
+        except ImportError:
+            raise ParameterError(f"writing {self.fmt} video needs PyAV: pip install \"grainplug[video]\", or write "
+                                 "tiff, png, mraw, cine or seq") from None
 
         h, w = frame.shape[:2]
         grey = frame.ndim == 2

@@ -1,0 +1,194 @@
+"""Video files through OpenCV's FFmpeg, for installs without PyAV.
+
+Notes
+-----
+grainplug's default install holds no GPL code. PyAV's binary wheels bundle an FFmpeg
+built with the GPL encoders x264 and x265, so PyAV is an extra (``pip install
+"grainplug[video]"``) and, without it, videos are read through the FFmpeg that
+``opencv-python-headless`` bundles (built without GPL parts). It decodes the same
+pixels (checked frame for frame against PyAV in the tests), with these limits:
+
+- grey video is read as it is stored when it is 8-bit (``gray``) or 16-bit
+  (``gray16le``); every other deep format (10/12-bit grey, 16-bit RGB, 10-bit YUV) is
+  converted to 8 bits by OpenCV, and the movie's ``info.warnings`` say so, with the fix;
+- frame times are ``index / fps`` (no container time stamps);
+- a frame is reached by OpenCV's seek (key frame, then decoding forward).
+
+Frame counts come from the container (MP4, MOV, AVI index them); Matroska, WebM and
+NUT record a duration only, so their frames are counted by decoding them once when
+the movie is opened. A file that decodes fewer frames than it announced is refused
+as truncated, as PyAV's reader does.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import MovieError
+from .base import Movie, MovieInfo
+
+log = logging.getLogger(__name__)
+
+#: containers whose frame count OpenCV can only estimate from their duration
+COUNTED_SUFFIXES = (".mkv", ".webm", ".nut", ".mj2")
+#: FFmpeg's raw pixel-format tags of formats deeper than 8 bits end in their depth as a byte
+#: (``Y1 0 12`` is 12-bit grey, ``G3 0 16`` planar 16-bit RGB, ``Y3 11 10`` 10-bit YUV), except
+#: packed 16-bit RGB(A), whose tags end in the bits per pixel (``RGB 48``, ``RBA 64``)
+_DEEP_DEPTHS = (9, 10, 12, 14, 16)
+_DEEP_PACKED = {b"RGB": 48, b"BGR": 48, b"RBA": 64, b"BRA": 64}
+GREY8, GREY16 = b"Y800", b"Y1\x00\x10"
+FIX = 'install PyAV to read every bit: pip install "grainplug[video]"'
+
+
+def _tag(value: float) -> bytes:
+    return int(value).to_bytes(4, "little", signed=False) if 0 <= value < 2**32 else b"\0\0\0\0"
+
+
+def _describe(tag: bytes) -> str:
+    return tag.decode("ascii", "replace").rstrip("\0") if all(32 <= b < 127 for b in tag) else tag.hex()
+
+
+class OpenCVVideoMovie(Movie):
+    """A video (AVI, MP4, MKV, MOV, WebM...) read through OpenCV's FFmpeg.
+
+    Used by :func:`grainplug.readers.open_movie` when PyAV is not installed; see the
+    module's notes for what it reads and how.
+
+    Parameters
+    ----------
+    path : Path
+        The video file.
+    fps : float, optional
+        Frame rate to use instead of the file's.
+    verify : bool
+        Count the frames by decoding them all, whatever the container says.
+    """
+
+    def __init__(self, path: Path, *, fps: float | None = None, verify: bool = False) -> None:
+        import cv2
+
+        self._cv2 = cv2
+        cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+        try:
+            if not cap.isOpened():
+                raise MovieError(
+                    f"cannot read {path} — is it a complete movie file? grainplug reads AVI/MP4/MKV/MOV "
+                    "videos, TIFF stacks, image folders, .cine, .mraw and .seq")
+            width = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH))
+            height = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+            if width <= 0 or height <= 0:
+                raise MovieError(f"{path}: the video stream has no frame size — the file is corrupt")
+            pix = _tag(cap.get(cv2.CAP_PROP_CODEC_PIXEL_FORMAT))
+            codec = _describe(_tag(cap.get(cv2.CAP_PROP_FOURCC))).strip().lower() or "?"
+            file_fps = float(cap.get(cv2.CAP_PROP_FPS)) or None
+            announced = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+        finally:
+            cap.release()
+        warnings: list[str] = []
+        self._native = pix in (GREY8, GREY16)  # read as stored, without OpenCV's conversion to BGR
+        if self._native:
+            channels, depth = 1, 16 if pix == GREY16 else 8
+        else:
+            channels, depth = (1 if pix[:2] == b"Y1" else 3), 8
+            if pix[3] in _DEEP_DEPTHS or _DEEP_PACKED.get(pix[:3]) == pix[3]:
+                warnings.append(f"the video stores more than 8 bits per sample (pixel format {_describe(pix)}) "
+                                f"but OpenCV reads it as 8 bits — {FIX}")
+        self._grey_from_bgr = not self._native and channels == 1
+        if verify or announced <= 0 or path.suffix.lower() in COUNTED_SUFFIXES:
+            counted = self._count(path)
+            if announced > 0 and counted < announced - 1 and path.suffix.lower() not in COUNTED_SUFFIXES:
+                raise MovieError(f"{path} is truncated: its header announces {announced} frames but it holds "
+                                 f"only {counted} — copy the file again from the camera or recorder")
+            announced = counted
+        if announced <= 0:
+            raise MovieError(f"{path} holds no video frames — pass a movie with frames")
+        use_fps, source = (fps, "user") if fps else (file_fps, "file" if file_fps else "none")
+        info = MovieInfo(
+            path=str(path), format=f"video-opencv:{path.suffix.lower().lstrip('.')}/{codec}", width=width,
+            height=height, n_frames=announced, fps=use_fps, channels=channels, bit_depth=depth,
+            dtype="uint16" if depth == 16 else "uint8", fps_source=source, warnings=tuple(warnings),
+            details={"reader": "opencv", "pixel_format": _describe(pix)},
+        )
+        super().__init__(path, info)
+        self._seeker = None  # a capture kept open for read(), positioned after the last frame read
+        self._next = -1
+
+    def _open(self):
+        cap = self._cv2.VideoCapture(str(self.path), self._cv2.CAP_FFMPEG)
+        if not cap.isOpened():
+            raise MovieError(f"cannot reopen {self.path} — was it moved or deleted?")
+        if self._native:
+            cap.set(self._cv2.CAP_PROP_CONVERT_RGB, 0)
+        return cap
+
+    def _count(self, path: Path) -> int:
+        cap = self._cv2.VideoCapture(str(path), self._cv2.CAP_FFMPEG)
+        n = 0
+        try:
+            while cap.grab():
+                n += 1
+        finally:
+            cap.release()
+        return n
+
+    def _convert(self, frame: np.ndarray, *, any_order: bool = False) -> np.ndarray:
+        """OpenCV's frame as the reader hands it out: grey as it is, colour as RGB
+        (``any_order``: BGR left as it is, for the grey-level analysis)."""
+        if self._native:
+            return frame
+        if self._grey_from_bgr:
+            return np.ascontiguousarray(frame[..., 0])
+        return frame if any_order else self._cv2.cvtColor(frame, self._cv2.COLOR_BGR2RGB)
+
+    def _decode(self, start: int, stop: int, step: int, *, any_order: bool) -> Iterator[np.ndarray]:
+        cap = self._open()
+        index = 0
+        try:
+            if start > 0:
+                cap.set(self._cv2.CAP_PROP_POS_FRAMES, start)
+                index = start
+            while index < stop:
+                if (index - start) % step == 0:
+                    ok, frame = cap.read()
+                    if not ok:
+                        break
+                    yield self._convert(frame, any_order=any_order)
+                elif not cap.grab():
+                    break
+                index += 1
+        finally:
+            cap.release()
+        if index < stop:
+            raise MovieError(f"{self.path} is truncated: only {index} of {self.info.n_frames} frames decode — "
+                             "copy the file again from the camera or recorder")
+
+    def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
+        return self._decode(start, stop, step, any_order=False)
+
+    def _analysis_frames(self) -> Iterator[np.ndarray]:
+        return self._decode(0, self.info.n_frames, 1, any_order=True)
+
+    def read(self, index: int) -> np.ndarray:
+        """One frame: decoded on from the last one read when it follows it, else reached by seeking."""
+        n = self.info.n_frames
+        if not 0 <= index < n:
+            raise IndexError(f"frame {index} out of range 0..{n - 1}")
+        if self._seeker is None:
+            self._seeker = self._open()
+        if index != self._next:
+            self._seeker.set(self._cv2.CAP_PROP_POS_FRAMES, index)
+        ok, frame = self._seeker.read()
+        if not ok:
+            self._next = -1
+            raise MovieError(f"{self.path}: frame {index} does not decode — the file is corrupt or truncated")
+        self._next = index + 1
+        return self._convert(frame)
+
+    def _close(self) -> None:
+        if self._seeker is not None:
+            self._seeker.release()
+            self._seeker = None
