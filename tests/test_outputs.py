@@ -82,3 +82,23 @@ def test_the_frame_figure_has_a_scale_bar_of_a_round_length(result):
     lengths = [float(np.hypot(*np.ptp(line.get_xydata(), axis=0))) for line in ax.lines]
     assert any(abs(n - mm / result.mm_per_px) < 1e-6 for n in lengths)
     assert "-0.00" not in fig.axes[0].get_title()
+
+
+def test_outputs_are_as_readable_as_any_file_the_user_makes(result, tmp_path):
+    """A result folder and a single output file get the permissions of the user's umask (a lab shares
+    them on a server), not the private 0700/0600 of a temporary file."""
+    import os
+    import stat
+
+    from grainplug._atomic import atomic_file
+
+    old = os.umask(0o022)
+    try:
+        result.save(tmp_path / "run", figures=False)
+        with atomic_file(tmp_path / "one.txt") as tmp:
+            tmp.write_text("x")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "run").stat().st_mode) == 0o755
+    assert {stat.S_IMODE(f.stat().st_mode) for f in (tmp_path / "run").iterdir()} == {0o644}
+    assert stat.S_IMODE((tmp_path / "one.txt").stat().st_mode) == 0o644

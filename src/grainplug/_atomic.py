@@ -25,6 +25,7 @@ import contextlib
 import errno
 import json
 import os
+import secrets
 import shutil
 import tempfile
 from collections.abc import Iterable, Iterator
@@ -224,10 +225,10 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
         out.parent.mkdir(parents=True, exist_ok=True)
         recover(out)
         if replace:
-            tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.grainplug-new-{os.getpid()}-", dir=out.parent))
+            tmp = _new_dir(out.parent, f".{out.name}.grainplug-new-{os.getpid()}-")
         else:
             out.mkdir(parents=True, exist_ok=True)
-            tmp = Path(tempfile.mkdtemp(prefix=".grainplug-", dir=out))
+            tmp = _new_dir(out, ".grainplug-")
     except OSError as exc:
         raise OutputPlaceError(_describe(exc, out)) from None
     try:
@@ -266,6 +267,35 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def _new_dir(parent: Path, prefix: str) -> Path:
+    """A new, uniquely named folder in ``parent``, with the permissions the user's umask gives.
+
+    (``tempfile.mkdtemp`` makes it private, mode 0700: a result folder shared on a lab's server
+    must be readable as any other folder.)
+    """
+    for _ in range(100):
+        path = parent / f"{prefix}{secrets.token_hex(5)}"
+        try:
+            path.mkdir(0o777)
+        except FileExistsError:
+            continue
+        return path
+    raise FileExistsError(errno.EEXIST, "no free temporary name", str(parent / prefix))
+
+
+def _new_file(parent: Path, prefix: str, suffix: str) -> Path:
+    """A new, empty, uniquely named file in ``parent``, with the permissions the user's umask gives
+    (``tempfile.mkstemp`` makes it 0600)."""
+    for _ in range(100):
+        path = parent / f"{prefix}{secrets.token_hex(5)}{suffix}"
+        try:
+            os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        except FileExistsError:
+            continue
+        return path
+    raise FileExistsError(errno.EEXIST, "no free temporary name", str(parent / prefix))
+
+
 @contextlib.contextmanager
 def atomic_file(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; it replaces ``path`` when the block ends well.
@@ -280,11 +310,9 @@ def atomic_file(path: str | Path) -> Iterator[Path]:
         raise OutputPlaceError(f"{dest} is a folder — give a file name")
     try:
         dest.parent.mkdir(parents=True, exist_ok=True)
-        fd, name = tempfile.mkstemp(prefix=f".{dest.stem}-", suffix=dest.suffix, dir=dest.parent)
+        tmp = _new_file(dest.parent, f".{dest.stem}-", dest.suffix)
     except OSError as exc:
         raise OutputPlaceError(_describe(exc, dest)) from None
-    os.close(fd)
-    tmp = Path(name)
     try:
         try:
             yield tmp
