@@ -47,3 +47,16 @@ def test_the_tables_documented_are_the_tables_written():
         documented = [line.split("|")[1:4] for line in section.splitlines()[2:]]
         assert [(c.strip().strip("`"), d.strip(), m.strip()) for c, d, m in documented] == \
             [(c, d, m) for c, (d, m) in schema.items()], name
+
+
+def test_the_corrections_file_documented_is_read():
+    """docs/review.md's example of a hand-written corrections.json is a file grainplug reads."""
+    import json
+
+    from grainplug.corrections import Corrections
+
+    blocks = re.findall(r"```json\n(.*?)```", (ROOT / "docs" / "review.md").read_text(), flags=re.S)
+    assert len(blocks) == 1
+    corr = Corrections.from_dict(json.loads(blocks[0]))
+    assert [e.describe() for e in corr.edits] == [
+        "kept the frames from 0.2 s to the end", "excluded track 4", "split track 2 at analysed frame 150"]

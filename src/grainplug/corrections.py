@@ -91,7 +91,8 @@ class Edit:
         if a == "merge":
             return f"merged track {self.other} into track {self.track}"
         if a == "split":
-            return f"split track {self.track} at frame {self.frame}"
+            when = f" ({self.frame_time_s:g} s)" if self.frame_time_s is not None else ""
+            return f"split track {self.track} at analysed frame {self.frame}{when}"
         if a == "window":
             lo = "the start" if self.start_s is None else f"{self.start_s:g} s"
             hi = "the end" if self.end_s is None else f"{self.end_s:g} s"
