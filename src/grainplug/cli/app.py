@@ -805,7 +805,9 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publ
 
     check_output_place(out)
     _refuse_existing(out, overwrite)
-    rep = reproduce(simulate=not no_simulations)
+    doing = "reproducing the paper" + ("" if no_simulations else " (its simulations compile once after install, ~15 s)")
+    with err_console.status(doing) if err_console.is_terminal else contextlib.nullcontext():
+        rep = reproduce(simulate=not no_simulations)
     write_paper(rep, out, figures=not no_figures,
                 figure_options=_figure_options(None, None, publication, None))
     if as_json:
@@ -860,7 +862,10 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         task = bar.add_task("campaign", total=None)
 
         def progress(done: int, total: int, run: str) -> None:
-            bar.update(task, completed=done, total=total, description=f"run {run}")
+            last = done == total and not no_simulations  # then the tables, fits and the model's simulations
+            bar.update(task, completed=done, total=total,
+                       description="fits and model (the simulations compile once after install, ~15 s)" if last
+                       else f"run {run}")
 
         try:
             camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,
