@@ -813,8 +813,9 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publ
     if as_json:
         _echo_json({"grainplug_version": __version__, **rep.as_dict()})
         return
+    click.echo("plug celerity against the mass flow rate ṁ (g/s), fitted as v_p = a + b ṁ:")
     for g, f in rep.fits.items():
-        click.echo(f"{g:20s} v_p = {f.intercept:+.4f} {f.slope:+.4f} * m_dot   (R² {f.r2:.3f}, n {f.n})")
+        click.echo(f"  {g:18s} a = {f.intercept:+.4f} m/s, b = {f.slope:+.5f} (m/s)/(g/s)   (R² {f.r2:.3f}, n {f.n})")
     n_ok = sum(c.agrees for c in rep.checks)
     click.echo(f"checks: {n_ok} of {len(rep.checks)} statements agree with the tables and models; "
                f"see {out / 'reproduction.md'}")
