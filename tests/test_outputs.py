@@ -102,3 +102,21 @@ def test_outputs_are_as_readable_as_any_file_the_user_makes(result, tmp_path):
     assert stat.S_IMODE((tmp_path / "run").stat().st_mode) == 0o755
     assert {stat.S_IMODE(f.stat().st_mode) for f in (tmp_path / "run").iterdir()} == {0o644}
     assert stat.S_IMODE((tmp_path / "one.txt").stat().st_mode) == 0o644
+
+
+def test_a_short_record_has_its_time_axis_in_ms(result):
+    """Under 0.1 s the diagram's time ticks read in ms (0.25, not 0.00025); the data stay in seconds."""
+    import dataclasses
+
+    from grainplug.plotting.figures import plot_diagram
+
+    fast = dataclasses.replace(result, diagram=dataclasses.replace(result.diagram,
+                                                                   time_s=result.diagram.time_s / 100))
+    for res, unit in ((result, "s"), (fast, "ms")):
+        fig = plot_diagram(res)
+        ax = fig.axes[0]
+        fig.canvas.draw()
+        assert ax.get_xlabel() == f"time t ({unit})"
+        labels = [t.get_text() for t in ax.get_xticklabels() if t.get_text()]
+        assert labels and all(len(lab.replace("−", "")) <= 5 for lab in labels), labels
+        assert ax.get_xlim()[1] == res.diagram.time_s[-1]

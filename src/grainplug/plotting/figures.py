@@ -69,13 +69,19 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
         L = res.lengths.plug_length_mm if res.lengths else None
         title = f"{m.regime}: c = {m.celerity_m_s:+.4f} m s⁻¹"
         if L:
-            title += f", λ = {L:.2f} mm, λ/D = {L / res.params.tube_diameter_mm:.1f}"
+            title += f", plug length λ = {L:.2f} mm (λ/D = {L / res.params.tube_diameter_mm:.1f})"
         if m.oscillation_frequency_hz:
             title += f", f = {m.oscillation_frequency_hz:.2f} Hz"
         title = title.replace("-", "−")
     ax.set_ylim(s[-1], s[0])
     ax.set_xlim(t[0], t[-1])
-    ax.set_xlabel("time t (s)")
+    if t[-1] - t[0] < 0.1:  # a short record: ticks in ms (0.25 ms, not 0.00025 s); the data stay in s
+        from matplotlib.ticker import FuncFormatter
+
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v * 1000:.6g}"))
+        ax.set_xlabel("time t (ms)")
+    else:
+        ax.set_xlabel("time t (s)")
     ax.set_ylabel(f"position z along the tube (mm; flow {res.flow_direction} in the image)")
     ax.set_title(title, fontsize=10)
     if len(runs):
