@@ -141,8 +141,17 @@ def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None
         img = img / max(float(img.max()), 1.0)
     extent = (lo - 0.5, lo + crop.shape[1] - 0.5, crop.shape[0] - 0.5, -0.5) if vertical else (
         -0.5, crop.shape[1] - 0.5, lo + crop.shape[0] - 0.5, lo - 0.5)
-    fig, ax = new_figure(figsize=(4.5, 8) if vertical else (9, 4.5))
-    fig.subplots_adjust(left=0.02, right=0.98, bottom=0.01, top=0.93 if vertical else 0.88)
+    # the figure takes the crop's shape (a horizontal tube used to float in a mostly empty page):
+    # the image 7.4 in tall (vertical tube) or 8.6 in wide (horizontal), and room for the two-line title
+    aspect = crop.shape[1] / crop.shape[0]
+    title_in, foot_in = 0.5, 0.08
+    if vertical:
+        fig_w, img_h = min(max(7.4 * aspect + 0.2, 4.5), 12.0), 7.4
+    else:
+        fig_w, img_h = 9.0, min(max(8.6 / aspect, 1.2), 8.0)
+    fig_h = img_h + title_in + foot_in
+    fig, ax = new_figure(figsize=(fig_w, fig_h))
+    fig.subplots_adjust(left=0.02, right=0.98, bottom=foot_in / fig_h, top=1 - title_in / fig_h)
     ax.imshow(img, cmap="gray", interpolation="nearest", extent=extent)
     rows = np.arange(h, dtype=float)
     axis = tube.axis_x(rows)
