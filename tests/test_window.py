@@ -135,6 +135,16 @@ def test_a_region_of_interest_chooses_one_of_two_tubes(two_tubes):
     assert err.value.param == "roi"
 
 
+def test_no_second_tube_is_seen_in_a_record_too_short_for_the_plugs_to_move(tmp_path):
+    """12 frames at 5000 fps (the plugs move 0.1 mm): the tube changes no more than the background's noise,
+    which is no reason to suspect another tube."""
+    from grainplug.synthetic import SynthConfig, synthesize
+
+    movie = synthesize(SynthConfig(n_frames=12, fps=5000.0, seed=3), tmp_path, fmt="tiff").movie
+    res = gp.analyze(movie)
+    assert not [w for w in res.warnings if "second tube" in w]
+
+
 def test_roi_on_the_command_line_reads_the_band_from_the_file(two_tubes, tmp_path, capsys):
     """Through a file (the band read with shifted pixels on the reader's fast path): the same numbers as in
     memory; a malformed --roi is one line."""

@@ -220,7 +220,12 @@ def _other_moving_regions(frames: list[np.ndarray], tube: TubeGeometry) -> list[
         return []
     level = float(np.median(across[(cols >= axis.min() - 0.4 * tube.inner_diameter_px)
                                    & (cols <= axis.max() + 0.4 * tube.inner_diameter_px)]))
-    hot = ~inside & (across > OTHER_REGION_SHARE * level)
+    # the still background's variation (noise, flicker): a tube whose frames change no more than it (plugs
+    # that hardly move in a very short record) gives nothing to compare with
+    floor = float(np.percentile(across[~inside], 10))
+    if level <= 2.0 * floor:
+        return []
+    hot = ~inside & (across > max(OTHER_REGION_SHARE * level, 2.0 * floor))
     if level <= 0 or hot.sum() < max(3, 0.3 * tube.inner_diameter_px):
         return []
     where = cols[hot]
