@@ -173,9 +173,11 @@ def test_opencv_reader_says_when_it_reads_fewer_bits(tmp_path):
         np.testing.assert_allclose(frame, truth[3] / 257.0, atol=1.5)  # 8 bits (FFmpeg dithers a little)
 
 
-def test_opencv_reader_refuses_a_truncated_video(tmp_path):
-    """A raw AVI cut in the middle: counted (``verify``) it is refused when opened, else when read."""
-    movie = synthesize(SynthConfig(n_frames=40, width_px=WIDTH, height_px=HEIGHT, seed=3), tmp_path, fmt="avi").movie
+@pytest.mark.parametrize("fmt", ["avi", "ffv1"])
+def test_opencv_reader_refuses_a_truncated_video(tmp_path, fmt):
+    """A raw AVI or an FFV1 Matroska cut in the middle: counted (``verify``, and always for Matroska, whose
+    frame count is an estimate from its duration) it is refused when opened, else when read."""
+    movie = synthesize(SynthConfig(n_frames=40, width_px=WIDTH, height_px=HEIGHT, seed=3), tmp_path, fmt=fmt).movie
     data = movie.read_bytes()
     movie.write_bytes(data[: len(data) // 2])
     with pytest.raises(MovieError, match="truncated"):
@@ -187,6 +189,34 @@ def test_opencv_reader_refuses_a_truncated_video(tmp_path):
         return
     with m, pytest.raises(MovieError, match="truncated"):
         list(m.frames())
+
+
+@pytest.mark.parametrize("name", ["movie.ts", "misnamed.mp4"])
+def test_opencv_reader_finds_frames_in_a_transport_stream(tmp_path, name):
+    """MPEG-TS (camcorders' .ts/.mts), where OpenCV's seek lands on another frame: ``read(k)`` and
+    ``frames(start)`` still give frame k (a .ts is decoded forward; under a name that promises an index,
+    the seek is tried and caught by the frame's time stamp)."""
+    from fractions import Fraction
+
+    _skip_without_writer("h264")
+    # 300 frames: OpenCV's seek in a stream this long lands ~1 s in, whatever frame is asked for
+    frames = list(Renderer(SynthConfig(n_frames=300, width_px=WIDTH, height_px=HEIGHT, seed=8)).frames())
+    path = tmp_path / name
+    with av.open(str(path), "w", format="mpegts") as out:
+        stream = out.add_stream("libx264", rate=Fraction(250))
+        stream.width, stream.height, stream.pix_fmt = WIDTH, HEIGHT, "yuv420p"
+        for f in frames:
+            for packet in stream.encode(av.VideoFrame.from_ndarray(f, format="rgb24")):
+                out.mux(packet)
+        for packet in stream.encode():
+            out.mux(packet)
+    with OpenCVVideoMovie(path) as m:
+        every = list(m.frames())
+        assert len(every) == 300
+        for k in (40, 3, 299, 0, 41):
+            np.testing.assert_array_equal(m.read(k), every[k], err_msg=f"frame {k}")
+        for a, b in zip(m.frames(100, 120, 4), every[100:120:4], strict=True):
+            np.testing.assert_array_equal(a, b)
 
 
 @pytest.mark.parametrize("kind", ["uint8 rgb", "uint16 grey", "float32 grey", "uint8 rgba"])

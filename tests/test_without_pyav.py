@@ -56,3 +56,74 @@ def test_what_needs_pyav_says_how_to_get_it(with_pyav, no_pyav, tmp_path):
     assert not (out / "overlay.mp4").exists()
     with pytest.raises(ParameterError, match=r'needs PyAV: pip install "grainplug\[video\]"'):
         synthesize(SynthConfig(n_frames=4, width_px=32, height_px=64), tmp_path / "m", fmt="h264")
+
+
+@pytest.fixture(scope="module")
+def uneven(tmp_path_factory):
+    """A lossless Matroska movie whose first 60 frames are 4 ms apart and the next 60 frames 8 ms apart."""
+    from fractions import Fraction
+
+    import av
+
+    from grainplug.synthetic import SynthConfig
+    from grainplug.synthetic.render import Renderer
+
+    path = tmp_path_factory.mktemp("vfr") / "vfr.mkv"
+    frames = list(Renderer(SynthConfig(n_frames=120, rgb=False, seed=7)).frames())
+    with av.open(str(path), "w") as out:
+        stream = out.add_stream("ffv1", rate=250)
+        stream.width, stream.height, stream.pix_fmt = frames[0].shape[1], frames[0].shape[0], "gray"
+        stream.time_base = Fraction(1, 1000)
+        for k, f in enumerate(frames):
+            vf = av.VideoFrame.from_ndarray(f, format="gray")
+            vf.pts, vf.time_base = (4 * k if k < 60 else 240 + 8 * (k - 60)), Fraction(1, 1000)
+            for packet in stream.encode(vf):
+                out.mux(packet)
+        for packet in stream.encode():
+            out.mux(packet)
+    return path
+
+
+@pytest.mark.parametrize("reader", ["pyav", "opencv"])
+def test_uneven_frame_times_are_used_and_said(uneven, monkeypatch, reader):
+    """Both readers: all 120 frames (not refused as truncated: the count estimated from the duration is
+    too high), timed by the file's stamps, and a warning that they are uneven."""
+    import numpy as np
+
+    if reader == "opencv":
+        monkeypatch.setitem(sys.modules, "av", None)
+    res = gp.analyze(uneven)
+    assert res.info.n_frames == 120 and res.info.format.startswith("video-opencv" if reader == "opencv" else "video:")
+    np.testing.assert_allclose(np.diff(res.diagram.time_s)[[0, 58, 60, 118]], [0.004, 0.004, 0.008, 0.008],
+                               atol=1e-6)
+    said = [w for w in res.warnings if "not evenly spaced" in w]
+    assert len(said) == 1 and "4 to 8 ms" in said[0]
+    with gp.open_movie(uneven) as m:  # frames reached by seeking are the frames in order
+        every = list(m.frames())
+        for k in (100, 5, 119, 61):
+            np.testing.assert_array_equal(m.read(k), every[k])
+
+
+@pytest.fixture(scope="module")
+def deep_colour(tmp_path_factory):
+    """A 16-bit colour FFV1 movie, which OpenCV reads as 8 bits."""
+    from grainplug.synthetic import SynthConfig, synthesize
+
+    return synthesize(SynthConfig(n_frames=8, width_px=64, height_px=160, bit_depth=16, seed=2),
+                      tmp_path_factory.mktemp("deep"), fmt="ffv1").movie
+
+
+def test_the_terminal_shows_the_fix_whole_and_a_bad_file_in_one_line(deep_colour, no_pyav, tmp_path, capfd):
+    """The install hint keeps its ``[video]`` (not eaten as markup), and what FFmpeg prints about a file
+    that is no movie stays off the terminal: one line."""
+    from grainplug.cli import main
+
+    assert main(["info", str(deep_colour)]) == 0
+    err = capfd.readouterr().err
+    assert 'pip install "grainplug[video]"' in err
+    bad = tmp_path / "text.mp4"
+    bad.write_text("not a movie\n" * 50)
+    assert main(["analyze", str(bad), "--out", str(tmp_path / "out")]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "text.mp4" in err[0], err
+    assert not (tmp_path / "out").exists()

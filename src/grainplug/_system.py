@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import collections
+import contextlib
 import os
 import sys
 import threading
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 #: share of the free memory that read-ahead may ask for beyond a reader's position
 READAHEAD_MEMORY_SHARE = 0.5
@@ -227,3 +228,25 @@ class ReadAhead:
             os.close(fd)
             if null_fd >= 0:
                 os.close(null_fd)
+
+
+@contextlib.contextmanager
+def quiet_stderr() -> Iterator[None]:
+    """Send what C libraries (FFmpeg, OpenCV) print on file descriptor 2 to nowhere while the block runs.
+
+    The descriptor is the whole process's: keep the block to the library call whose noise it hides.
+    """
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to silence
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+            try:
+                yield
+            finally:
+                os.dup2(saved, 2)
+    finally:
+        os.close(saved)

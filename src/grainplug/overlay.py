@@ -25,9 +25,7 @@ movie and writes the file atomically.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -205,13 +203,15 @@ def _write_vp8(path: Path, frames: Iterator[np.ndarray], fps: float) -> None:
     """BGR frames as VP8 in a WebM file, through OpenCV's FFmpeg (about 1 bit per pixel per frame)."""
     import cv2
 
+    from ._system import quiet_stderr
+
     writer = None
     try:
         for img in frames:
             h, w = img.shape[:2]
             img = np.ascontiguousarray(img[: h - h % 2, : w - w % 2])
             if writer is None:
-                with _quiet_stderr():  # OpenCV prints a harmless note about WebM's codec tags
+                with quiet_stderr():  # OpenCV prints a harmless note about WebM's codec tags
                     writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"VP80"), fps,
                                              (img.shape[1], img.shape[0]))
                 if not writer.isOpened():
@@ -221,22 +221,3 @@ def _write_vp8(path: Path, frames: Iterator[np.ndarray], fps: float) -> None:
     finally:
         if writer is not None:
             writer.release()
-
-
-@contextlib.contextmanager
-def _quiet_stderr() -> Iterator[None]:
-    """Send what C libraries print on file descriptor 2 to nowhere while the block runs."""
-    try:
-        saved = os.dup(2)
-    except OSError:  # no stderr to silence
-        yield
-        return
-    try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 2)
-            try:
-                yield
-            finally:
-                os.dup2(saved, 2)
-    finally:
-        os.close(saved)

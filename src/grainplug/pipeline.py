@@ -132,7 +132,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *scale_warnings, *light_warnings,
-                  *filter(None, [repair.describe(diagram.n_frames)]), *flow.warnings, *other_tubes,
+                  *filter(None, [repair.describe(diagram.n_frames)]), *_uneven_times(diagram.time_s),
+                  *flow.warnings, *other_tubes,
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
     )
 
@@ -427,6 +428,23 @@ def _implausible(motion: Motion | None, grains: GrainMotion | None, saturation: 
         out.append(f"{100 * saturation:.1f} % of the tube's pixels are at the camera's top value (saturated): plug "
                    "and bubble contrast is lost there — lower the exposure or the light")
     return out
+
+
+#: spread of the intervals between frames (relative to their median) above which they are said to be uneven
+UNEVEN_TIMES = 0.05
+
+
+def _uneven_times(time_s: np.ndarray) -> list[str]:
+    """A warning when the frames' time stamps are not evenly spaced (a re-encoded or variable-rate file)."""
+    dt = np.diff(np.asarray(time_s, float))
+    if dt.size < 2:
+        return []
+    med, lo, hi = float(np.median(dt)), float(dt.min()), float(dt.max())
+    if not med > 0 or hi - lo <= UNEVEN_TIMES * med:
+        return []
+    return [f"the frames are not evenly spaced in time ({1000 * lo:.3g} to {1000 * hi:.3g} ms apart): the file's own "
+            "time stamps are used, but a high-speed camera records at a constant rate — check how the file was made "
+            "(re-encoded, frames dropped?), or give --fps to time the frames by their number"]
 
 
 def _frame_times(movie: Movie, info: MovieInfo, n: int) -> np.ndarray:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 from rich.console import Console
+from rich.markup import escape
 
 from .._version import __version__
 from ..errors import ParameterError
@@ -150,7 +151,7 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
     if details.get("timestamp_jitter"):
         click.echo(f"time stamp jitter {100 * float(details['timestamp_jitter']):.2g} %")
     for line in d.get("warnings") or []:
-        err_console.print(f"[yellow]warning:[/] {line}", highlight=False, soft_wrap=True)
+        err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
 
 
 # ---------------------------------------------------------------------------
@@ -198,7 +199,7 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
         click.echo(f"variation   {100 * cal.scale_variation:.2g} % over the pattern")
         click.echo(f"written     {out} and {figure}")
     for line in cal.warnings:
-        err_console.print(f"[yellow]warning:[/] {line}", highlight=False, soft_wrap=True)
+        err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
 
 
 # ---------------------------------------------------------------------------
@@ -311,14 +312,14 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     s = result.summary
     settings = click.get_current_context().meta.get("grainplug.config")
     if settings is not None:  # said once the run is done: a refusal stays one line
-        err_console.print(f"settings from {settings}", highlight=False, soft_wrap=True)
+        err_console.print(f"settings from {escape(str(settings))}", highlight=False, soft_wrap=True)
     for line in result.warnings:
-        err_console.print(f"[yellow]warning:[/] {line}", highlight=False, soft_wrap=True)
+        err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
     if as_json:
         _echo_json(s)
         return
     if not result.has_plugs or s.get("celerity_m_s") is None:
-        err_console.print(result.statement, highlight=False, soft_wrap=True)
+        err_console.print(escape(result.statement), highlight=False, soft_wrap=True)
     if result.has_plugs:
         def fmt(v: object, unit: str = "", nd: int = 4) -> str:
             return "—" if v is None else f"{v:.{nd}f}{unit}" if isinstance(v, float) else f"{v}{unit}"
@@ -866,7 +867,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
             last = done == total and not no_simulations  # then the tables, fits and the model's simulations
             bar.update(task, completed=done, total=total,
                        description="fits and model (the simulations compile once after install, ~15 s)" if last
-                       else f"run {run}")
+                       else f"run {escape(run)}")
 
         try:
             camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,

@@ -11,13 +11,19 @@ pixels (checked frame for frame against PyAV in the tests), with these limits:
 - grey video is read as it is stored when it is 8-bit (``gray``) or 16-bit
   (``gray16le``); every other deep format (10/12-bit grey, 16-bit RGB, 10-bit YUV) is
   converted to 8 bits by OpenCV, and the movie's ``info.warnings`` say so, with the fix;
-- frame times are ``index / fps`` (no container time stamps);
-- a frame is reached by OpenCV's seek (key frame, then decoding forward).
+- frame times are the container's time stamps once the movie has been read through (the
+  analysis does), ``index / fps`` before;
+- a frame is reached by OpenCV's seek (key frame, then decoding forward) in containers that
+  index their frames (MP4, MOV, AVI, Matroska, WebM), and the frame's time stamp is checked
+  against the one expected: where the seek landed elsewhere (an MPEG transport stream, a
+  variable frame rate) the frame is decoded forward from the start instead.
 
 Frame counts come from the container (MP4, MOV, AVI index them); Matroska, WebM and
-NUT record a duration only, so their frames are counted by decoding them once when
+others record a duration only, so their frames are counted by decoding them once when
 the movie is opened. A file that decodes fewer frames than it announced is refused
-as truncated, as PyAV's reader does.
+as truncated, as PyAV's reader does. What FFmpeg and OpenCV print while a file is opened
+(``moov atom not found``, ``File ended prematurely``) is kept off the terminal: the reader
+says what is wrong in one line.
 """
 
 from __future__ import annotations
@@ -33,8 +39,10 @@ from .base import Movie, MovieInfo
 
 log = logging.getLogger(__name__)
 
-#: containers whose frame count OpenCV can only estimate from their duration
-COUNTED_SUFFIXES = (".mkv", ".webm", ".nut", ".mj2")
+#: containers whose frame count OpenCV reads from an index (others: estimated from the duration, so counted)
+INDEXED_SUFFIXES = (".mp4", ".mov", ".m4v", ".avi")
+#: containers in which OpenCV's seek lands on the frame asked for (checked, all the same, by its time stamp)
+SEEKABLE_SUFFIXES = (".mp4", ".mov", ".m4v", ".avi", ".mkv", ".webm")
 #: FFmpeg's raw pixel-format tags of formats deeper than 8 bits end in their depth as a byte
 #: (``Y1 0 12`` is 12-bit grey, ``G3 0 16`` planar 16-bit RGB, ``Y3 11 10`` 10-bit YUV), except
 #: packed 16-bit RGB(A), whose tags end in the bits per pixel (``RGB 48``, ``RBA 64``)
@@ -71,8 +79,11 @@ class OpenCVVideoMovie(Movie):
     def __init__(self, path: Path, *, fps: float | None = None, verify: bool = False) -> None:
         import cv2
 
+        from .._system import quiet_stderr
+
         self._cv2 = cv2
-        cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+        with quiet_stderr():  # FFmpeg's own lines about a bad file: the error below says it in one
+            cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
         try:
             if not cap.isOpened():
                 raise MovieError(
@@ -98,9 +109,14 @@ class OpenCVVideoMovie(Movie):
                 warnings.append(f"the video stores more than 8 bits per sample (pixel format {_describe(pix)}) "
                                 f"but OpenCV reads it as 8 bits — {FIX}")
         self._grey_from_bgr = not self._native and channels == 1
-        if verify or announced <= 0 or path.suffix.lower() in COUNTED_SUFFIXES:
-            counted = self._count(path)
-            if announced > 0 and counted < announced - 1 and path.suffix.lower() not in COUNTED_SUFFIXES:
+        suffix = path.suffix.lower()
+        if verify or announced <= 0 or suffix not in INDEXED_SUFFIXES:
+            with quiet_stderr():
+                counted, last_ms = self._count(path)
+            # as PyAV's reader: a count estimated from the duration may be 1 over, and is too high for a variable
+            # frame rate, whose frames still span the duration (a truncated file's stop short of it)
+            whole = bool(file_fps) and last_ms + 2000.0 / file_fps >= 1000.0 * announced / file_fps
+            if announced > 0 and counted < announced - 1 and not whole:
                 raise MovieError(f"{path} is truncated: its header announces {announced} frames but it holds "
                                  f"only {counted} — copy the file again from the camera or recorder")
             announced = counted
@@ -114,8 +130,10 @@ class OpenCVVideoMovie(Movie):
             details={"reader": "opencv", "pixel_format": _describe(pix)},
         )
         super().__init__(path, info)
+        self._seekable = suffix in SEEKABLE_SUFFIXES
         self._seeker = None  # a capture kept open for read(), positioned after the last frame read
         self._next = -1
+        self._stamps_ms: np.ndarray | None = None  # every frame's time stamp, once the movie was read through
 
     def _open(self):
         cap = self._cv2.VideoCapture(str(self.path), self._cv2.CAP_FFMPEG)
@@ -125,15 +143,17 @@ class OpenCVVideoMovie(Movie):
             cap.set(self._cv2.CAP_PROP_CONVERT_RGB, 0)
         return cap
 
-    def _count(self, path: Path) -> int:
+    def _count(self, path: Path) -> tuple[int, float]:
+        """How many frames decode, and the last one's time stamp (ms)."""
         cap = self._cv2.VideoCapture(str(path), self._cv2.CAP_FFMPEG)
-        n = 0
+        n, last_ms = 0, 0.0
         try:
             while cap.grab():
                 n += 1
+                last_ms = cap.get(self._cv2.CAP_PROP_POS_MSEC)
         finally:
             cap.release()
-        return n
+        return n, last_ms
 
     def _convert(self, frame: np.ndarray, *, any_order: bool = False) -> np.ndarray:
         """OpenCV's frame as the reader hands it out: grey as it is, colour as RGB
@@ -144,18 +164,54 @@ class OpenCVVideoMovie(Movie):
             return np.ascontiguousarray(frame[..., 0])
         return frame if any_order else self._cv2.cvtColor(frame, self._cv2.COLOR_BGR2RGB)
 
+    def _expected_ms(self, index: int) -> float | None:
+        if self._stamps_ms is not None:
+            return float(self._stamps_ms[index])
+        return 1000.0 * index / self.info.fps if self.info.fps and self.info.fps_source == "file" else None
+
+    def _seek(self, cap, index: int) -> tuple[bool, np.ndarray | None]:
+        """Frame ``index`` read from ``cap`` by seeking, where the container allows it and the frame read
+        has the time stamp expected; ``(False, None)`` otherwise (``cap`` is then at an unknown place)."""
+        expected = self._expected_ms(index)
+        if not self._seekable or expected is None:
+            return False, None
+        cap.set(self._cv2.CAP_PROP_POS_FRAMES, index)
+        ok, frame = cap.read()
+        half_ms = 500.0 / self.info.fps
+        if ok and abs(cap.get(self._cv2.CAP_PROP_POS_MSEC) - expected) < half_ms:
+            return True, frame
+        return False, None
+
+    def _walk_to(self, cap, index: int) -> None:
+        """Decode (without converting) the frames before ``index`` of a capture at the start."""
+        for k in range(index):
+            if not cap.grab():
+                raise MovieError(f"{self.path} is truncated: only {k} of {self.info.n_frames} frames decode — "
+                                 "copy the file again from the camera or recorder")
+
     def _decode(self, start: int, stop: int, step: int, *, any_order: bool) -> Iterator[np.ndarray]:
         cap = self._open()
-        index = 0
+        index = start
+        whole = start == 0 and step == 1 and stop == self.info.n_frames
+        stamps: list[float] = []
         try:
+            first = None
             if start > 0:
-                cap.set(self._cv2.CAP_PROP_POS_FRAMES, start)
-                index = start
+                ok, first = self._seek(cap, start)
+                if not ok:
+                    cap.release()
+                    cap = self._open()
+                    self._walk_to(cap, start)
             while index < stop:
                 if (index - start) % step == 0:
-                    ok, frame = cap.read()
+                    if first is not None:
+                        ok, frame, first = True, first, None
+                    else:
+                        ok, frame = cap.read()
                     if not ok:
                         break
+                    if whole:
+                        stamps.append(cap.get(self._cv2.CAP_PROP_POS_MSEC))
                     yield self._convert(frame, any_order=any_order)
                 elif not cap.grab():
                     break
@@ -165,6 +221,8 @@ class OpenCVVideoMovie(Movie):
         if index < stop:
             raise MovieError(f"{self.path} is truncated: only {index} of {self.info.n_frames} frames decode — "
                              "copy the file again from the camera or recorder")
+        if whole and len(stamps) == self.info.n_frames and np.all(np.diff(stamps) > 0):
+            self._stamps_ms = np.asarray(stamps) - stamps[0]
 
     def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
         return self._decode(start, stop, step, any_order=False)
@@ -177,16 +235,36 @@ class OpenCVVideoMovie(Movie):
         n = self.info.n_frames
         if not 0 <= index < n:
             raise IndexError(f"frame {index} out of range 0..{n - 1}")
-        if self._seeker is None:
-            self._seeker = self._open()
+        if self._seeker is None or (index < self._next and not self._seekable):
+            if self._seeker is not None:
+                self._seeker.release()
+            self._seeker, self._next = self._open(), 0
+        ok, frame = False, None
         if index != self._next:
-            self._seeker.set(self._cv2.CAP_PROP_POS_FRAMES, index)
-        ok, frame = self._seeker.read()
+            tried = self._seekable and self._expected_ms(index) is not None
+            ok, frame = self._seek(self._seeker, index)
+            if not ok:  # the seek landed elsewhere (the capture is lost), or cannot be trusted: decode forward
+                if tried or index < self._next:
+                    self._seeker.release()
+                    self._seeker, self._next = self._open(), 0
+                self._walk_to(self._seeker, index - self._next)
+        if not ok:
+            ok, frame = self._seeker.read()
         if not ok:
             self._next = -1
             raise MovieError(f"{self.path}: frame {index} does not decode — the file is corrupt or truncated")
         self._next = index + 1
         return self._convert(frame)
+
+    @property
+    def has_file_timestamps(self) -> bool:
+        return self._stamps_ms is not None
+
+    def timestamps_s(self) -> np.ndarray:
+        """The container's time stamps (first frame at 0) once the movie was read through, else ``index / fps``."""
+        if self._stamps_ms is not None:
+            return self._stamps_ms / 1000.0
+        return super().timestamps_s()
 
     def _close(self) -> None:
         if self._seeker is not None:

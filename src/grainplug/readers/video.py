@@ -79,7 +79,12 @@ class VideoMovie(Movie):
                 announced = int(round(container.duration / 1e6 * file_fps))
             if verify or n_frames <= 0:
                 counted, pts, self._keys = self._demux_count(container)
-                if announced > 0 and counted < announced - 1:
+                # a count estimated from the duration is too high for a variable frame rate: then the frames
+                # still span the duration, where a truncated file's stop short of it
+                span_s = float((pts[-1] - pts[0]) * self._time_base) if pts is not None and len(pts) else None
+                whole = (span_s is not None and container.duration and file_fps
+                         and span_s + 2.0 / file_fps >= container.duration / 1e6)
+                if announced > 0 and counted < announced - 1 and not whole:
                     raise MovieError(
                         f"{path} is truncated: its header announces {announced} frames but it "
                         f"holds only {counted} — copy the file again from the camera or recorder"
