@@ -287,3 +287,38 @@ def test_the_page_and_remeasure_give_the_same_numbers_after_a_restart(copy):
     summary = json.loads(done.stdout)
     for key in ("celerity_m_s", "plug_length_mm", "bubble_length_mm", "n_plugs", "n_edges_used", "regime"):
         assert summary[key] == shown[key], key
+
+
+def test_a_new_analysis_replaces_the_folder_s_own_overlay(copy, tmp_path):
+    """The overlay written beside an analysis is grainplug's: ``--overwrite`` replaces it with the rest (it was
+    drawn from the old analysis) instead of refusing the folder as holding someone else's file."""
+    from grainplug.cli import main
+    from grainplug.overlay import write_overlay
+
+    video = write_overlay(copy, every=20)
+    assert video.parent == copy and video.exists()
+    (copy / "notes.txt").write_text("mine")
+    movie = gp.load_result(copy).input["path"]
+    assert main(["analyze", movie, "--out", str(copy), "--overwrite", "--no-figures"]) == 2  # the notes are mine
+    (copy / "notes.txt").unlink()
+    assert main(["analyze", movie, "--out", str(copy), "--overwrite", "--no-figures"]) == 0
+    assert not video.exists() and (copy / "summary.json").exists()
+
+
+def test_a_horizontal_tube_s_overlay_is_written_upright(tmp_path):
+    """Drawn in the tube's frame and turned back, the text used to come out mirrored: the time stamp's dark
+    band is along the top of the image, the scale bar's along the bottom, as for a vertical tube."""
+    import numpy as np
+
+    from grainplug.overlay import draw_frame
+
+    movie = synthesize(SynthConfig(n_frames=40, seed=4, flow_direction="right"), tmp_path, fmt="tiff").movie
+    res = gp.analyze(movie)
+    with gp.open_movie(movie) as m:
+        img = draw_frame(res, m.read(5), 5)
+    rows, cols = img.shape[:2]
+    assert cols > 3 * rows  # the tube runs along the image
+    dark = img.max(axis=2) < 30
+    assert dark[0:16, 0:110].mean() > 0.6  # the time stamp's band, across the top left
+    assert dark[20:110, 0:12].mean() < 0.2  # not down the left side (the old, transposed band)
+    assert dark[rows - 20:, 0:45].mean() > 0.5  # the scale bar's band, at the bottom left

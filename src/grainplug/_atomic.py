@@ -41,6 +41,9 @@ MARKER = ".grainplug"
 OWN_FILES = ("summary.json", "campaign.csv", "paper_reproduction.json")
 #: files a user edits in place (a reviewer's corrections): not part of the completion check
 USER_FILES = ("corrections.json",)
+#: files grainplug writes into an output folder after it was made (``grainplug overlay``): its own, but drawn
+#: from that analysis, so a new analysis in the folder replaces them with the rest
+DERIVED_FILES = ("overlay.mp4", "overlay.webm")
 
 
 class OutputPlaceError(GrainplugError):
@@ -120,7 +123,7 @@ def _foreign(folder: Path, entries: list[Path], keeps: set[str]) -> list[str]:
         return []
     if not isinstance(listed, dict):
         return []
-    own = {name.split("/", 1)[0] for name in listed} | {MARKER} | keeps
+    own = {name.split("/", 1)[0] for name in listed} | {MARKER} | set(DERIVED_FILES) | keeps
     return sorted(e.name for e in entries if e.name not in own and not e.name.startswith(".grainplug-"))
 
 

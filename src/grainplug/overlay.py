@@ -86,6 +86,7 @@ def draw_frame(res: AnalysisResult, frame: np.ndarray, k: int, *, top_value: flo
     cos_t = math.cos(math.radians(tube.tilt_deg))
     reverse = runs_backwards(res.flow_direction)
     sel = np.flatnonzero(res.runs.frame == k)
+    labels = []  # (track number, row along the tube, column beside it): written after turning back
     for i in sel:
         tid = int(res.links.run_track[i])
         for pos, colour in ((res.runs.top_mm[i], RED), (res.runs.bottom_mm[i], BLUE)):
@@ -98,20 +99,28 @@ def draw_frame(res: AnalysisResult, frame: np.ndarray, k: int, *, top_value: flo
             y = int(round(row))
             cv2.line(img, (int(round(xc - half - 3)), y), (int(round(xc + half + 3)), y), colour, 2, cv2.LINE_AA)
             if colour == RED:
-                cv2.putText(img, str(tid), (int(round(xc + half + 6)), y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
-                            RED, 1, cv2.LINE_AA)
-    # scale bar (10 mm, or 5 / 2 / 1 mm when the view is short) and time stamp, on a dark band
+                labels.append((tid, y, int(round(xc + half + 6))))
+    if not vertical:  # back to the movie's orientation: the text is written upright, in the final image
+        img = np.ascontiguousarray(img.transpose(1, 0, 2))
+    font, small = cv2.FONT_HERSHEY_SIMPLEX, 0.4
+    for tid, along, beside in labels:
+        at = (beside, along + 4) if vertical else (along - 4, beside + 10)
+        cv2.putText(img, str(tid), at, font, small, RED, 1, cv2.LINE_AA)
+    # scale bar along the tube (10 mm, or 5 / 2 / 1 mm when the view is short) and time stamp, on dark bands
     bar_mm = next((b for b in (10.0, 5.0, 2.0, 1.0) if b / res.mm_per_px < 0.4 * h), 1.0)
     bar_px = int(round(bar_mm / res.mm_per_px))
-    x0 = 6
-    cv2.rectangle(img, (0, h - bar_px - 14), (min(img.shape[1] - 1, 60), h - 1), (0, 0, 0), -1)
-    cv2.line(img, (x0, h - 8), (x0, h - 8 - bar_px), WHITE, 2)
-    cv2.putText(img, f"{bar_mm:g} mm", (x0 + 5, h - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.35, WHITE, 1, cv2.LINE_AA)
+    rows, cols = img.shape[:2]
+    if vertical:  # a vertical bar at the bottom left, its length written beside it
+        cv2.rectangle(img, (0, rows - bar_px - 14), (min(cols - 1, 60), rows - 1), (0, 0, 0), -1)
+        cv2.line(img, (6, rows - 8), (6, rows - 8 - bar_px), WHITE, 2)
+        cv2.putText(img, f"{bar_mm:g} mm", (11, rows - 10), font, 0.35, WHITE, 1, cv2.LINE_AA)
+    else:  # a horizontal bar at the bottom left, its length written above it
+        cv2.rectangle(img, (0, rows - 24), (min(cols - 1, max(bar_px + 12, 50)), rows - 1), (0, 0, 0), -1)
+        cv2.line(img, (6, rows - 6), (6 + bar_px, rows - 6), WHITE, 2)
+        cv2.putText(img, f"{bar_mm:g} mm", (6, rows - 12), font, 0.35, WHITE, 1, cv2.LINE_AA)
     t = float(res.diagram.time_s[k])
-    cv2.rectangle(img, (0, 0), (min(img.shape[1] - 1, 110), 16), (0, 0, 0), -1)
-    cv2.putText(img, f"t = {t:.4f} s", (3, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, WHITE, 1, cv2.LINE_AA)
-    if not vertical:
-        img = np.ascontiguousarray(img.transpose(1, 0, 2))
+    cv2.rectangle(img, (0, 0), (min(cols - 1, 110), 16), (0, 0, 0), -1)
+    cv2.putText(img, f"t = {t:.4f} s", (3, 12), font, small, WHITE, 1, cv2.LINE_AA)
     return img
 
 
