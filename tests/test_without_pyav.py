@@ -56,6 +56,7 @@ def test_what_needs_pyav_says_how_to_get_it(with_pyav, no_pyav, tmp_path):
     assert not (out / "overlay.mp4").exists()
     with pytest.raises(ParameterError, match=r'needs PyAV: pip install "grainplug\[video\]"'):
         synthesize(SynthConfig(n_frames=4, width_px=32, height_px=64), tmp_path / "m", fmt="h264")
+    assert not (tmp_path / "m").exists()  # refused before anything was written
 
 
 @pytest.fixture(scope="module")

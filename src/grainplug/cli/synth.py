@@ -19,7 +19,8 @@ def _synth_options(f):
         click.option("--out", "out", type=click.Path(path_type=Path), required=True,
                      help="Folder to write the movie and its truth into."),
         click.option("--format", "fmt", type=click.Choice(list(FORMATS)), default="tiff", show_default=True,
-                     help="File format of the movie."),
+                     help="File format of the movie (avi, mjpeg, ffv1, mov and h264 need PyAV: "
+                          "pip install \"grainplug[video]\")."),
         click.option("--seed", type=int, default=0, show_default=True,
                      help="Seed of the random generator: the same seed gives the same bytes."),
         click.option("--frames", "n_frames", type=Number(1, 1e6, integer=True), default=300, show_default=True,

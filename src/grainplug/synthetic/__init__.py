@@ -16,10 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
+from ..errors import ParameterError
 from ..jsonio import write_json
 from .kinematics import REGIMES, displacement_mm
 from .render import FLOW_DIRECTIONS, Renderer, SynthConfig
-from .writers import FORMATS, MovieWriter, movie_path
+from .writers import FORMATS, MovieWriter, movie_path, require_writer
 
 #: frames a plug must be wholly in view, apart from its neighbours, to count in the
 #: truth's mean length
@@ -128,6 +129,9 @@ def synthesize(config: SynthConfig, out_dir: str | Path, *, fmt: str = "tiff",
     SynthResult
         Paths written and the truth dictionary.
     """
+    if fmt not in FORMATS:
+        raise ParameterError(f"unknown format {fmt!r}: use one of {', '.join(FORMATS)}", param="fmt")
+    require_writer(fmt)  # before anything is written
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     renderer = Renderer(config)

@@ -24,6 +24,24 @@ class FormatSpec:
     lossless: bool
     description: str
 
+    @property
+    def needs_pyav(self) -> bool:
+        """Whether writing it needs PyAV (the ``video`` extra)."""
+        return self.name in PYAV_FORMATS
+
+
+#: formats written through PyAV (not in the default install: its wheels bundle GPL encoders)
+PYAV_FORMATS = ("avi", "mjpeg", "ffv1", "mov", "h264")
+
+
+def require_writer(fmt: str) -> None:
+    """Raise the one-line fix when format ``fmt`` cannot be written here (PyAV missing)."""
+    from ..readers import pyav_available
+
+    if fmt in PYAV_FORMATS and not pyav_available():
+        raise ParameterError(f"writing {fmt} video needs PyAV: pip install \"grainplug[video]\", or write tiff, png, "
+                             "mraw, cine or seq", param="fmt")
+
 
 FORMATS: dict[str, FormatSpec] = {f.name: f for f in (
     FormatSpec("tiff", ".tif", True, "multi-page TIFF stack (8/16-bit, grey or RGB)"),
@@ -145,11 +163,8 @@ class MovieWriter:
             self._open_av(frame)
 
     def _open_av(self, frame: np.ndarray) -> None:
-        try:
-            import av
-        except ImportError:
-            raise ParameterError(f"writing {self.fmt} video needs PyAV: pip install \"grainplug[video]\", or write "
-                                 "tiff, png, mraw, cine or seq") from None
+        require_writer(self.fmt)
+        import av
 
         h, w = frame.shape[:2]
         grey = frame.ndim == 2
