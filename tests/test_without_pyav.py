@@ -128,3 +128,36 @@ def test_the_terminal_shows_the_fix_whole_and_a_bad_file_in_one_line(deep_colour
     err = capfd.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and "text.mp4" in err[0], err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.fixture(scope="module")
+def yuv10(tmp_path_factory):
+    """A lossless 10-bit YUV (yuv420p10le) FFV1 movie."""
+    from fractions import Fraction
+
+    import av
+    import numpy as np
+
+    path = tmp_path_factory.mktemp("yuv10") / "yuv10.mkv"
+    rng = np.random.default_rng(5)
+    with av.open(str(path), "w") as out:
+        stream = out.add_stream("ffv1", rate=Fraction(250))
+        stream.width, stream.height, stream.pix_fmt = 64, 48, "yuv420p10le"
+        for _ in range(10):
+            frame = rng.integers(0, 65535, (48, 64, 3), dtype=np.uint16)
+            for packet in stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb48le")):
+                out.mux(packet)
+        for packet in stream.encode():
+            out.mux(packet)
+    return path
+
+
+@pytest.mark.parametrize("reader", ["pyav", "opencv"])
+def test_deep_yuv_video_is_said_to_be_read_as_8_bits(yuv10, monkeypatch, reader):
+    """Both readers hand out 10-bit YUV as 8-bit RGB, and say so; the fix is another export, not PyAV."""
+    if reader == "opencv":
+        monkeypatch.setitem(sys.modules, "av", None)
+    with gp.open_movie(yuv10) as m:
+        assert m.info.dtype == "uint8" and m.info.bit_depth == 8
+        assert len(m.info.warnings) == 1 and "YUV" in m.info.warnings[0] and "16-bit TIFF" in m.info.warnings[0]
+        assert "pip install" not in m.info.warnings[0]

@@ -191,7 +191,8 @@ def _window(movie: Movie, params: AnalysisParams) -> Movie:
     stop = min(stop, n)
     if stop - start < 8:
         raise ParameterError(f"the window holds {max(stop - start, 0)} of the movie's {n} frames (frames {start} to "
-                             f"{stop}); at least 8 are needed — move its start or its end", param="start_frame")
+                             f"{stop}); at least 8 are needed — move its start or its end",
+                             param="start_frame" if params.end_frame is None and params.end_s is None else "end_frame")
     return movie if (start, stop) == (0, n) else FrameWindow(movie, start, stop)
 
 

@@ -324,10 +324,16 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
         def fmt(v: object, unit: str = "", nd: int = 4) -> str:
             return "—" if v is None else f"{v:.{nd}f}{unit}" if isinstance(v, float) else f"{v}{unit}"
 
-        def speed(v: object) -> str:  # three significant digits: a slow plug is not -0.0000
-            return "—" if v is None else f"{v:+.3g}" if isinstance(v, float) else str(v)
-
         ci = s.get("celerity_ci95_m_s") or [None, None]
+        # three significant digits (a slow plug is not -0.0000), more where the interval is narrower than that
+        digits = 3
+        if all(isinstance(v, float) for v in ci):
+            while digits < 8 and f"{ci[0]:+#.{digits}g}" == f"{ci[1]:+#.{digits}g}":
+                digits += 1
+
+        def speed(v: object) -> str:
+            return "—" if v is None else f"{v:+#.{digits}g}" if isinstance(v, float) else str(v)
+
         still = ci[0] is not None and ci[1] is not None and ci[0] <= 0 <= ci[1]
         click.echo(f"regime          {s['regime']}" + ("  (no direction of travel: the celerity's 95% CI holds 0)"
                                                         if still else ""))

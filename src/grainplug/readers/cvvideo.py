@@ -52,8 +52,27 @@ GREY8, GREY16 = b"Y800", b"Y1\x00\x10"
 FIX = 'install PyAV to read every bit: pip install "grainplug[video]"'
 
 
+def deep_warning(pixel_format: str, *, yuv: bool, reader: str) -> str:
+    """The warning for a video whose samples are deeper than the 8 bits it is read with."""
+    if yuv:  # PyAV converts YUV to 8-bit RGB too: the fix is another export
+        return (f"the video stores more than 8 bits per sample ({pixel_format}, YUV) but is read as 8 bits — "
+                "export the movie as 16-bit TIFF images or grey FFV1 to keep every bit")
+    return f"the video stores more than 8 bits per sample ({pixel_format}) but {reader} reads it as 8 bits — {FIX}"
+
+
 def _tag(value: float) -> bytes:
     return int(value).to_bytes(4, "little", signed=False) if 0 <= value < 2**32 else b"\0\0\0\0"
+
+
+def _pixel_format(tag: bytes) -> str:
+    """A readable name for FFmpeg's raw pixel-format tag (``Y1 0 12`` -> ``12-bit grey``)."""
+    depth = tag[3]
+    kinds = {b"Y1": "grey", b"G3": "planar RGB", b"Y3": "YUV", b"Y4": "YUV with alpha"}
+    if tag[:2] in kinds and depth in _DEEP_DEPTHS:
+        return f"{depth}-bit {kinds[tag[:2]]}"
+    if _DEEP_PACKED.get(tag[:3]) == depth:
+        return f"16-bit {tag[:3].decode('ascii')}"
+    return _describe(tag)
 
 
 def _describe(tag: bytes) -> str:
@@ -87,14 +106,15 @@ class OpenCVVideoMovie(Movie):
         try:
             if not cap.isOpened():
                 raise MovieError(
-                    f"cannot read {path} — is it a complete movie file? grainplug reads AVI/MP4/MKV/MOV "
+                    f"cannot read {path} — is it a complete movie file? grainplug reads AVI/MP4/MKV/MOV/WebM "
                     "videos, TIFF stacks, image folders, .cine, .mraw and .seq")
             width = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH))
             height = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
             if width <= 0 or height <= 0:
                 raise MovieError(f"{path}: the video stream has no frame size — the file is corrupt")
             pix = _tag(cap.get(cv2.CAP_PROP_CODEC_PIXEL_FORMAT))
-            codec = _describe(_tag(cap.get(cv2.CAP_PROP_FOURCC))).strip().lower() or "?"
+            fourcc = _tag(cap.get(cv2.CAP_PROP_FOURCC))
+            codec = "rawvideo" if fourcc == b"\0\0\0\0" else _describe(fourcc).strip().lower() or "?"
             file_fps = float(cap.get(cv2.CAP_PROP_FPS)) or None
             announced = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
         finally:
@@ -106,8 +126,8 @@ class OpenCVVideoMovie(Movie):
         else:
             channels, depth = (1 if pix[:2] == b"Y1" else 3), 8
             if pix[3] in _DEEP_DEPTHS or _DEEP_PACKED.get(pix[:3]) == pix[3]:
-                warnings.append(f"the video stores more than 8 bits per sample (pixel format {_describe(pix)}) "
-                                f"but OpenCV reads it as 8 bits — {FIX}")
+                yuv = pix[:2] not in (b"Y1", b"G3") and pix[:3] not in _DEEP_PACKED
+                warnings.append(deep_warning(_pixel_format(pix), yuv=yuv, reader="OpenCV"))
         self._grey_from_bgr = not self._native and channels == 1
         suffix = path.suffix.lower()
         if verify or announced <= 0 or suffix not in INDEXED_SUFFIXES:
@@ -127,7 +147,7 @@ class OpenCVVideoMovie(Movie):
             path=str(path), format=f"video-opencv:{path.suffix.lower().lstrip('.')}/{codec}", width=width,
             height=height, n_frames=announced, fps=use_fps, channels=channels, bit_depth=depth,
             dtype="uint16" if depth == 16 else "uint8", fps_source=source, warnings=tuple(warnings),
-            details={"reader": "opencv", "pixel_format": _describe(pix)},
+            details={"reader": "opencv", "pixel_format": _pixel_format(pix)},
         )
         super().__init__(path, info)
         self._seekable = suffix in SEEKABLE_SUFFIXES

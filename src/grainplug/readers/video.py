@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import Callable, Iterator
 from fractions import Fraction
 from pathlib import Path
@@ -53,7 +54,7 @@ class VideoMovie(Movie):
         except av.error.FFmpegError as exc:  # not a movie, truncated header, ...
             raise MovieError(
                 f"cannot read {path}: {exc.strerror or exc} — is it a complete movie file? "
-                "grainplug reads AVI/MP4/MKV/MOV videos, TIFF stacks, image folders, .cine and .mraw"
+                "grainplug reads AVI/MP4/MKV/MOV/WebM videos, TIFF stacks, image folders, .cine and .mraw"
             ) from None
         try:
             if not container.streams.video:
@@ -63,7 +64,8 @@ class VideoMovie(Movie):
             width, height = ctx.width, ctx.height
             if not width or not height:
                 raise MovieError(f"{path}: the video stream has no frame size — the file is corrupt")
-            self._target, channels, depth = _output_format(ctx.format.name if ctx.format else None)
+            pix_name = (ctx.format.name if ctx.format else "") or ""
+            self._target, channels, depth = _output_format(pix_name or None)
             rate = stream.average_rate or stream.guessed_rate or stream.base_rate
             file_fps = float(rate) if rate else None
             n_frames = int(stream.frames or 0)
@@ -99,10 +101,15 @@ class VideoMovie(Movie):
         finally:
             container.close()
         use_fps, source = (fps, "user") if fps else (file_fps, "file" if file_fps else "none")
+        warnings: tuple[str, ...] = ()
+        if depth == 8 and re.search(r"p(9|1[0246])(le|be)$", pix_name):  # YUV deeper than 8 bits, read as RGB24
+            from .cvvideo import deep_warning
+
+            warnings = (deep_warning(pix_name, yuv=True, reader="PyAV"),)
         info = MovieInfo(
             path=str(path), format=f"video:{fmt_name}/{codec}", width=width, height=height,
             n_frames=n_frames, fps=use_fps, channels=channels, bit_depth=depth,
-            dtype="uint16" if depth == 16 else "uint8", fps_source=source,
+            dtype="uint16" if depth == 16 else "uint8", fps_source=source, warnings=warnings,
         )
         super().__init__(path, info)
 
