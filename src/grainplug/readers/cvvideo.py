@@ -43,6 +43,11 @@ log = logging.getLogger(__name__)
 INDEXED_SUFFIXES = (".mp4", ".mov", ".m4v", ".avi")
 #: containers in which OpenCV's seek lands on the frame asked for (checked, all the same, by its time stamp)
 SEEKABLE_SUFFIXES = (".mp4", ".mov", ".m4v", ".avi", ".mkv", ".webm")
+#: codecs whose every frame decodes alone: a seek costs one frame's decoding
+INTRA_CODECS = ("mjpg", "mjpa", "mjpb", "rawvideo", "png", "tiff", "jpeg", "bmp")
+#: a frame at most this far ahead of the last one read is reached by decoding forward, not by a seek (which
+#: decodes from the key frame before it: up to 250 frames apart in H.264 as x264 writes it)
+FORWARD_FRAMES = 100
 #: FFmpeg's raw pixel-format tags of formats deeper than 8 bits end in their depth as a byte
 #: (``Y1 0 12`` is 12-bit grey, ``G3 0 16`` planar 16-bit RGB, ``Y3 11 10`` 10-bit YUV), except
 #: packed 16-bit RGB(A), whose tags end in the bits per pixel (``RGB 48``, ``RBA 64``)
@@ -151,6 +156,7 @@ class OpenCVVideoMovie(Movie):
         )
         super().__init__(path, info)
         self._seekable = suffix in SEEKABLE_SUFFIXES
+        self._intra = codec in INTRA_CODECS
         self._seeker = None  # a capture kept open for read(), positioned after the last frame read
         self._next = -1
         self._stamps_ms: np.ndarray | None = None  # every frame's time stamp, once the movie was read through
@@ -260,7 +266,9 @@ class OpenCVVideoMovie(Movie):
                 self._seeker.release()
             self._seeker, self._next = self._open(), 0
         ok, frame = False, None
-        if index != self._next:
+        if 0 <= self._next < index <= self._next + FORWARD_FRAMES and not self._intra:
+            self._walk_to(self._seeker, index - self._next)  # cheaper than a seek back to a key frame
+        elif index != self._next:
             tried = self._seekable and self._expected_ms(index) is not None
             ok, frame = self._seek(self._seeker, index)
             if not ok:  # the seek landed elsewhere (the capture is lost), or cannot be trusted: decode forward
