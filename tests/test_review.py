@@ -308,7 +308,6 @@ def test_a_new_analysis_replaces_the_folder_s_own_overlay(copy, tmp_path):
 def test_a_horizontal_tube_s_overlay_is_written_upright(tmp_path):
     """Drawn in the tube's frame and turned back, the text used to come out mirrored: the time stamp's dark
     band is along the top of the image, the scale bar's along the bottom, as for a vertical tube."""
-    import numpy as np
 
     from grainplug.overlay import draw_frame
 

@@ -161,3 +161,15 @@ def test_deep_yuv_video_is_said_to_be_read_as_8_bits(yuv10, monkeypatch, reader)
         assert m.info.dtype == "uint8" and m.info.bit_depth == 8
         assert len(m.info.warnings) == 1 and "YUV" in m.info.warnings[0] and "16-bit TIFF" in m.info.warnings[0]
         assert "pip install" not in m.info.warnings[0]
+
+
+def test_the_default_install_declares_no_pyav():
+    """pyproject.toml: PyAV (whose wheels bundle the GPL encoders x264 and x265) only in extras."""
+    import re
+    import tomllib
+    from pathlib import Path
+
+    project = tomllib.loads((Path(__file__).resolve().parent.parent / "pyproject.toml").read_text())["project"]
+    names = {re.split(r"[<>=!~\[ ;]", dep, maxsplit=1)[0].lower() for dep in project["dependencies"]}
+    assert "av" not in names and "imageio-ffmpeg" not in names
+    assert any(dep.startswith("av") for dep in project["optional-dependencies"]["video"])
