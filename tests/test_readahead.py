@@ -240,3 +240,39 @@ def test_band_read_under_a_restricted_readahead_is_unchanged(tmp_path, monkeypat
         got = m.read_band(band, threads=2)
     assert taken == [True]
     np.testing.assert_allclose(got, want, rtol=1e-5)
+
+
+def test_quieting_stderr_from_two_threads_gives_it_back():
+    """Two threads enter and leave out of order (first in, first out): file descriptor 2 is silenced while
+    either is inside, and is the original one again afterwards (not /dev/null)."""
+    import os
+    import threading
+
+    from grainplug._system import quiet_stderr
+
+    before = os.fstat(2)
+    a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+    seen = {}
+
+    def a() -> None:
+        with quiet_stderr():
+            a_in.set()
+            b_in.wait(5)
+        a_out.set()
+
+    def b() -> None:
+        a_in.wait(5)
+        with quiet_stderr():
+            b_in.set()
+            a_out.wait(5)
+            seen["inside"] = os.fstat(2)
+
+    threads = [threading.Thread(target=a), threading.Thread(target=b)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(10)
+    after = os.fstat(2)
+    null = os.stat(os.devnull)
+    assert (seen["inside"].st_dev, seen["inside"].st_ino) == (null.st_dev, null.st_ino)  # still quiet
+    assert (after.st_dev, after.st_ino) == (before.st_dev, before.st_ino)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
 import pytest
 
 import grainplug as gp
@@ -59,30 +60,43 @@ def test_what_needs_pyav_says_how_to_get_it(with_pyav, no_pyav, tmp_path):
     assert not (tmp_path / "m").exists()  # refused before anything was written
 
 
-@pytest.fixture(scope="module")
-def uneven(tmp_path_factory):
-    """A lossless Matroska movie whose first 60 frames are 4 ms apart and the next 60 frames 8 ms apart."""
+def grey_mkv(path, gaps_ms, *, rate=250, width=None, height=None, h264=False):
+    """A lossless grey (FFV1) Matroska movie of synthetic plug flow whose frames are ``gaps_ms`` apart (one
+    gap per frame after the first; times in whole ms, as Matroska stores them); or H.264, a key frame every
+    50 frames and no B-frames."""
     from fractions import Fraction
 
     import av
+    import numpy as np
 
     from grainplug.synthetic import SynthConfig
     from grainplug.synthetic.render import Renderer
 
-    path = tmp_path_factory.mktemp("vfr") / "vfr.mkv"
-    frames = list(Renderer(SynthConfig(n_frames=120, rgb=False, seed=7)).frames())
+    size = {} if width is None else {"width_px": width, "height_px": height}
+    frames = list(Renderer(SynthConfig(n_frames=len(gaps_ms) + 1, rgb=False, seed=7, **size)).frames())
+    stamps = np.concatenate([[0], np.cumsum(gaps_ms)]).astype(int)
     with av.open(str(path), "w") as out:
-        stream = out.add_stream("ffv1", rate=250)
-        stream.width, stream.height, stream.pix_fmt = frames[0].shape[1], frames[0].shape[0], "gray"
-        stream.time_base = Fraction(1, 1000)
-        for k, f in enumerate(frames):
+        stream = out.add_stream("libx264" if h264 else "ffv1", **({"rate": rate} if rate else {}))
+        stream.width, stream.height = frames[0].shape[1], frames[0].shape[0]
+        stream.pix_fmt = "yuv420p" if h264 else "gray"
+        stream.time_base = stream.codec_context.time_base = Fraction(1, 1000)
+        if h264:
+            stream.codec_context.gop_size = 50
+            stream.options = {"bf": "0"}
+        for f, t in zip(frames, stamps, strict=True):
             vf = av.VideoFrame.from_ndarray(f, format="gray")
-            vf.pts, vf.time_base = (4 * k if k < 60 else 240 + 8 * (k - 60)), Fraction(1, 1000)
+            vf.pts, vf.time_base = int(t), Fraction(1, 1000)
             for packet in stream.encode(vf):
                 out.mux(packet)
         for packet in stream.encode():
             out.mux(packet)
     return path
+
+
+@pytest.fixture(scope="module")
+def uneven(tmp_path_factory):
+    """A lossless Matroska movie whose first 60 frames are 4 ms apart and the next 60 frames 8 ms apart."""
+    return grey_mkv(tmp_path_factory.mktemp("vfr") / "vfr.mkv", [4] * 60 + [8] * 59)
 
 
 @pytest.mark.parametrize("reader", ["pyav", "opencv"])
@@ -173,3 +187,105 @@ def test_the_default_install_declares_no_pyav():
     names = {re.split(r"[<>=!~\[ ;]", dep, maxsplit=1)[0].lower() for dep in project["dependencies"]}
     assert "av" not in names and "imageio-ffmpeg" not in names
     assert any(dep.startswith("av") for dep in project["optional-dependencies"]["video"])
+
+
+def numbered_frame(k: int) -> np.ndarray:
+    """A 64 x 64 frame that shows its number ``k`` in binary (16 squares), whatever the codec does to it."""
+    img = np.zeros((64, 64), np.uint8)
+    for b in range(16):
+        if (k >> b) & 1:
+            r, c = divmod(b, 4)
+            img[r * 16:(r + 1) * 16, c * 16:(c + 1) * 16] = 255
+    return img
+
+
+def frame_number(img: np.ndarray) -> int:
+    grey = img.mean(axis=2) if img.ndim == 3 else img
+    return sum(1 << b for b in range(16) if grey[(b // 4) * 16:(b // 4 + 1) * 16, (b % 4) * 16:(b % 4 + 1) * 16].mean()
+               > 127)
+
+
+def test_a_seek_among_close_frames_is_checked_by_their_own_spacing(tmp_path, monkeypatch):
+    """H.264 in Matroska, 200 frames 40 ms apart, then 200 frames 10 ms apart: OpenCV's seek lands two frames
+    off among the close ones. Once the movie was read through, the landing is caught (the frame's stamp is
+    checked against its own neighbours' spacing, not half the average period) and the frame decoded forward."""
+    from fractions import Fraction
+
+    import av
+
+    path = tmp_path / "vfr.mkv"
+    stamps = np.r_[np.arange(200) * 40, 8000 + np.arange(1, 201) * 10]
+    with av.open(str(path), "w") as out:
+        stream = out.add_stream("libx264")
+        stream.width = stream.height = 64
+        stream.pix_fmt = "yuv420p"
+        stream.time_base = stream.codec_context.time_base = Fraction(1, 1000)
+        stream.codec_context.gop_size = 50
+        stream.options = {"bf": "0"}
+        for k, t in enumerate(stamps):
+            vf = av.VideoFrame.from_ndarray(np.stack([numbered_frame(k)] * 3, -1), format="rgb24")
+            vf.pts, vf.time_base = int(t), Fraction(1, 1000)
+            for packet in stream.encode(vf):
+                out.mux(packet)
+        for packet in stream.encode():
+            out.mux(packet)
+    monkeypatch.setitem(sys.modules, "av", None)
+    with gp.open_movie(path) as m:
+        assert m.info.n_frames == 400
+        assert [frame_number(f) for f in m.frames()] == list(range(400))  # read through: stamps recorded
+        assert m.has_file_timestamps
+        for k in (0, 323, 324, 326, 250, 399, 201, 5):
+            assert frame_number(m.read(k)) == k
+        assert [frame_number(f) for f in m.frames(323, 330)] == list(range(323, 330))
+
+
+@pytest.mark.parametrize("reader", ["pyav", "opencv"])
+def test_a_constant_rate_in_whole_milliseconds_is_even(tmp_path, monkeypatch, reader):
+    """60 fps in Matroska: frames 16 and 17 ms apart (whole ms) are a constant rate, not uneven; the times are
+    the rate's (exact), with no warning."""
+    import numpy as np
+
+    gaps = np.diff(np.round(np.arange(91) * 1000 / 60)).astype(int).tolist()
+    movie = grey_mkv(tmp_path / "r60.mkv", gaps, rate=60)
+    if reader == "opencv":
+        monkeypatch.setitem(sys.modules, "av", None)
+    res = gp.analyze(movie)
+    assert not [w for w in res.warnings if "evenly spaced" in w]
+    np.testing.assert_allclose(res.diagram.time_s, np.arange(91) / 60, atol=1e-9)
+
+
+def test_a_failed_read_leaves_the_reader_usable(tmp_path, monkeypatch):
+    """An MP4 with its index first, cut to 60 %: reading past the cut fails in one line, and the frames before
+    it are read right afterwards (the capture's position is not trusted after an error)."""
+    from fractions import Fraction
+
+    import av
+    import numpy as np
+
+    from grainplug.errors import MovieError
+    from grainplug.synthetic import SynthConfig
+    from grainplug.synthetic.render import Renderer
+
+    frames = list(Renderer(SynthConfig(n_frames=120, width_px=48, height_px=96, seed=2)).frames())
+    path = tmp_path / "cut.mp4"
+    with av.open(str(path), "w", options={"movflags": "faststart"}) as out:
+        stream = out.add_stream("libx264", rate=Fraction(250), options={"g": "10"})
+        stream.width, stream.height, stream.pix_fmt = 48, 96, "yuv420p"
+        for f in frames:
+            for packet in stream.encode(av.VideoFrame.from_ndarray(f, format="rgb24")):
+                out.mux(packet)
+        for packet in stream.encode():
+            out.mux(packet)
+    with gp.open_movie(path) as whole:
+        every = list(whole.frames())
+    data = path.read_bytes()
+    path.write_bytes(data[: int(0.6 * len(data))])
+    monkeypatch.setitem(sys.modules, "av", None)
+    for fps in (None, 5000.0):  # a user's frame rate: seeks cannot be checked, frames are decoded forward
+        with gp.open_movie(path, fps=fps) as m:
+            assert m.info.n_frames == 120  # the index says so
+            np.testing.assert_array_equal(m.read(5), every[5])
+            with pytest.raises(MovieError, match=r"truncated|does not decode"):
+                m.read(119)
+            for k in (0, 10, 3):
+                np.testing.assert_array_equal(m.read(k), every[k], err_msg=f"frame {k} after the error")

@@ -230,23 +230,40 @@ class ReadAhead:
                 os.close(null_fd)
 
 
-@contextlib.contextmanager
-def quiet_stderr() -> Iterator[None]:
-    """Send what C libraries (FFmpeg, OpenCV) print on file descriptor 2 to nowhere while the block runs.
+class _QuietStderr:
+    """File descriptor 2 sent to nowhere while any thread is inside :meth:`__call__`'s block."""
 
-    The descriptor is the whole process's: keep the block to the library call whose noise it hides.
-    """
-    try:
-        saved = os.dup(2)
-    except OSError:  # no stderr to silence
-        yield
-        return
-    try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 2)
-            try:
-                yield
-            finally:
-                os.dup2(saved, 2)
-    finally:
-        os.close(saved)
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._depth = 0
+        self._saved = -1
+
+    @contextlib.contextmanager
+    def __call__(self) -> Iterator[None]:
+        with self._lock:
+            if self._depth == 0:
+                try:
+                    self._saved = os.dup(2)
+                    null = os.open(os.devnull, os.O_WRONLY)
+                    try:
+                        os.dup2(null, 2)
+                    finally:
+                        os.close(null)
+                except OSError:  # no stderr to silence
+                    self._saved = -1
+            self._depth += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._depth -= 1
+                if self._depth == 0 and self._saved >= 0:
+                    os.dup2(self._saved, 2)
+                    os.close(self._saved)
+                    self._saved = -1
+
+
+#: what C libraries (FFmpeg, OpenCV) print on file descriptor 2 is sent to nowhere while the block runs. The
+#: descriptor is the whole process's: the first thread in silences it, the last one out gives it back (keep
+#: the block to the library call whose noise it hides: other threads' messages are lost meanwhile).
+quiet_stderr = _QuietStderr()

@@ -107,7 +107,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         if params.background is not None:
             values, light_warnings = flat_field(values, band, params.background)
         laps("stream_s")
-        time_s = _frame_times(movie, info, len(values))
+        time_s, time_warnings = _frame_times(movie, info, len(values))
         identity = _identity(movie)
         laps("fingerprint_s")
     values, repair = repair_frames(values, top=_top_value(info))
@@ -132,7 +132,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *scale_warnings, *light_warnings,
-                  *filter(None, [repair.describe(diagram.n_frames)]), *_uneven_times(diagram.time_s),
+                  *filter(None, [repair.describe(diagram.n_frames)]), *time_warnings,
                   *flow.warnings, *other_tubes,
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
     )
@@ -431,30 +431,36 @@ def _implausible(motion: Motion | None, grains: GrainMotion | None, saturation: 
     return out
 
 
-#: spread of the intervals between frames (relative to their median) above which they are said to be uneven
-UNEVEN_TIMES = 0.05
+#: how far (in frame periods) time stamps may stray from a constant rate and still be its rounding
+EVEN_TIMES_PERIODS = 0.25
+#: ... or in seconds: Matroska stores times in whole milliseconds (16 and 17 ms apart at 60 fps)
+EVEN_TIMES_S = 0.0006
 
 
-def _uneven_times(time_s: np.ndarray) -> list[str]:
-    """A warning when the frames' time stamps are not evenly spaced (a re-encoded or variable-rate file)."""
-    dt = np.diff(np.asarray(time_s, float))
-    if dt.size < 2:
-        return []
-    med, lo, hi = float(np.median(dt)), float(dt.min()), float(dt.max())
-    if not med > 0 or hi - lo <= UNEVEN_TIMES * med:
-        return []
-    return [f"the frames are not evenly spaced in time ({1000 * lo:.3g} to {1000 * hi:.3g} ms apart): the file's own "
-            "time stamps are used, but a high-speed camera records at a constant rate — check how the file was made "
-            "(re-encoded, frames dropped?), or give --fps to time the frames by their number"]
+def _frame_times(movie: Movie, info: MovieInfo, n: int) -> tuple[np.ndarray, list[str]]:
+    """Time of each frame, and a warning when the file's own times are unevenly spaced.
 
-
-def _frame_times(movie: Movie, info: MovieInfo, n: int) -> np.ndarray:
-    """Time of each frame: the file's presentation times where it has them, else index / fps."""
-    if movie.has_file_timestamps and info.fps_source == "file":
-        stamps = movie.timestamps_s()  # recorded while streaming, for video
-        if len(stamps) == n:
-            return np.asarray(stamps, float)
-    return (np.arange(n) + movie.first_frame_index) / info.fps
+    Where the file records a time for each frame and they keep to a constant rate within their rounding,
+    the rate's times (``index / fps``: exact, where whole-millisecond stamps of a 2000 fps movie are not);
+    where they stray from it (a variable frame rate, dropped frames), the file's times, with a warning.
+    """
+    by_rate = (np.arange(n) + movie.first_frame_index) / info.fps
+    if not (movie.has_file_timestamps and info.fps_source == "file"):
+        return by_rate, []
+    stamps = np.asarray(movie.timestamps_s(), float)  # recorded while streaming, for video
+    if len(stamps) != n or n < 3:
+        return by_rate, []
+    k = np.arange(n)
+    slope, intercept = np.polyfit(k, stamps, 1)
+    stray = float(np.max(np.abs(stamps - (intercept + slope * k))))
+    period = float(np.median(np.diff(stamps)))
+    if stray <= max(EVEN_TIMES_PERIODS * period, EVEN_TIMES_S):
+        return by_rate, []
+    dt = np.diff(stamps)
+    return stamps, [f"the frames are not evenly spaced in time ({1000 * dt.min():.3g} to {1000 * dt.max():.3g} ms "
+                    "apart): the file's own time stamps are used, but a high-speed camera records at a constant "
+                    "rate — check how the file was made (re-encoded, frames dropped?), or give --fps to time the "
+                    "frames by their number"]
 
 
 def _falling(norm: Normalized, diagram: Diagram, fps: float) -> GrainMotion | None:

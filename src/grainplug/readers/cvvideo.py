@@ -137,9 +137,11 @@ class OpenCVVideoMovie(Movie):
         suffix = path.suffix.lower()
         if verify or announced <= 0 or suffix not in INDEXED_SUFFIXES:
             with quiet_stderr():
-                counted, last_ms = self._count(path)
-            # as PyAV's reader: a count estimated from the duration may be 1 over, and is too high for a variable
-            # frame rate, whose frames still span the duration (a truncated file's stop short of it)
+                counted, last_ms, offset = self._count(path)
+            # as PyAV's reader: a count estimated from the duration may be 1 over, counts the time before the
+            # first frame (``offset``, in frame periods), and is too high for a variable frame rate, whose frames
+            # still span the duration (a truncated file's stop short of it)
+            announced = max(announced - offset, 0)
             whole = bool(file_fps) and last_ms + 2000.0 / file_fps >= 1000.0 * announced / file_fps
             if announced > 0 and counted < announced - 1 and not whole:
                 raise MovieError(f"{path} is truncated: its header announces {announced} frames but it holds "
@@ -159,7 +161,8 @@ class OpenCVVideoMovie(Movie):
         self._intra = codec in INTRA_CODECS
         self._seeker = None  # a capture kept open for read(), positioned after the last frame read
         self._next = -1
-        self._stamps_ms: np.ndarray | None = None  # every frame's time stamp, once the movie was read through
+        self._raw_stamps_ms: np.ndarray | None = None  # every frame's stamp as OpenCV reports it, once read through
+        self._file_fps = file_fps
 
     def _open(self):
         cap = self._cv2.VideoCapture(str(self.path), self._cv2.CAP_FFMPEG)
@@ -169,17 +172,21 @@ class OpenCVVideoMovie(Movie):
             cap.set(self._cv2.CAP_PROP_CONVERT_RGB, 0)
         return cap
 
-    def _count(self, path: Path) -> tuple[int, float]:
-        """How many frames decode, and the last one's time stamp (ms)."""
+    def _count(self, path: Path) -> tuple[int, float, int]:
+        """How many frames decode, the last one's time stamp from the first (ms), and the first one's time
+        from the file's start in frame periods (OpenCV's ``CAP_PROP_PTS``; 0 where it has none)."""
         cap = self._cv2.VideoCapture(str(path), self._cv2.CAP_FFMPEG)
-        n, last_ms = 0, 0.0
+        pts_prop = getattr(self._cv2, "CAP_PROP_PTS", None)
+        n, last_ms, offset = 0, 0.0, 0
         try:
             while cap.grab():
+                if n == 0 and pts_prop is not None:
+                    offset = max(int(round(cap.get(pts_prop))), 0)
                 n += 1
                 last_ms = cap.get(self._cv2.CAP_PROP_POS_MSEC)
         finally:
             cap.release()
-        return n, last_ms
+        return n, last_ms, offset
 
     def _convert(self, frame: np.ndarray, *, any_order: bool = False) -> np.ndarray:
         """OpenCV's frame as the reader hands it out: grey as it is, colour as RGB
@@ -190,29 +197,46 @@ class OpenCVVideoMovie(Movie):
             return np.ascontiguousarray(frame[..., 0])
         return frame if any_order else self._cv2.cvtColor(frame, self._cv2.COLOR_BGR2RGB)
 
-    def _expected_ms(self, index: int) -> float | None:
-        if self._stamps_ms is not None:
-            return float(self._stamps_ms[index])
-        return 1000.0 * index / self.info.fps if self.info.fps and self.info.fps_source == "file" else None
+    def _stamp_check(self, index: int) -> tuple[float, float] | None:
+        """``(expected, tolerance)``, in ms, of frame ``index``'s time stamp as OpenCV reports it, or None when
+        a seek to it cannot be checked (no frame rate in the file).
+
+        Once the movie was read through, the stamp recorded for the frame, within a quarter of the
+        interval to its nearer neighbour (frames may be unevenly spaced); before, the file's frame rate's
+        ``index / fps``, within a quarter of a period (the user's ``fps`` says nothing of the file's stamps).
+        """
+        raw = self._raw_stamps_ms
+        if raw is not None:
+            gaps = [raw[index] - raw[index - 1] if index > 0 else np.inf,
+                    raw[index + 1] - raw[index] if index + 1 < len(raw) else np.inf]
+            return float(raw[index]), 0.25 * float(min(gaps))
+        if self._file_fps:
+            return 1000.0 * index / self._file_fps, 250.0 / self._file_fps
+        return None
 
     def _seek(self, cap, index: int) -> tuple[bool, np.ndarray | None]:
         """Frame ``index`` read from ``cap`` by seeking, where the container allows it and the frame read
-        has the time stamp expected; ``(False, None)`` otherwise (``cap`` is then at an unknown place)."""
-        expected = self._expected_ms(index)
-        if not self._seekable or expected is None:
+        has the time stamp expected; ``(False, None)`` otherwise (``cap`` is then at an unknown place, if a
+        seek was tried: :meth:`_seekable_to`)."""
+        check = self._stamp_check(index) if self._seekable else None
+        if check is None:
             return False, None
         cap.set(self._cv2.CAP_PROP_POS_FRAMES, index)
         ok, frame = cap.read()
-        half_ms = 500.0 / self.info.fps
-        if ok and abs(cap.get(self._cv2.CAP_PROP_POS_MSEC) - expected) < half_ms:
+        expected, tolerance = check
+        if ok and abs(cap.get(self._cv2.CAP_PROP_POS_MSEC) - expected) <= tolerance:
             return True, frame
         return False, None
 
-    def _walk_to(self, cap, index: int) -> None:
-        """Decode (without converting) the frames before ``index`` of a capture at the start."""
-        for k in range(index):
+    def _seekable_to(self, index: int) -> bool:
+        """Whether :meth:`_seek` tries a seek to frame ``index`` (and so may move the capture)."""
+        return self._seekable and self._stamp_check(index) is not None
+
+    def _walk_to(self, cap, count: int, *, at: int = 0) -> None:
+        """Decode (without converting) the next ``count`` frames of a capture at frame ``at``."""
+        for k in range(count):
             if not cap.grab():
-                raise MovieError(f"{self.path} is truncated: only {k} of {self.info.n_frames} frames decode — "
+                raise MovieError(f"{self.path} is truncated: only {at + k} of {self.info.n_frames} frames decode — "
                                  "copy the file again from the camera or recorder")
 
     def _decode(self, start: int, stop: int, step: int, *, any_order: bool) -> Iterator[np.ndarray]:
@@ -248,7 +272,7 @@ class OpenCVVideoMovie(Movie):
             raise MovieError(f"{self.path} is truncated: only {index} of {self.info.n_frames} frames decode — "
                              "copy the file again from the camera or recorder")
         if whole and len(stamps) == self.info.n_frames and np.all(np.diff(stamps) > 0):
-            self._stamps_ms = np.asarray(stamps) - stamps[0]
+            self._raw_stamps_ms = np.asarray(stamps, dtype=float)
 
     def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
         return self._decode(start, stop, step, any_order=False)
@@ -257,41 +281,48 @@ class OpenCVVideoMovie(Movie):
         return self._decode(0, self.info.n_frames, 1, any_order=True)
 
     def read(self, index: int) -> np.ndarray:
-        """One frame: decoded on from the last one read when it follows it, else reached by seeking."""
+        """One frame: decoded on from the last one read when it is a little ahead, else reached by a seek
+        checked by the frame's time stamp, else decoded forward from the start."""
         n = self.info.n_frames
         if not 0 <= index < n:
             raise IndexError(f"frame {index} out of range 0..{n - 1}")
-        if self._seeker is None or (index < self._next and not self._seekable):
-            if self._seeker is not None:
-                self._seeker.release()
-            self._seeker, self._next = self._open(), 0
+        # self._next: the frame the capture gives next; -1 while it moves, so that an error on the way
+        # (a truncated file) leaves it unknown, and the next read starts again from a fresh capture
+        if self._seeker is None or self._next < 0 or (index < self._next and not self._seekable_to(index)):
+            self._reopen()
+        at, self._next = self._next, -1
         ok, frame = False, None
-        if 0 <= self._next < index <= self._next + FORWARD_FRAMES and not self._intra:
-            self._walk_to(self._seeker, index - self._next)  # cheaper than a seek back to a key frame
-        elif index != self._next:
-            tried = self._seekable and self._expected_ms(index) is not None
+        if at < index <= at + FORWARD_FRAMES and not self._intra:
+            self._walk_to(self._seeker, index - at, at=at)  # cheaper than a seek back to a key frame
+        elif index != at:
+            tried = self._seekable_to(index)
             ok, frame = self._seek(self._seeker, index)
-            if not ok:  # the seek landed elsewhere (the capture is lost), or cannot be trusted: decode forward
-                if tried or index < self._next:
-                    self._seeker.release()
-                    self._seeker, self._next = self._open(), 0
-                self._walk_to(self._seeker, index - self._next)
+            if not ok:  # the seek landed elsewhere (the capture is lost), or cannot be checked: decode forward
+                if tried or index < at:
+                    self._reopen()
+                    at, self._next = 0, -1
+                self._walk_to(self._seeker, index - at, at=at)
         if not ok:
             ok, frame = self._seeker.read()
         if not ok:
-            self._next = -1
             raise MovieError(f"{self.path}: frame {index} does not decode — the file is corrupt or truncated")
         self._next = index + 1
         return self._convert(frame)
 
+    def _reopen(self) -> None:
+        if self._seeker is not None:
+            self._seeker.release()
+        self._seeker = None
+        self._seeker, self._next = self._open(), 0
+
     @property
     def has_file_timestamps(self) -> bool:
-        return self._stamps_ms is not None
+        return self._raw_stamps_ms is not None
 
     def timestamps_s(self) -> np.ndarray:
         """The container's time stamps (first frame at 0) once the movie was read through, else ``index / fps``."""
-        if self._stamps_ms is not None:
-            return self._stamps_ms / 1000.0
+        if self._raw_stamps_ms is not None:
+            return (self._raw_stamps_ms - self._raw_stamps_ms[0]) / 1000.0
         return super().timestamps_s()
 
     def _close(self) -> None:

@@ -83,9 +83,10 @@ class VideoMovie(Movie):
                 counted, pts, self._keys = self._demux_count(container)
                 # a count estimated from the duration is too high for a variable frame rate: then the frames
                 # still span the duration, where a truncated file's stop short of it
-                span_s = float((pts[-1] - pts[0]) * self._time_base) if pts is not None and len(pts) else None
-                whole = (span_s is not None and container.duration and file_fps
-                         and span_s + 2.0 / file_fps >= container.duration / 1e6)
+                # (the duration runs from the file's time 0, which may be before the first frame)
+                end_s = float(pts[-1] * self._time_base) if pts is not None and len(pts) else None
+                whole = (end_s is not None and container.duration and file_fps
+                         and end_s + 2.0 / file_fps >= container.duration / 1e6)
                 if announced > 0 and counted < announced - 1 and not whole:
                     raise MovieError(
                         f"{path} is truncated: its header announces {announced} frames but it "
@@ -102,7 +103,7 @@ class VideoMovie(Movie):
             container.close()
         use_fps, source = (fps, "user") if fps else (file_fps, "file" if file_fps else "none")
         warnings: tuple[str, ...] = ()
-        if depth == 8 and re.search(r"p(9|1[0246])(le|be)$", pix_name):  # YUV deeper than 8 bits, read as RGB24
+        if depth == 8 and re.match(r"(yuv|yuva|yuvj|nv|p0|p2|p4).*(9|1[0246])(le|be)$", pix_name):  # deep YUV
             from .cvvideo import deep_warning
 
             warnings = (deep_warning(pix_name, yuv=True, reader="PyAV"),)
