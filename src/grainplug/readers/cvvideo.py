@@ -21,9 +21,14 @@ pixels (checked frame for frame against PyAV in the tests), with these limits:
 Frame counts come from the container (MP4, MOV, AVI index them); Matroska, WebM and
 others record a duration only, so their frames are counted by decoding them once when
 the movie is opened. A file that decodes fewer frames than it announced is refused
-as truncated, as PyAV's reader does. What FFmpeg and OpenCV print while a file is opened
+as truncated, as PyAV's reader does (OpenCV 4.8 has no ``CAP_PROP_PTS``: there, a Matroska
+file whose first frame is not at time 0 may be called truncated). What FFmpeg and OpenCV print while a file is opened
 (``moov atom not found``, ``File ended prematurely``) is kept off the terminal: the reader
 says what is wrong in one line.
+
+Checked on opencv-python-headless 4.8.1 (with numpy 1.26, which it needs) and 5.0.0: the same
+pixels (8- and 16-bit grey as stored, colour, 12-bit grey and 16-bit RGB converted to 8 bits),
+the same pixel-format tags, time stamps and seeks, and the VP8 writer of the overlay.
 """
 
 from __future__ import annotations
