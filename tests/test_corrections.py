@@ -74,6 +74,22 @@ def test_a_time_window_and_spans_without_plugs(result):
     assert "no plugs left after the corrections" in none.statement
     cleared = apply_corrections(result, none.corrections.add("clear_no_plugs"))
     assert _measures(cleared) == _measures(result)
+    # from the emptied result itself (as remeasure does from its folder): the plugs come back
+    again = apply_corrections(none, Corrections())
+    assert again.has_plugs and _measures(again) == _measures(result) and again.statement == result.statement
+
+
+def test_a_run_emptied_by_its_corrections_comes_back_when_they_go(result, tmp_path, capsys):
+    """Saved with corrections that leave no plugs, then the corrections file removed: remeasure gives the
+    detection's measures back (the emptied result is not the new detection)."""
+    t_end = float(result.diagram.time_s[-1])
+    out = tmp_path / "run"
+    apply_corrections(result, Corrections().add("window", start_s=2 * t_end)).save(out, figures=False)
+    assert json.loads((out / "summary.json").read_text())["has_plugs"] is False
+    (out / "corrections.json").unlink()
+    assert main(["remeasure", str(out), "--no-figures"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["has_plugs"] is True and summary["celerity_m_s"] == pytest.approx(result.celerity_m_s, abs=1e-6)
 
 
 def test_corrections_are_checked_and_read_back():

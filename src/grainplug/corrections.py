@@ -397,13 +397,16 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     # excluded and emptied tracks keep their ids (so edits and tables stay readable) but have no runs
     motion = lengths = None
     statement = res.statement
-    has_plugs = res.has_plugs and len(new_runs) > 0
+    # from the detection, not from ``res``: a result whose corrections left no plugs gets them back with
+    # corrections that keep some (the detection finds runs only where the tube holds plugs and air)
+    detected_plugs = len(runs) > 0
+    has_plugs = detected_plugs and len(new_runs) > 0
     if has_plugs:
         motion = measure_motion(res.diagram.time_s, new_runs.top_mm, new_links.run_track, new_runs.frame,
                                 fps=res.info.fps, mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd)
         lengths = measure_lengths(new_runs, new_links, scale_rel_sd=res.scale_rel_sd)
         statement = "" if motion is not None else "plugs were seen but no plug edge could be followed over time"
-    elif res.has_plugs:
+    elif detected_plugs:
         statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
     unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)
     flagged = reanalysed or any(w.startswith(UNCHECKED) for w in res.warnings)
