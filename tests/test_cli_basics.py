@@ -99,3 +99,20 @@ def test_bad_parameter(tmp_path, capsys):
 def test_debug_shows_traceback(tmp_path):
     with pytest.raises(Exception, match="no such file"):
         main(["--debug", "info", str(tmp_path / "nope.avi")])
+
+
+def test_ctrl_c_inside_compiled_code_is_an_interruption(monkeypatch, tmp_path, capsys):
+    """numba turns a Ctrl-C in a compiled loop into "SystemError: ... returned a result with an exception
+    set", the KeyboardInterrupt as its cause: the command line says "interrupted" (130), not a bug (1)."""
+    import grainplug.campaigns.paper as paper
+    from grainplug.cli import main
+
+    def interrupted(**_kw):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise SystemError("CPUDispatcher(<function advance>) returned a result with an exception set") from exc
+
+    monkeypatch.setattr(paper, "reproduce", interrupted)
+    assert main(["paper", "--out", str(tmp_path / "p")]) == 130
+    assert capsys.readouterr().err.strip() == "error: interrupted"

@@ -66,6 +66,15 @@ def _main(args: list[str]) -> int:
     except KeyboardInterrupt:
         click.echo("error: interrupted", err=True)
         return 130
+    except SystemError as exc:
+        # Ctrl-C inside a compiled (numba) function surfaces as "returned a result with an exception set"
+        if isinstance(exc.__cause__, KeyboardInterrupt) or isinstance(exc.__context__, KeyboardInterrupt):
+            click.echo("error: interrupted", err=True)
+            return 130
+        if debug:
+            raise
+        click.echo(f"error: unexpected SystemError: {exc} — rerun with --debug and report it", err=True)
+        return 1
     except Exception as exc:  # a bug: say so in one line, traceback with --debug
         if debug:
             raise
