@@ -190,7 +190,10 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
     m.append("z,missing.avi,0.3,40,rough,0.185,lab-3")
     (campaign_dir / "manifest2.csv").write_text("\n".join(m) + "\n")
     code, _, err = run(capsys, "batch", campaign_dir / "manifest2.csv", "--out", out, "--no-simulations")
-    assert_one_line_error(code, err, "1 of 6 runs failed", "missing.avi")
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]  # one line per failed run, then the error
+    assert code == 3 and len(lines) == 2 and "Traceback" not in err
+    assert lines[0].startswith("failed: run z: ") and "missing.avi" in lines[0]
+    assert lines[1].startswith("error: 1 of 6 runs failed, each named above")
     t3 = pd.read_csv(out / "campaign.csv")
     assert list(t3.status) == ["ok", "ok", "ok", "ok", "ok", "failed"]
     # typed columns under a versioned schema: a failed run's measures are missing, not "nan" text

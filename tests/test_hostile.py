@@ -247,10 +247,13 @@ def test_a_folder_or_a_pipe_is_no_manifest_and_a_pipe_no_movie(tmp_path, capsys,
 
 
 def test_failed_runs_give_exit_status_3(tmp_path, capsys, movie):
-    (tmp_path / "m.csv").write_text("run,movie\ngood,movie.tif\nbad,missing.tif\n")
+    (tmp_path / "m.csv").write_text("run,movie\ngood,movie.tif\nbad,missing.tif\nworse,missing2.tif\n")
     code, err = run(capsys, "batch", tmp_path / "m.csv", "--out", tmp_path / "camp", "--no-figures")
     assert code == 3
-    one_line(err, "1 of 2 runs failed")
+    lines = [ln for ln in err.splitlines() if ln.strip()]  # every failed run named, one line each
+    assert [ln.split(":")[0] for ln in lines] == ["failed", "failed", "error"], err
+    assert "run bad: " in lines[0] and "missing.tif" in lines[0] and "run worse: " in lines[1]
+    assert lines[2].startswith("error: 2 of 3 runs failed") and "Traceback" not in err
     assert (tmp_path / "camp" / "runs" / "good" / "summary.json").exists()
 
 

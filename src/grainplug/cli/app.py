@@ -893,18 +893,20 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         counts = t.status.value_counts().to_dict()
         reused = f" ({camp.n_reused} reused from an earlier batch)" if camp.n_reused else ""
         click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused)
-        for g, f in camp.fits.items():
-            c = f.get("celerity")
-            if c:
-                click.echo(f"{g:24s} v_p = {c['intercept_m_s']:+.4f} {c['slope_m_s_per_g_s']:+.4f} * m_dot "
-                           f"(R² {c['r2']:.3f}, n {c['n']})")
+        fits = {g: f["celerity"] for g, f in camp.fits.items() if f.get("celerity")}
+        if fits:
+            click.echo("plug celerity against the mass flow rate ṁ (g/s), fitted as v_p = a + b ṁ:")
+        for g, c in fits.items():
+            click.echo(f"  {g:22s} a = {c['intercept_m_s']:+.4g} m/s, b = {c['slope_m_s_per_g_s']:+.4g} (m/s)/(g/s)"
+                       f"   (R² {c['r2']:.3f}, n {c['n']})")
         click.echo(f"outputs in {out}")
     if camp.n_failed:
-        failed = t[t.status == "failed"]
-        first = failed.iloc[0]
         from ..errors import PartialCampaignError
 
+        for row in t[t.status == "failed"].itertuples():
+            err_console.print(f"[red]failed:[/] run {escape(str(row.run))}: {escape(str(row.error))}",
+                              highlight=False, soft_wrap=True)
         raise PartialCampaignError(
-            f"{camp.n_failed} of {len(t)} runs failed (the others were analysed; see {out / 'campaign.csv'}); "
-            f"first: run {first.run}: {first.error}"
+            f"{camp.n_failed} of {len(t)} runs failed, each named above (the others are done; see "
+            f"{out / 'campaign.csv'})"
         )
