@@ -264,3 +264,30 @@ def test_paper_figures_for_print(tmp_path, capsys):
     # without simulations the report does not describe simulations
     page = (tmp_path / "p" / "report.html").read_text()
     assert "No simulation was run" in page and "Simulated: grainplug.simulation" not in page
+
+
+def test_runs_without_a_measured_direction_are_left_out_of_the_fits(tmp_path):
+    """A run whose celerity's interval holds 0 (a scene that is no plug train: +1.1 ± 1.2 m/s) would weigh in
+    the least-squares line as much as the others: it is left out, and said to be, as is a run without a mass
+    flow rate; a manifest without the column says there is nothing to fit against."""
+    from grainplug.campaigns.batch import ALL_RUNS, campaign_fits, fit_selection
+    from grainplug.campaigns.report import campaign_report
+
+    m = np.array([10.0, 20.0, 30.0, 25.0, np.nan])
+    c = -0.01 * m
+    c[3] = 1.1
+    tab = pd.DataFrame({"run": list("abcde"), "movie": ["m"] * 5, "status": ["ok"] * 5,
+                        "mass_flow_rate_g_s": m, "regime": ["propagative"] * 5, "group": ["g"] * 5,
+                        "celerity_m_s": c, "celerity_ci95_low_m_s": c - 0.001, "celerity_ci95_high_m_s": c + 0.001,
+                        "plug_length_mm": [30.0] * 5})
+    tab.loc[3, ["celerity_ci95_low_m_s", "celerity_ci95_high_m_s"]] = [-0.1, 2.3]
+    kept, why = fit_selection(tab)
+    assert list(kept.run) == ["a", "b", "c"]
+    assert why == {"d": "no direction of travel: its celerity's 95 % interval holds 0",
+                   "e": "no mass flow rate in the manifest"}
+    fits = campaign_fits(tab)
+    assert fits["g"]["celerity"]["slope_m_s_per_g_s"] == pytest.approx(-0.01) and fits["g"]["runs"] == list("abc")
+    page = campaign_report(tab, fits, tmp_path, [], {})
+    assert "<b>d</b> (left out of the fits): no direction of travel" in page
+    assert fit_selection(tab.drop(columns="mass_flow_rate_g_s"))[1] == {
+        ALL_RUNS: "the manifest has no mass_flow_rate_g_s column: nothing to fit the runs against"}

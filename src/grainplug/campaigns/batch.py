@@ -155,13 +155,45 @@ def _group(row: pd.Series) -> str | None:
     return f"{regime}/{surface}" if isinstance(surface, str) and surface else regime
 
 
-def campaign_fits(table: pd.DataFrame, *, diameter_mm: float = 3.0) -> dict[str, dict]:
-    """Celerity and length against mass flow rate, per group and over all runs."""
+#: the reason :func:`fit_selection` gives, under this key, when no run can be fitted at all
+ALL_RUNS = ""
+
+
+def fit_selection(table: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, str]]:
+    """The analysed runs the fits against mass flow rate use (with their ``fit_group``), and why each other
+    analysed run is left out of them (``{run: reason}``; under :data:`ALL_RUNS` when none can be).
+
+    Left out: a run without a mass flow rate, a run without plugs, and a run whose celerity's 95 %
+    interval holds 0 (no direction of travel measured: a still scene, or something that is not a plug
+    train), whose celerity would weigh in a least-squares line as much as a well-measured run's.
+    """
     ok = table[table.status == "ok"].copy() if "status" in table else table.copy()
-    if "mass_flow_rate_g_s" not in ok or ok.empty:
-        return {}
+    if ok.empty:
+        return ok.assign(fit_group=pd.Series(dtype=object)), {}
+    if "mass_flow_rate_g_s" not in ok:
+        return ok.iloc[:0].assign(fit_group=pd.Series(dtype=object)), {
+            ALL_RUNS: "the manifest has no mass_flow_rate_g_s column: nothing to fit the runs against"}
     ok["fit_group"] = ok.apply(_group, axis=1)
-    ok = ok[ok.fit_group.notna() & ok.mass_flow_rate_g_s.notna()]
+    why: dict[str, str] = {}
+    for _, r in ok.iterrows():
+        lo, hi = r.get("celerity_ci95_low_m_s"), r.get("celerity_ci95_high_m_s")
+        if pd.isna(r.mass_flow_rate_g_s):
+            why[str(r.run)] = "no mass flow rate in the manifest"
+        elif r.fit_group is None:
+            why[str(r.run)] = "no plugs measured"
+        elif pd.isna(r.get("celerity_m_s")):
+            why[str(r.run)] = "no celerity measured"
+        elif not (pd.isna(lo) or pd.isna(hi)) and lo <= 0 <= hi:
+            why[str(r.run)] = "no direction of travel: its celerity's 95 % interval holds 0"
+    return ok[~ok.run.astype(str).isin(list(why))], why
+
+
+def campaign_fits(table: pd.DataFrame, *, diameter_mm: float = 3.0) -> dict[str, dict]:
+    """Celerity and length against mass flow rate, per group and over all runs (those of
+    :func:`fit_selection`)."""
+    ok, _ = fit_selection(table)
+    if ok.empty:
+        return {}
     out: dict[str, dict] = {}
     for name, sub in [*ok.groupby("fit_group"), ("all", ok)]:
         x = sub.mass_flow_rate_g_s.to_numpy(float)
@@ -490,6 +522,9 @@ def _model_panel(table: pd.DataFrame, *, simulate: bool) -> ModelPanel | None:
     """The campaign's measurements against the model (with the pipe diameter of its runs), or None
     without a measured celerity."""
     ok = table[table.status == "ok"] if "status" in table else table
+    if {"celerity_ci95_low_m_s", "celerity_ci95_high_m_s"} <= set(ok):  # no direction measured: left out
+        lo, hi = ok.celerity_ci95_low_m_s.to_numpy(float), ok.celerity_ci95_high_m_s.to_numpy(float)
+        ok = ok[~((lo <= 0) & (hi >= 0))]
     if "celerity_m_s" not in ok or not np.isfinite(ok.celerity_m_s.to_numpy(float)).any():
         return None
     d = ok["tube_diameter_mm"].to_numpy(float) if "tube_diameter_mm" in ok else np.array([])
@@ -506,11 +541,7 @@ def _campaign_figures(table: pd.DataFrame, folder: Path, options: FigureOptions 
 
     from ..plotting.campaign import plot_vs_mass_flow
 
-    ok = table[table.status == "ok"].copy()
-    if ok.empty or "mass_flow_rate_g_s" not in ok:
-        return []
-    ok["fit_group"] = ok.apply(_group, axis=1)
-    ok = ok[ok.fit_group.notna() & ok.mass_flow_rate_g_s.notna()]
+    ok, _ = fit_selection(table)
     if ok.empty:
         return []
     names = []

@@ -60,7 +60,10 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
                          number(c.get("intercept_m_s"), 4), number(c.get("intercept_stderr"), 4),
                          number(c.get("r2"), 3), number(c.get("n")), number(ln.get("mean_mm"), 2),
                          number(ln.get("sd_mm"), 2), number(ln.get("mean_over_diameter"), 2)])
-    notes = []
+    from .batch import ALL_RUNS, fit_selection
+
+    notes = [f"<li><b>{html.escape(run) or 'fits'}</b> (left out of the fits): {html.escape(why)}</li>"
+             for run, why in fit_selection(tab)[1].items() if run == ALL_RUNS or why != "no plugs measured"]
     for _, r in tab.iterrows():
         for what, key in (("error", "error"), ("warning", "warnings")):
             text = r.get(key)

@@ -893,6 +893,12 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         counts = t.status.value_counts().to_dict()
         reused = f" ({camp.n_reused} reused from an earlier batch)" if camp.n_reused else ""
         click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused)
+        from ..campaigns.batch import ALL_RUNS, fit_selection
+
+        for run, why in fit_selection(t)[1].items():
+            if run == ALL_RUNS or why != "no plugs measured":
+                err_console.print(f"[yellow]warning:[/] {escape(f'run {run} left out of the fits' if run else 'fits')}:"
+                                  f" {escape(why)}", highlight=False, soft_wrap=True)
         fits = {g: f["celerity"] for g, f in camp.fits.items() if f.get("celerity")}
         if fits:
             click.echo("plug celerity against the mass flow rate ṁ (g/s), fitted as v_p = a + b ṁ:")
