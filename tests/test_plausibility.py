@@ -53,3 +53,13 @@ def test_a_saturated_tube_is_said(frames):
     bright = np.clip(frames.astype(np.int32) * 3, 0, 255).astype(np.uint8)
     res = gp.analyze(bright, fps=500.0)
     assert any("of the tube's pixels are at the camera's top value (saturated)" in w for w in res.warnings)
+
+
+@pytest.mark.parametrize(("mm_per_px", "doubted"), [(0.185, False), (0.19, False), (0.06, True), (0.5, True)])
+def test_a_given_scale_far_from_the_tube_seen_is_said(frames, mm_per_px, doubted):
+    """Given --mm-per-px, the tube found (16 px) is checked against the bore it makes: 0.06 mm/px (a 50 px bore)
+    and 0.5 mm/px (6 px) are doubted, the true 0.185 and a 3 % error are not (the tube model's own job)."""
+    res = gp.analyze(frames, fps=500.0, mm_per_px=mm_per_px)
+    said = [w for w in res.warnings if "the given scale makes its 3 mm bore" in w]
+    assert bool(said) == doubted, res.warnings
+    assert all("--mm-per-px" in w for w in said)

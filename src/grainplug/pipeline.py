@@ -277,13 +277,30 @@ def _scale(tube: TubeGeometry, params: AnalysisParams,
            info: MovieInfo) -> tuple[float, str, float, list[str], BoreEstimate | None]:
     """``(mm_per_px, where it came from, its relative standard uncertainty, warnings, the tube model's bore)``."""
     if params.mm_per_px:
-        return float(params.mm_per_px), "user", 0.0, [], None
+        return float(params.mm_per_px), "user", 0.0, _given_scale_doubts(tube, params), None
     bore = _bore(tube, params)
     from_tube = params.tube_diameter_mm / bore.diameter_px
     cal = params.calibration
     if cal is None:
         return from_tube, _bore_source(bore, params), bore.rel_sd, _tube_scale_doubts(tube, bore, params), bore
     return (*_calibrated_scale(cal, tube, info, from_tube, params.tube_diameter_mm, bore), bore)
+
+
+#: the width over which a tube's contents are seen, against its bore: a back-lit tube looks up to 35 % narrower
+#: (by the lamp's size), never much wider
+SEEN_OVER_BORE = (0.6, 1.15)
+
+
+def _given_scale_doubts(tube: TubeGeometry, params: AnalysisParams) -> list[str]:
+    """A warning when the tube seen is far wider or narrower than the given scale makes its bore (a wrong
+    ``mm_per_px`` or tube diameter, or something in view that is not the tube)."""
+    expected_px = params.tube_diameter_mm / float(params.mm_per_px)
+    ratio = tube.inner_diameter_px / expected_px
+    if SEEN_OVER_BORE[0] <= ratio <= SEEN_OVER_BORE[1]:
+        return []
+    return [f"the tube's contents are seen over {tube.inner_diameter_px:.1f} px, but the given scale makes its "
+            f"{params.tube_diameter_mm:g} mm bore {expected_px:.1f} px ({ratio:.2f} times): check --mm-per-px and "
+            "--tube-diameter-mm, and that what was found is the tube"]
 
 
 def _bore(tube: TubeGeometry, params: AnalysisParams) -> BoreEstimate:
