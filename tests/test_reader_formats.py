@@ -374,3 +374,18 @@ def test_read_file_and_sparse_maps_give_the_file_bytes(tmp_path, rng):
         np.testing.assert_array_equal(got, data[49_000:].reshape(10, 4, 25))
     with pytest.raises(MovieError, match="truncated"):
         read_file(path, 3 + 2 * 49_990, (20,), np.uint16)
+
+
+@pytest.mark.parametrize("fmt", ["tiff", "avi", "mraw", "cine", "seq"])
+def test_a_given_frame_rate_that_contradicts_the_file_is_said(tmp_path, fmt):
+    """A slip of the user's --fps (25 for 250) is used (the user decides) but said; the file's own rate, or
+    one within 1 % of it, is not."""
+    movie = synthesize(SynthConfig(n_frames=8, width_px=WIDTH, height_px=HEIGHT, fps=FPS, rgb=fmt in ("tiff", "avi"),
+                                   seed=1), tmp_path, fmt=fmt).movie
+    with open_movie(movie, fps=25.0) as m:
+        assert m.info.fps == 25.0 and m.info.fps_source == "user"
+        said = [w for w in m.info.warnings if "frame rate given (25 fps) is not the file's (250 fps)" in w]
+        assert len(said) == 1 and "--fps" in said[0]
+    for fps in (None, FPS, FPS * 1.005):
+        with open_movie(movie, fps=fps) as m:
+            assert not [w for w in m.info.warnings if "frame rate given" in w]

@@ -23,6 +23,22 @@ log = logging.getLogger(__name__)
 TIFF_SIGNATURES = (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+")
 
 
+#: a given frame rate further than this (relative) from the file's own is said to contradict it
+FPS_DISAGREEMENT = 0.01
+
+
+def choose_fps(given: float | None, in_file: float | None) -> tuple[float | None, str, list[str]]:
+    """The frame rate to use, where it came from (``"user"``, ``"file"``, ``"none"``), and a warning when a
+    given rate contradicts the file's: every time and speed scales with it, so a slip (25 for 250) is said."""
+    if not given:
+        return in_file, "file" if in_file else "none", []
+    if in_file and abs(given / in_file - 1) > FPS_DISAGREEMENT:
+        return float(given), "user", [
+            f"the frame rate given ({given:g} fps) is not the file's ({in_file:.6g} fps): the given one is used, "
+            "and every time and speed scales with it — check --fps (leave it out to use the file's)"]
+    return float(given), "user", []
+
+
 @dataclass(frozen=True)
 class MovieInfo:
     """What a movie file says about itself.

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MovieError
-from .base import MovieInfo
+from .base import MovieInfo, choose_fps
 from .raw import RawFramesMovie, RawLayout, complete_frames
 
 log = logging.getLogger(__name__)
@@ -221,7 +221,8 @@ def _describe(path: Path, *, fps: float | None, allow_truncated: bool) -> tuple[
     rate, rate_note, record, warnings_, stamp_facts = _frame_rate(setup, stamps, n)
     if truncated:
         warnings_.insert(0, truncated)
-    use_fps, source = (fps, "user") if fps else (rate, "file" if rate else "none")
+    use_fps, source, fps_doubts = choose_fps(fps, rate)
+    warnings_.extend(fps_doubts)
     colour = f"bayer {bayer}, demosaiced" if bayer else ("rgb" if rgb else "grey")
     serial = setup.get("Serial")
     camera = f"Phantom (camera version {setup.get('CameraVersion', '?')}, serial {serial})" if serial else "Phantom"

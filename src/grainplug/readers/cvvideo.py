@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MovieError
-from .base import Movie, MovieInfo
+from .base import Movie, MovieInfo, choose_fps
 
 log = logging.getLogger(__name__)
 
@@ -154,7 +154,8 @@ class OpenCVVideoMovie(Movie):
             announced = counted
         if announced <= 0:
             raise MovieError(f"{path} holds no video frames — pass a movie with frames")
-        use_fps, source = (fps, "user") if fps else (file_fps, "file" if file_fps else "none")
+        use_fps, source, fps_doubts = choose_fps(fps, file_fps)
+        warnings.extend(fps_doubts)
         info = MovieInfo(
             path=str(path), format=f"video-opencv:{path.suffix.lower().lstrip('.')}/{codec}", width=width,
             height=height, n_frames=announced, fps=use_fps, channels=channels, bit_depth=depth,

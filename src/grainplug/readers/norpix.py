@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MovieError
-from .base import MovieInfo, map_file
+from .base import MovieInfo, choose_fps, map_file
 from .cine import frames_named, stamp_rate
 from .raw import RawFramesMovie, RawLayout
 
@@ -98,7 +98,8 @@ class SeqMovie(RawFramesMovie):
         if bad:
             warnings_.append(f"{frames_named(bad)} out of step with the others — frames may have been dropped "
                              "while recording")
-        use_fps, source = (fps, "user") if fps else (rate, "file" if rate else "none")
+        use_fps, source, fps_doubts = choose_fps(fps, rate)
+        warnings_.extend(fps_doubts)
         info = MovieInfo(
             path=str(path), format=f"seq:{bits}-bit", width=width, height=height, n_frames=n,
             fps=use_fps, channels=channels, bit_depth=bits_real if 0 < bits_real <= bits else bits // channels,

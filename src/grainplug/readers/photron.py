@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MovieError
-from .base import MovieInfo
+from .base import MovieInfo, choose_fps
 from .raw import RawFramesMovie, RawLayout, complete_frames
 
 #: .cihx XML elements read: key -> path below <cih>
@@ -195,7 +195,8 @@ class MrawMovie(RawFramesMovie):
         side = meta.get("EffectiveBit Side", "Lower")
         depth = min(effective, bits) if side.lower() == "lower" else bits
         rate, note, record = photron_saved_rate(meta)
-        use_fps, source = (fps, "user") if fps else (rate, "file" if rate else "none")
+        use_fps, source, fps_doubts = choose_fps(fps, rate)
+        warnings_.extend(fps_doubts)
         details: dict[str, object] = {
             "header": cih.name,
             "layout": f"{bits}-bit" + (" packed" if bits == 12 else ""),

@@ -11,7 +11,7 @@ import numpy as np
 import tifffile
 
 from ..errors import MovieError
-from .base import TIFF_SIGNATURES, Movie, MovieInfo, map_file, read_file
+from .base import TIFF_SIGNATURES, Movie, MovieInfo, choose_fps, map_file, read_file
 
 log = logging.getLogger(__name__)
 
@@ -92,11 +92,11 @@ class TiffStackMovie(Movie):
         else:
             n_frames = len(self._tif.pages)
         file_fps = _fps_from_metadata(self._tif)
-        use_fps, source = (fps, "user") if fps else (file_fps, "file" if file_fps else "none")
+        use_fps, source, fps_doubts = choose_fps(fps, file_fps)
         info = MovieInfo(
             path=str(path), format="tiff-stack", width=width, height=height, n_frames=n_frames,
             fps=use_fps, channels=channels, bit_depth=8 * dtype.itemsize, dtype=dtype.name,
-            fps_source=source,
+            fps_source=source, warnings=tuple(fps_doubts),
         )
         super().__init__(path, info)
 

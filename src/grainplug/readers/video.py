@@ -13,7 +13,7 @@ import av
 import numpy as np
 
 from ..errors import MovieError
-from .base import Movie, MovieInfo, map_file, read_file
+from .base import Movie, MovieInfo, choose_fps, map_file, read_file
 
 log = logging.getLogger(__name__)
 
@@ -101,12 +101,12 @@ class VideoMovie(Movie):
             fmt_name = container.format.name.split(",")[0]
         finally:
             container.close()
-        use_fps, source = (fps, "user") if fps else (file_fps, "file" if file_fps else "none")
-        warnings: tuple[str, ...] = ()
+        use_fps, source, fps_doubts = choose_fps(fps, file_fps)
+        warnings: tuple[str, ...] = tuple(fps_doubts)
         if depth == 8 and re.match(r"(yuv|yuva|yuvj|nv|p0|p2|p4).*(9|1[0246])(le|be)$", pix_name):  # deep YUV
             from .cvvideo import deep_warning
 
-            warnings = (deep_warning(pix_name, yuv=True, reader="PyAV"),)
+            warnings = (*warnings, deep_warning(pix_name, yuv=True, reader="PyAV"))
         info = MovieInfo(
             path=str(path), format=f"video:{fmt_name}/{codec}", width=width, height=height,
             n_frames=n_frames, fps=use_fps, channels=channels, bit_depth=depth,
