@@ -84,7 +84,7 @@ def test_a_run_emptied_by_its_corrections_comes_back_when_they_go(result, tmp_pa
     detection's measures back (the emptied result is not the new detection)."""
     t_end = float(result.diagram.time_s[-1])
     out = tmp_path / "run"
-    apply_corrections(result, Corrections().add("window", start_s=2 * t_end)).save(out, figures=False)
+    apply_corrections(result, Corrections().add("no_plugs", start_s=0.0, end_s=t_end)).save(out, figures=False)
     assert json.loads((out / "summary.json").read_text())["has_plugs"] is False
     (out / "corrections.json").unlink()
     assert main(["remeasure", str(out), "--no-figures"]) == 0
@@ -263,3 +263,20 @@ def test_edits_replayed_on_another_window_keep_their_plug_and_their_time(movie, 
     emptied.add("restore", track=tid, on=apply_corrections(result, emptied))
     with pytest.raises(ParameterError, match="outside the analysis"):
         Corrections().add("split", track=tid, frame=10_000, on=result)
+
+
+def test_edits_that_name_nothing_are_said_not_applied(result):
+    """Written by hand: a track that does not exist, a frame outside the analysis, a window after the record's
+    end. Each is left out, with a warning that says why, not reported as applied."""
+    t_end = float(result.diagram.time_s[-1])
+    n_tracks = len(result.links)
+    corr = (Corrections().add("exclude", track=n_tracks + 5).add("split", track=0, frame=10**6)
+            .add("window", start_s=t_end + 5.0))
+    res = apply_corrections(result, corr)
+    assert _measures(res) == _measures(result)
+    notes = [w for w in res.warnings if w.startswith("a correction no longer fits this analysis")]
+    assert len(notes) == 3, res.warnings
+    assert f"there is no track {n_tracks + 5}" in notes[0]
+    assert "frame 1000000 is outside this analysis" in notes[1]
+    assert "holds none of this record" in notes[2]
+    assert res.summary["corrections"] == []  # none applied (the file's edits stay in corrections_applied)

@@ -297,6 +297,7 @@ class _State:
     window: tuple[float | None, float | None]
     spans: tuple[tuple[float, float], ...]
     not_applied: tuple[str, ...] = ()
+    applied: tuple[Edit, ...] = ()
 
 
 def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _State:
@@ -318,11 +319,25 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
                     why = f"its time, {e.frame_time_s:.3f} s, is outside this analysis"
                 else:
                     split_at = row
+            if why is None:  # (edits written by hand name tracks and frames by number: they must exist)
+                missing = [t for t in (e.track, e.other) if t >= 0 and not (track == t).any()]
+                if missing:
+                    why = f"there is no track {missing[0]} (tracks 0 to {int(track.max()) if track.size else -1})"
+                elif e.action == "split" and not 0 <= split_at < len(diagram.time_s):
+                    why = f"frame {split_at} is outside this analysis (0 to {len(diagram.time_s) - 1})"
             if why is not None:
                 seen = " and ".join(f"{trace[0][0]:.3f}–{trace[-1][0]:.3f} s" for trace in
                                     filter(None, (e.track_trace, e.other_trace)))
                 made = f" (made on plugs seen {seen})" if seen else ""
                 skipped.append(f"edit {k}, {e.describe()}{made}, was not applied: {why}")
+                continue
+        if e.action in ("window", "no_plugs") and len(diagram.time_s):
+            t0, t1 = float(diagram.time_s[0]), float(diagram.time_s[-1])
+            lo = t0 if e.start_s is None else e.start_s
+            hi = t1 if e.end_s is None else e.end_s
+            if lo > t1 or hi < t0:
+                skipped.append(f"edit {k}, {e.describe()}, was not applied: it holds none of this record "
+                               f"({t0:g} to {t1:g} s)")
                 continue
         applied.append(e)
         if e.action == "merge":
@@ -336,7 +351,16 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
             spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
         elif e.action == "clear_no_plugs":
             spans.clear()
-    return _State(track, _excluded(applied), window, tuple(spans), tuple(skipped))
+    return _State(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied))
+
+
+def applied_edits(res: AnalysisResult) -> tuple[Edit, ...]:
+    """The edits of ``res``'s corrections that were applied to it (those that no longer fit it left out: its
+    warnings say why)."""
+    if res.corrections is None:
+        return ()
+    runs, links = res.detected if res.detected is not None else (res.runs, res.links)
+    return _replay(runs, links, res.corrections, res.diagram).applied
 
 
 def excluded_tracks(res: AnalysisResult) -> frozenset[int]:

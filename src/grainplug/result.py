@@ -490,7 +490,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "flow_direction_source": res.flow_direction_source,
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
         "warnings": list(res.warnings),
-        "corrections": res.corrections.describe() if res.corrections is not None else [],
+        "corrections": [e.describe() for e in _applied_edits(res)],
         "corrections_applied": res.corrections.as_dict()["edits"] if res.corrections is not None else [],
         "view_length_mm": _r(float(res.diagram.position_mm[-1] + 0.5 * res.mm_per_px), 4),
         "illumination": {
@@ -502,3 +502,9 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "timings_s": dict(res.timings),
         "conventions": CONVENTIONS,
     }
+
+
+def _applied_edits(res: AnalysisResult) -> tuple:
+    from .corrections import applied_edits  # the corrections' replay, only for a corrected result
+
+    return applied_edits(res) if res.corrections is not None else ()

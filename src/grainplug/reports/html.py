@@ -245,11 +245,18 @@ def run_report(res: AnalysisResult, folder: Path, *, summary: dict | None = None
         warnings = f'<div class="warnbox" role="note"><h2>Warnings</h2><ul>{warnings}</ul></div>'
     corrections = ""
     if res.corrections is not None and res.corrections.edits:
-        items = "".join(f"<li>{html.escape(e.describe())} <small>({html.escape(e.at)})</small></li>"
-                        for e in res.corrections.edits)
-        corrections = (f'<div class="fixbox"><h2>Corrections applied ({len(res.corrections.edits)})</h2>'
-                       f'<ul>{items}</ul><p>The measures are recomputed from the detected plugs with these '
-                       "corrections (corrections.json; <code>grainplug remeasure</code>).</p></div>")
+        from ..corrections import applied_edits
+
+        done = applied_edits(res)
+        items = "".join(f"<li>{html.escape(e.describe())}"
+                        + (f" <small>({html.escape(e.at)})</small>" if e.at else "") + "</li>" for e in done)
+        left = len(res.corrections.edits) - len(done)
+        corrections = (f'<div class="fixbox"><h2>Corrections applied ({len(done)})</h2>'
+                       + (f"<ul>{items}</ul>" if items else "")
+                       + "<p>The measures are recomputed from the detected plugs with these corrections "
+                       "(corrections.json; <code>grainplug remeasure</code>)."
+                       + (f" {left} more in the file were not applied: the warnings say why." if left else "")
+                       + "</p></div>")
     figs = "".join(
         f"<figure>{_img(folder / f)}<figcaption>{html.escape(c)}</figcaption></figure>"
         for f, c in _captions(res) if (folder / f).exists())
