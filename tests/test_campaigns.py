@@ -291,3 +291,21 @@ def test_runs_without_a_measured_direction_are_left_out_of_the_fits(tmp_path):
     assert "<b>d</b> (left out of the fits): no direction of travel" in page
     assert fit_selection(tab.drop(columns="mass_flow_rate_g_s"))[1] == {
         ALL_RUNS: "the manifest has no mass_flow_rate_g_s column: nothing to fit the runs against"}
+
+
+def test_the_fits_table_gives_each_value_to_its_uncertainty(tmp_path):
+    """A slope known to 1.2e-6 is not printed "−0.0030 ± 0.0000": the error to two significant figures, the value
+    to the same place; a group of one run has no spread ("—", not 0.00)."""
+    from grainplug.campaigns.report import campaign_report
+
+    tab = pd.DataFrame({"run": ["a"], "movie": ["m"], "status": ["ok"]})
+    fits = {"A": {"celerity": {"slope_m_s_per_g_s": -0.0030015, "slope_stderr": 1.2e-6, "intercept_m_s": 0.02002,
+                               "intercept_stderr": 1.15e-5, "r2": 1.0, "n": 3},
+                  "length": {"mean_mm": 30.9, "sd_mm": 0.4, "mean_over_diameter": 10.3, "n": 3}},
+            "B": {"celerity": None, "length": {"mean_mm": 30.94, "sd_mm": 0.0, "mean_over_diameter": 10.3, "n": 1}}}
+    page = campaign_report(tab, fits, tmp_path, [], {})
+    row_a = re.search(r"<tr><td>A</td>(.*?)</tr>", page).group(1)
+    cells = re.findall(r"<td[^>]*>(.*?)</td>", row_a)
+    assert cells[:4] == ["−0.0030015", "1.2e-06", "0.020020", "0.000012"]
+    row_b = re.findall(r"<td[^>]*>(.*?)</td>", re.search(r"<tr><td>B</td>(.*?)</tr>", page).group(1))
+    assert row_b[7] == "—"

@@ -29,6 +29,22 @@ def _cell(value: object, decimals: int | None) -> str:
     return "—" if value is None or pd.isna(value) else str(value)
 
 
+def _to_uncertainty(value: object, se: object) -> tuple[str, str]:
+    """A fitted value and its standard error as people read them: the error to two significant figures
+    (1.2e-06, not 0.0000) and the value to the same decimal place."""
+    import math
+
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        return "—", "—"
+    if not isinstance(se, (int, float)) or not math.isfinite(se) or se <= 0:
+        return number(float(value), 4), "—"
+    decimals = max(0, 1 - math.floor(math.log10(se)))
+    if decimals > 6:  # tiny: in powers of ten
+        return f"{value:.{max(2, decimals - math.floor(math.log10(abs(value) or 1)) - 1)}g}".replace("-", "−"), \
+            f"{se:.2g}"
+    return number(float(value), decimals), number(float(se), decimals)
+
+
 def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[str], meta: dict, *,
                     panel: ModelPanel | None = None) -> str:
     """The report of a campaign, for people: the campaign in a sentence, the fits against mass flow
@@ -56,10 +72,12 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
     for g, f in fits.items():
         c = f.get("celerity") or {}
         ln = f.get("length") or {}
-        fit_rows.append([g, number(c.get("slope_m_s_per_g_s"), 4), number(c.get("slope_stderr"), 4),
-                         number(c.get("intercept_m_s"), 4), number(c.get("intercept_stderr"), 4),
-                         number(c.get("r2"), 3), number(c.get("n")), number(ln.get("mean_mm"), 2),
-                         number(ln.get("sd_mm"), 2), number(ln.get("mean_over_diameter"), 2)])
+        slope, slope_se = _to_uncertainty(c.get("slope_m_s_per_g_s"), c.get("slope_stderr"))
+        icpt, icpt_se = _to_uncertainty(c.get("intercept_m_s"), c.get("intercept_stderr"))
+        one = (ln.get("n") or c.get("n") or 0) < 2  # one run: no spread
+        fit_rows.append([g, slope, slope_se, icpt, icpt_se, number(c.get("r2"), 3), number(c.get("n")),
+                         number(ln.get("mean_mm"), 2), "—" if one else number(ln.get("sd_mm"), 2),
+                         number(ln.get("mean_over_diameter"), 2)])
     from .batch import ALL_RUNS, fit_selection
 
     notes = [f"<li><b>{html.escape(run) or 'fits'}</b> (left out of the fits): {html.escape(why)}</li>"
