@@ -289,8 +289,11 @@ def test_runs_without_a_measured_direction_are_left_out_of_the_fits(tmp_path):
     assert fits["g"]["celerity"]["slope_m_s_per_g_s"] == pytest.approx(-0.01) and fits["g"]["runs"] == list("abc")
     page = campaign_report(tab, fits, tmp_path, [], {})
     assert "<b>d</b> (left out of the fits): no direction of travel" in page
-    assert fit_selection(tab.drop(columns="mass_flow_rate_g_s"))[1] == {
-        ALL_RUNS: "the manifest has no mass_flow_rate_g_s column: nothing to fit the runs against"}
+    misspelled = tab.rename(columns={"mass_flow_rate_g_s": "mass_flow_g_s"})
+    assert fit_selection(misspelled)[1] == {ALL_RUNS: "the manifest has no mass_flow_rate_g_s column (is "
+                                            "'mass_flow_g_s' meant? name it mass_flow_rate_g_s): nothing to fit the "
+                                            "runs against"}
+    assert fit_selection(tab.drop(columns="mass_flow_rate_g_s"))[1] == {}  # a campaign without fits, by choice
 
 
 def test_the_fits_table_gives_each_value_to_its_uncertainty(tmp_path):

@@ -170,9 +170,11 @@ def fit_selection(table: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, str]]:
     ok = table[table.status == "ok"].copy() if "status" in table else table.copy()
     if ok.empty:
         return ok.assign(fit_group=pd.Series(dtype=object)), {}
-    if "mass_flow_rate_g_s" not in ok:
+    if "mass_flow_rate_g_s" not in ok:  # a campaign without fits; said when a column looks meant for it
+        near = [str(c) for c in ok.columns if "mass" in str(c).lower() or "flow_rate" in str(c).lower()]
         return ok.iloc[:0].assign(fit_group=pd.Series(dtype=object)), {
-            ALL_RUNS: "the manifest has no mass_flow_rate_g_s column: nothing to fit the runs against"}
+            ALL_RUNS: f"the manifest has no mass_flow_rate_g_s column (is {near[0]!r} meant? name it "
+                      "mass_flow_rate_g_s): nothing to fit the runs against"} if near else {}
     ok["fit_group"] = ok.apply(_group, axis=1)
     why: dict[str, str] = {}
     for _, r in ok.iterrows():
