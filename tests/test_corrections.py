@@ -160,13 +160,14 @@ def test_batch_honours_each_runs_corrections(movie, tmp_path):
     (out / "runs" / "a" / "corrections.json").write_text(
         json.dumps(Corrections().add("exclude", track=0).as_dict()))
     second = gp.run_campaign(manifest, out, figures=False)
-    assert second.n_reused == 1  # measured again from the saved detection, not analysed again
+    assert second.n_reused == second.n_remeasured == 1  # measured again from the saved detection, not analysed
     assert second.table.n_corrections.tolist() == [1]
     summary = json.loads(run_summary.read_text())
     assert summary["n_edges_used"] < n0
     assert summary["corrections"] == ["excluded track 0"] and summary["batch"]["run"] == "a"
     third = gp.run_campaign(manifest, out, figures=False)  # nothing changed: plain reuse
-    assert third.n_reused == 1 and third.table.celerity_m_s.tolist() == second.table.celerity_m_s.tolist()
+    assert third.n_reused == 1 and third.n_remeasured == 0
+    assert third.table.celerity_m_s.tolist() == second.table.celerity_m_s.tolist()
     assert np.isfinite(third.table.celerity_m_s.iloc[0])
 
 

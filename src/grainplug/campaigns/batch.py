@@ -102,7 +102,7 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
                 res = apply_corrections(load_result(run_dir), corr or Corrections())
                 write_outputs(res, run_dir, figures=figures, report=figures, extra=extra,
                               figure_options=figure_options)
-                return {**record, "status": "ok", "reused": True, **_flat(res.summary)}
+                return {**record, "status": "ok", "reused": True, "remeasured": True, **_flat(res.summary)}
             except GrainplugError:
                 pass  # an unreadable result: analyse again below
     try:
@@ -141,6 +141,8 @@ class Campaign:
     out_dir: Path
     n_failed: int
     n_reused: int = 0
+    #: of the reused runs, those measured again from their saved detection (their corrections changed)
+    n_remeasured: int = 0
     #: worker processes of this machine's pool that died (their runs were started again)
     worker_deaths: int = 0
 
@@ -293,11 +295,13 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
             f"interrupted: {n_done} of {total} runs have a complete result, kept; the others were not started "
             "or were stopped — run the same command again to finish (complete, current runs are reused)") from None
     n_reused = sum(bool(records[s.run].get("reused")) for s in specs)
-    table = typed(pd.DataFrame([{k: v for k, v in records[s.run].items() if k != "reused"} for s in specs]))
+    n_remeasured = sum(bool(records[s.run].get("remeasured")) for s in specs)
+    table = typed(pd.DataFrame([{k: v for k, v in records[s.run].items() if k not in ("reused", "remeasured")}
+                                for s in specs]))
     fits = campaign_fits(table)
     _write_campaign(table, fits, out, manifest=Path(manifest), figures=figures, simulate=simulate,
                     figure_options=figure_options)
-    return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused, deaths)
+    return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused, n_remeasured, deaths)
 
 
 #: how long to wait for a Dask scheduler before saying it cannot be reached

@@ -14,8 +14,9 @@ from .model_panel import ModelPanel, panel_html
 
 #: table columns: (column of the campaign table, header, decimals or None for text)
 RUN_COLUMNS = (
-    ("run", "run", None), ("status", "status", None), ("mass_flow_rate_g_s", "mass flow rate (g/s)", 3),
-    ("surface", "grains", None), ("regime", "regime", None), ("celerity_m_s", "celerity (m/s)", 4),
+    ("run", "run", None), ("status", "status", None), ("group", "group", None),
+    ("mass_flow_rate_g_s", "mass flow rate (g/s)", 3), ("surface", "surface", None), ("regime", "regime", None),
+    ("celerity_m_s", "celerity (m/s)", 4),
     ("celerity_ci95_low_m_s", "95 % CI from", 4), ("celerity_ci95_high_m_s", "to", 4),
     ("plug_length_mm", "plug length (mm)", 2), ("bubble_length_mm", "bubble length (mm)", 2),
     ("oscillation_frequency_hz", "oscillation (Hz)", 3), ("scale_source", "scale from", None),
@@ -50,7 +51,10 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
     """The report of a campaign, for people: the campaign in a sentence, the fits against mass flow
     rate, the runs (each linking to its own report; sortable), the warnings and errors in a box,
     captioned figures, the model against the measurements, the provenance folded at the end."""
-    cols = [(c, h, d) for c, h, d in RUN_COLUMNS if c in tab]
+    # columns with nothing in them (no run oscillates, no group given) are left out: the table fits the page
+    cols = [(c, h, d) for c, h, d in RUN_COLUMNS
+            if c in tab and (c in ("run", "status") or (tab[c].notna().any()
+                                                         and not (tab[c].astype(str).str.strip() == "").all()))]
     head = "".join(f"<th class='sort{' n' if d is not None else ''}'>{html.escape(h)}</th>" for _, h, d in cols)
     body_rows = []
     for _, r in tab.iterrows():

@@ -891,7 +891,8 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
                     "runs": t[["run", "status"]].to_dict(orient="records"), "n_reused": camp.n_reused})
     else:
         counts = t.status.value_counts().to_dict()
-        reused = f" ({camp.n_reused} reused from an earlier batch)" if camp.n_reused else ""
+        again = f", {camp.n_remeasured} of them measured again with their new corrections" if camp.n_remeasured else ""
+        reused = f" ({camp.n_reused} reused from an earlier batch{again})" if camp.n_reused else ""
         click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused)
         from ..campaigns.batch import ALL_RUNS, fit_selection
 
