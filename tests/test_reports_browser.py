@@ -76,13 +76,17 @@ def test_campaign_report(tmp_path):
 
     from grainplug.campaigns import run_campaign
 
-    rows = []
-    for i, (m, c) in enumerate([(0.4, -0.04), (0.6, -0.058), (0.8, -0.075)]):
-        synthesize(SynthConfig(n_frames=100, celerity_m_s=c, seed=i), tmp_path / f"m{i}", fmt="avi")
-        rows.append({"run": f"r{i}", "movie": f"m{i}/movie.avi", "mass_flow_rate_g_s": m, "surface": "rough"})
+    rows = []  # every column of the runs table in use (groups, an oscillating run): it still fits the page
+    for i, (m, c, regime) in enumerate([(0.4, -0.04, "propagative"), (0.6, -0.058, "propagative"),
+                                        (0.8, -0.075, "oscillating")]):
+        synthesize(SynthConfig(n_frames=100, celerity_m_s=c, seed=i, regime=regime), tmp_path / f"m{i}", fmt="avi")
+        rows.append({"run": f"coated-{m:.1f}-g-s-{i}", "movie": f"m{i}/movie.avi", "mass_flow_rate_g_s": m,
+                     "surface": "coated glass",
+                     "group": "A" if i < 2 else "B"})
     with open(tmp_path / "manifest.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
     run_campaign(tmp_path / "manifest.csv", tmp_path / "out")
-    _check(tmp_path / "out" / "report.html")
+    text = _check(tmp_path / "out" / "report.html")
+    assert "group" in text and "oscillation (Hz)" in text and " to " in text

@@ -17,7 +17,7 @@ RUN_COLUMNS = (
     ("run", "run", None), ("status", "status", None), ("group", "group", None),
     ("mass_flow_rate_g_s", "mass flow rate (g/s)", 3), ("surface", "surface", None), ("regime", "regime", None),
     ("celerity_m_s", "celerity (m/s)", 4),
-    ("celerity_ci95_low_m_s", "95 % CI from", 4), ("celerity_ci95_high_m_s", "to", 4),
+    ("celerity_ci95_low_m_s", "95 % CI (m/s)", 4),  # written "low to high", sorted by its low end
     ("plug_length_mm", "plug length (mm)", 2), ("bubble_length_mm", "bubble length (mm)", 2),
     ("oscillation_frequency_hz", "oscillation (Hz)", 3), ("scale_source", "scale from", None),
     ("n_corrections", "corrections", 0),
@@ -61,6 +61,8 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
         cells = []
         for c, _, d in cols:
             text = html.escape(_cell(r[c], d))
+            if c == "celerity_ci95_low_m_s" and "celerity_ci95_high_m_s" in tab and text != "—":
+                text = f"{text} to {html.escape(_cell(r['celerity_ci95_high_m_s'], d))}"
             if c == "scale_source" and ":" in text:  # the kind in the table, the whole sentence on hover
                 text = f'<span title="{text}">{text.split(":")[0]}</span>'
             if c == "run" and r.get("status") == "ok":
