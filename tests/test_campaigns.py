@@ -266,34 +266,41 @@ def test_paper_figures_for_print(tmp_path, capsys):
     assert "No simulation was run" in page and "Simulated: grainplug.simulation" not in page
 
 
-def test_runs_without_a_measured_direction_are_left_out_of_the_fits(tmp_path):
-    """A run whose celerity's interval holds 0 (a scene that is no plug train: +1.1 ± 1.2 m/s) would weigh in
-    the least-squares line as much as the others: it is left out, and said to be, as is a run without a mass
-    flow rate; a manifest without the column says there is nothing to fit against."""
+def test_runs_without_a_measured_direction_are_left_out_of_the_celerity_fit(tmp_path):
+    """A run whose celerity's interval holds 0 and is far wider than the others' (a scene that is no plug
+    train: +1.1 +- 1.2 m/s) would weigh in the least-squares line as much as the others: it is left out of the
+    celerity fit, and said to be; its plug length still counts. A well-measured drift about 0 (f: 0.0002 +-
+    0.001 m/s) is a measure and stays. A run without a mass flow rate is left out of every fit; a misnamed
+    mass-flow column is said; no column at all is a campaign without fits, by choice."""
     from grainplug.campaigns.batch import ALL_RUNS, campaign_fits, fit_selection
     from grainplug.campaigns.report import campaign_report
 
-    m = np.array([10.0, 20.0, 30.0, 25.0, np.nan])
+    m = np.array([10.0, 20.0, 30.0, 25.0, np.nan, 0.02])
     c = -0.01 * m
-    c[3] = 1.1
-    tab = pd.DataFrame({"run": list("abcde"), "movie": ["m"] * 5, "status": ["ok"] * 5,
-                        "mass_flow_rate_g_s": m, "regime": ["propagative"] * 5, "group": ["g"] * 5,
+    c[3], c[5] = 1.1, 0.0002
+    tab = pd.DataFrame({"run": list("abcdef"), "movie": ["m"] * 6, "status": ["ok"] * 6,
+                        "mass_flow_rate_g_s": m, "regime": ["propagative"] * 6, "group": ["g"] * 6,
                         "celerity_m_s": c, "celerity_ci95_low_m_s": c - 0.001, "celerity_ci95_high_m_s": c + 0.001,
-                        "plug_length_mm": [30.0] * 5})
+                        "plug_length_mm": [30.0] * 6})
     tab.loc[3, ["celerity_ci95_low_m_s", "celerity_ci95_high_m_s"]] = [-0.1, 2.3]
     kept, why = fit_selection(tab)
-    assert list(kept.run) == ["a", "b", "c"]
-    assert why == {"d": "no direction of travel: its celerity's 95 % interval holds 0",
-                   "e": "no mass flow rate in the manifest"}
+    assert list(kept.run) == list("abcdf") and list(kept.run[kept.fit_celerity]) == list("abcf")
+    assert why == {"d": "left out of the celerity fit: no direction of travel, its celerity's 95 % interval holds 0 "
+                        "and is over 10 times wider than the campaign's",
+                   "e": "left out of the fits: no mass flow rate in the manifest"}
     fits = campaign_fits(tab)
-    assert fits["g"]["celerity"]["slope_m_s_per_g_s"] == pytest.approx(-0.01) and fits["g"]["runs"] == list("abc")
+    assert fits["g"]["celerity"]["slope_m_s_per_g_s"] == pytest.approx(-0.01, abs=1e-4)
+    assert fits["g"]["celerity_runs"] == list("abcf") and fits["g"]["runs"] == list("abcdf")
     page = campaign_report(tab, fits, tmp_path, [], {})
-    assert "<b>d</b> (left out of the fits): no direction of travel" in page
+    assert "<b>d</b>: left out of the celerity fit: no direction of travel" in page
     misspelled = tab.rename(columns={"mass_flow_rate_g_s": "mass_flow_g_s"})
     assert fit_selection(misspelled)[1] == {ALL_RUNS: "the manifest has no mass_flow_rate_g_s column (is "
                                             "'mass_flow_g_s' meant? name it mass_flow_rate_g_s): nothing to fit the "
                                             "runs against"}
     assert fit_selection(tab.drop(columns="mass_flow_rate_g_s"))[1] == {}  # a campaign without fits, by choice
+    # runs without plugs are left out without a word (a group of None, or "nan" from pandas' string columns)
+    none = tab.assign(regime=["none"] * 6, group=[None] * 6, celerity_m_s=np.nan)
+    assert all(w.endswith("no plugs measured") for w in fit_selection(none)[1].values() if "mass flow" not in w)
 
 
 def test_the_fits_table_gives_each_value_to_its_uncertainty(tmp_path):
@@ -309,6 +316,6 @@ def test_the_fits_table_gives_each_value_to_its_uncertainty(tmp_path):
     page = campaign_report(tab, fits, tmp_path, [], {})
     row_a = re.search(r"<tr><td>A</td>(.*?)</tr>", page).group(1)
     cells = re.findall(r"<td[^>]*>(.*?)</td>", row_a)
-    assert cells[:4] == ["−0.0030015", "1.2e-06", "0.020020", "0.000012"]
+    assert cells[:4] == ["−0.0030015", "0.0000012", "0.020020", "0.000012"]
     row_b = re.findall(r"<td[^>]*>(.*?)</td>", re.search(r"<tr><td>B</td>(.*?)</tr>", page).group(1))
     assert row_b[7] == "—"

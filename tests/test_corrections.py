@@ -267,17 +267,30 @@ def test_edits_replayed_on_another_window_keep_their_plug_and_their_time(movie, 
 
 
 def test_edits_that_name_nothing_are_said_not_applied(result):
-    """Written by hand: a track that does not exist, a frame outside the analysis, a window after the record's
-    end. Each is left out, with a warning that says why, not reported as applied."""
+    """Written by hand: a track that does not exist and a frame outside the analysis are left out, with a
+    warning that says why, not reported as applied. A window after the record's end is applied (what it cuts
+    away stays cut: no plugs are left) and said."""
     t_end = float(result.diagram.time_s[-1])
     n_tracks = len(result.links)
-    corr = (Corrections().add("exclude", track=n_tracks + 5).add("split", track=0, frame=10**6)
-            .add("window", start_s=t_end + 5.0))
+    corr = Corrections().add("exclude", track=n_tracks + 5).add("split", track=0, frame=10**6)
     res = apply_corrections(result, corr)
     assert _measures(res) == _measures(result)
     notes = [w for w in res.warnings if w.startswith("a correction no longer fits this analysis")]
-    assert len(notes) == 3, res.warnings
+    assert len(notes) == 2, res.warnings
     assert f"there is no track {n_tracks + 5}" in notes[0]
     assert "frame 1000000 is outside this analysis" in notes[1]
-    assert "holds none of this record" in notes[2]
     assert res.summary["corrections"] == []  # none applied (the file's edits stay in corrections_applied)
+    late = apply_corrections(result, corr.add("window", start_s=t_end + 5.0))
+    assert not late.has_plugs and late.summary["corrections"] == [f"kept the frames from {t_end + 5.0:g} s to the end"]
+    assert any("holds none of this record" in w and "no plugs are left" in w for w in late.warnings)
+
+
+def test_a_restore_may_name_a_track_a_split_emptied(result):
+    """Exclude a track, split it at its first frame (every plug moves to the new track), restore it: the
+    restore is applied (the review page offers it), nothing is left excluded, no warning."""
+    t = result.tracks.sort_values("n_frames").iloc[-1]
+    tid, first = int(t.plug_id), int(t.first_frame)
+    corr = Corrections().add("exclude", track=tid).add("split", track=tid, frame=first).add("restore", track=tid)
+    res = apply_corrections(result, corr)
+    assert not [w for w in res.warnings if w.startswith("a correction no longer fits")], res.warnings
+    assert len(res.summary["corrections"]) == 3 and len(res.runs) == len(result.runs)

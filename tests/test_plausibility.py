@@ -63,3 +63,13 @@ def test_a_given_scale_far_from_the_tube_seen_is_said(frames, mm_per_px, doubted
     said = [w for w in res.warnings if "the given scale makes its 3 mm bore" in w]
     assert bool(said) == doubted, res.warnings
     assert all("--mm-per-px" in w for w in said)
+
+
+def test_a_tube_without_plugs_does_not_doubt_a_right_scale():
+    """With no plugs the tube is seen where falling grains show it (4 px of a 16 px bore): no reason to doubt
+    the given scale; only a tube seen wider than the bore it makes would be."""
+    cfg = SynthConfig(n_frames=60, width_px=64, height_px=300, fps=500.0, seed=4, rgb=False, regime="none")
+    frames = np.stack(list(Renderer(cfg).frames()))
+    res = gp.analyze(frames, fps=500.0, mm_per_px=0.185)
+    assert not res.has_plugs
+    assert not [w for w in res.warnings if "the given scale makes" in w], res.warnings

@@ -320,9 +320,14 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
                 else:
                     split_at = row
             if why is None:  # (edits written by hand name tracks and frames by number: they must exist)
-                missing = [t for t in (e.track, e.other) if t >= 0 and not (track == t).any()]
+                top = int(track.max()) if track.size else -1
+                named = [t for t in (e.track, e.other) if t >= 0]
+                # an exclude or a restore may name a track a merge or a split has emptied; the others need plugs
+                missing = [t for t in named if t > top] if e.action in ("exclude", "restore") else [
+                    t for t in named if not (track == t).any()]
                 if missing:
-                    why = f"there is no track {missing[0]} (tracks 0 to {int(track.max()) if track.size else -1})"
+                    why = (f"there is no track {missing[0]} (the largest is {top})" if missing[0] > top
+                           else f"track {missing[0]} has no plugs left")
                 elif e.action == "split" and not 0 <= split_at < len(diagram.time_s):
                     why = f"frame {split_at} is outside this analysis (0 to {len(diagram.time_s) - 1})"
             if why is not None:
@@ -331,14 +336,13 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
                 made = f" (made on plugs seen {seen})" if seen else ""
                 skipped.append(f"edit {k}, {e.describe()}{made}, was not applied: {why}")
                 continue
-        if e.action in ("window", "no_plugs") and len(diagram.time_s):
+        if e.action == "window" and len(diagram.time_s):  # applied all the same: what it cuts away stays cut
             t0, t1 = float(diagram.time_s[0]), float(diagram.time_s[-1])
             lo = t0 if e.start_s is None else e.start_s
             hi = t1 if e.end_s is None else e.end_s
             if lo > t1 or hi < t0:
-                skipped.append(f"edit {k}, {e.describe()}, was not applied: it holds none of this record "
-                               f"({t0:g} to {t1:g} s)")
-                continue
+                skipped.append(f"edit {k}, {e.describe()}, holds none of this record ({t0:g} to {t1:g} s): no "
+                               "plugs are left")
         applied.append(e)
         if e.action == "merge":
             track[track == e.other] = e.track

@@ -131,7 +131,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         statement=statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
-        warnings=[*info.warnings, *scale_warnings, *light_warnings,
+        warnings=[*info.warnings, *scale_warnings,
+                  *_given_scale_doubts(tube, params, has_plugs=bool(norm.two_phase and len(runs) > 0)), *light_warnings,
                   *filter(None, [repair.describe(diagram.n_frames)]), *time_warnings,
                   *flow.warnings, *other_tubes,
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
@@ -277,7 +278,7 @@ def _scale(tube: TubeGeometry, params: AnalysisParams,
            info: MovieInfo) -> tuple[float, str, float, list[str], BoreEstimate | None]:
     """``(mm_per_px, where it came from, its relative standard uncertainty, warnings, the tube model's bore)``."""
     if params.mm_per_px:
-        return float(params.mm_per_px), "user", 0.0, _given_scale_doubts(tube, params), None
+        return float(params.mm_per_px), "user", 0.0, [], None  # checked against the tube once plugs are found
     bore = _bore(tube, params)
     from_tube = params.tube_diameter_mm / bore.diameter_px
     cal = params.calibration
@@ -291,12 +292,17 @@ def _scale(tube: TubeGeometry, params: AnalysisParams,
 SEEN_OVER_BORE = (0.6, 1.15)
 
 
-def _given_scale_doubts(tube: TubeGeometry, params: AnalysisParams) -> list[str]:
-    """A warning when the tube seen is far wider or narrower than the given scale makes its bore (a wrong
+def _given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs: bool) -> list[str]:
+    """A warning when the tube seen is far wider or narrower than a given scale makes its bore (a wrong
     ``mm_per_px`` or tube diameter, or something in view that is not the tube)."""
+    if not params.mm_per_px:
+        return []
     expected_px = params.tube_diameter_mm / float(params.mm_per_px)
     ratio = tube.inner_diameter_px / expected_px
-    if SEEN_OVER_BORE[0] <= ratio <= SEEN_OVER_BORE[1]:
+    # without plugs the tube is seen where falling grains or the mean image's edges show it, often far inside
+    # the bore: only a tube seen wider than its bore says anything then
+    low = SEEN_OVER_BORE[0] if has_plugs else 0.0
+    if low <= ratio <= SEEN_OVER_BORE[1]:
         return []
     return [f"the tube's contents are seen over {tube.inner_diameter_px:.1f} px, but the given scale makes its "
             f"{params.tube_diameter_mm:g} mm bore {expected_px:.1f} px ({ratio:.2f} times): check --mm-per-px and "

@@ -161,35 +161,70 @@ def _group(row: pd.Series) -> str | None:
 ALL_RUNS = ""
 
 
-def fit_selection(table: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, str]]:
-    """The analysed runs the fits against mass flow rate use (with their ``fit_group``), and why each other
-    analysed run is left out of them (``{run: reason}``; under :data:`ALL_RUNS` when none can be).
+#: a run's celerity interval this many times wider than the campaign's typical one, holding 0, says nothing
+#: of its speed (a scene that is no plug train: +1.1 +- 1.2 m/s among runs known to +- 1e-5 m/s)
+WIDE_INTERVAL = 10.0
 
-    Left out: a run without a mass flow rate, a run without plugs, and a run whose celerity's 95 %
-    interval holds 0 (no direction of travel measured: a still scene, or something that is not a plug
-    train), whose celerity would weigh in a least-squares line as much as a well-measured run's.
+
+def _wide_and_still(ok: pd.DataFrame) -> pd.Series:
+    """Runs whose celerity interval holds 0 and is :data:`WIDE_INTERVAL` times wider than the median
+    (of at least 3 runs): they say nothing of the speed. A narrow interval about 0 is a measured still drift."""
+    if not {"celerity_ci95_low_m_s", "celerity_ci95_high_m_s"} <= set(ok) or ok.empty:
+        return pd.Series(False, index=ok.index)
+    lo = ok.celerity_ci95_low_m_s.to_numpy(dtype=float, na_value=np.nan)
+    hi = ok.celerity_ci95_high_m_s.to_numpy(dtype=float, na_value=np.nan)
+    half = 0.5 * (hi - lo)
+    finite = np.isfinite(half)
+    if finite.sum() < 3:
+        return pd.Series(False, index=ok.index)
+    typical = float(np.median(half[finite]))
+    with np.errstate(invalid="ignore"):
+        return pd.Series(finite & (lo <= 0) & (hi >= 0) & (half > WIDE_INTERVAL * typical), index=ok.index)
+
+
+def fit_selection(table: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, str]]:
+    """The analysed runs the fits against mass flow rate use (with their ``fit_group``, and ``fit_celerity``:
+    whether the celerity fit uses them too), and why each other analysed run is left out of a fit
+    (``{run: reason}``; under :data:`ALL_RUNS` when no run can be fitted).
+
+    Left out of every fit: a run without a mass flow rate, a run without plugs. Left out of the celerity
+    fit only: a run without a celerity, and one whose celerity's interval holds 0 and is many times wider
+    than the campaign's (:func:`_wide_and_still`: a least-squares line would weigh it as much as a
+    well-measured run).
     """
     ok = table[table.status == "ok"].copy() if "status" in table else table.copy()
+    empty = ok.iloc[:0].assign(fit_group=pd.Series(dtype=object), fit_celerity=pd.Series(dtype=bool))
     if ok.empty:
-        return ok.assign(fit_group=pd.Series(dtype=object)), {}
+        return empty, {}
     if "mass_flow_rate_g_s" not in ok:  # a campaign without fits; said when a column looks meant for it
         near = [str(c) for c in ok.columns if "mass" in str(c).lower() or "flow_rate" in str(c).lower()]
-        return ok.iloc[:0].assign(fit_group=pd.Series(dtype=object)), {
-            ALL_RUNS: f"the manifest has no mass_flow_rate_g_s column (is {near[0]!r} meant? name it "
-                      "mass_flow_rate_g_s): nothing to fit the runs against"} if near else {}
+        return empty, {ALL_RUNS: f"the manifest has no mass_flow_rate_g_s column (is {near[0]!r} meant? name it "
+                                 "mass_flow_rate_g_s): nothing to fit the runs against"} if near else {}
     ok["fit_group"] = ok.apply(_group, axis=1)
+    wide = _wide_and_still(ok)
     why: dict[str, str] = {}
-    for _, r in ok.iterrows():
-        lo, hi = r.get("celerity_ci95_low_m_s"), r.get("celerity_ci95_high_m_s")
+    keep, celerity = [], []
+    for i, r in ok.iterrows():
+        run = str(r.run)
+        no_plugs = pd.isna(r.fit_group) or r.get("regime") == "none"
         if pd.isna(r.mass_flow_rate_g_s):
-            why[str(r.run)] = "no mass flow rate in the manifest"
-        elif r.fit_group is None:
-            why[str(r.run)] = "no plugs measured"
+            why[run] = "left out of the fits: no mass flow rate in the manifest"
+        elif no_plugs:
+            why[run] = "left out of the fits: no plugs measured"
+        keep.append(run not in why)
+        if run in why:
+            celerity.append(False)
         elif pd.isna(r.get("celerity_m_s")):
-            why[str(r.run)] = "no celerity measured"
-        elif not (pd.isna(lo) or pd.isna(hi)) and lo <= 0 <= hi:
-            why[str(r.run)] = "no direction of travel: its celerity's 95 % interval holds 0"
-    return ok[~ok.run.astype(str).isin(list(why))], why
+            why[run] = "left out of the celerity fit: no celerity measured"
+            celerity.append(False)
+        elif wide[i]:
+            why[run] = ("left out of the celerity fit: no direction of travel, its celerity's 95 % interval holds 0 "
+                        f"and is over {WIDE_INTERVAL:g} times wider than the campaign's")
+            celerity.append(False)
+        else:
+            celerity.append(True)
+    ok["fit_celerity"] = celerity
+    return ok[np.asarray(keep, bool)], why
 
 
 def campaign_fits(table: pd.DataFrame, *, diameter_mm: float = 3.0) -> dict[str, dict]:
@@ -200,11 +235,14 @@ def campaign_fits(table: pd.DataFrame, *, diameter_mm: float = 3.0) -> dict[str,
         return {}
     out: dict[str, dict] = {}
     for name, sub in [*ok.groupby("fit_group"), ("all", ok)]:
-        x = sub.mass_flow_rate_g_s.to_numpy(float)
-        fc = fit_line(x, sub.celerity_m_s.to_numpy(float))
-        ls = summarize_lengths(x, sub.plug_length_mm.to_numpy(float), diameter_mm=diameter_mm)
+        x = sub.mass_flow_rate_g_s.to_numpy(dtype=float, na_value=np.nan)
+        moving = sub[sub.fit_celerity]
+        fc = fit_line(moving.mass_flow_rate_g_s.to_numpy(dtype=float, na_value=np.nan),
+                      moving.celerity_m_s.to_numpy(dtype=float, na_value=np.nan))
+        ls = summarize_lengths(x, sub.plug_length_mm.to_numpy(dtype=float, na_value=np.nan), diameter_mm=diameter_mm)
         out[str(name)] = {"celerity": fc.as_dict("g_s", "m_s") if fc else None,
-                          "length": ls.as_dict() if ls else None, "runs": sub.run.tolist()}
+                          "length": ls.as_dict() if ls else None, "runs": sub.run.tolist(),
+                          "celerity_runs": moving.run.tolist()}
     return out
 
 
@@ -528,9 +566,7 @@ def _model_panel(table: pd.DataFrame, *, simulate: bool) -> ModelPanel | None:
     """The campaign's measurements against the model (with the pipe diameter of its runs), or None
     without a measured celerity."""
     ok = table[table.status == "ok"] if "status" in table else table
-    if {"celerity_ci95_low_m_s", "celerity_ci95_high_m_s"} <= set(ok):  # no direction measured: left out
-        lo, hi = ok.celerity_ci95_low_m_s.to_numpy(float), ok.celerity_ci95_high_m_s.to_numpy(float)
-        ok = ok[~((lo <= 0) & (hi >= 0))]
+    ok = ok[~_wide_and_still(ok)]  # celerities that say nothing of the speed: left out, as from the fits
     if "celerity_m_s" not in ok or not np.isfinite(ok.celerity_m_s.to_numpy(float)).any():
         return None
     d = ok["tube_diameter_mm"].to_numpy(float) if "tube_diameter_mm" in ok else np.array([])
@@ -556,9 +592,13 @@ def _campaign_figures(table: pd.DataFrame, folder: Path, options: FigureOptions 
              ("celerity_ci95_low_m_s", "celerity_ci95_high_m_s")),
             ("plug_length_mm", "plug length λ (mm)", "length_vs_mass_flow.png", 30.0,
              ("plug_length_ci95_low_mm", "plug_length_ci95_high_mm"))):
-        data = {g: (s.mass_flow_rate_g_s.to_numpy(float), s[y].to_numpy(float)) for g, s in ok.groupby("fit_group")}
-        errs = {g: (s[ci[0]].to_numpy(float), s[ci[1]].to_numpy(float)) for g, s in ok.groupby("fit_group")
-                if ci[0] in s and ci[1] in s}
+        rows = ok[ok.fit_celerity] if y == "celerity_m_s" else ok
+
+        def col(frame: pd.DataFrame, name: str) -> np.ndarray:
+            return frame[name].to_numpy(dtype=float, na_value=np.nan)
+
+        data = {g: (col(s, "mass_flow_rate_g_s"), col(s, y)) for g, s in rows.groupby("fit_group")}
+        errs = {g: (col(s, ci[0]), col(s, ci[1])) for g, s in rows.groupby("fit_group") if ci[0] in s and ci[1] in s}
         fits = {g: fit_line(*xy) for g, xy in data.items()}
         what = "celerity" if y.startswith("celerity") else "plug length"
         fig = plot_vs_mass_flow(data, fits, ylabel=label, title=f"{what} against mass flow rate (95 % intervals)",

@@ -32,7 +32,7 @@ def _cell(value: object, decimals: int | None) -> str:
 
 def _to_uncertainty(value: object, se: object) -> tuple[str, str]:
     """A fitted value and its standard error as people read them: the error to two significant figures
-    (1.2e-06, not 0.0000) and the value to the same decimal place."""
+    (0.0000012, not 0.0000) and the value to the same decimal place; in powers of ten below 1e-9."""
     import math
 
     if not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -40,10 +40,11 @@ def _to_uncertainty(value: object, se: object) -> tuple[str, str]:
     if not isinstance(se, (int, float)) or not math.isfinite(se) or se <= 0:
         return number(float(value), 4), "—"
     decimals = max(0, 1 - math.floor(math.log10(se)))
-    if decimals > 6:  # tiny: in powers of ten
-        return f"{value:.{max(2, decimals - math.floor(math.log10(abs(value) or 1)) - 1)}g}".replace("-", "−"), \
-            f"{se:.2g}"
-    return number(float(value), decimals), number(float(se), decimals)
+    if decimals <= 10:
+        return number(float(value), decimals), number(float(se), decimals)
+    exponent = math.floor(math.log10(se)) - 1  # both as multiples of the error's second figure's place
+    scale = 10.0 ** exponent
+    return (f"{value / scale:.0f}e{exponent}".replace("-", "−"), f"{se / scale:.0f}e{exponent}".replace("-", "−"))
 
 
 def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[str], meta: dict, *,
@@ -86,8 +87,8 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
                          number(ln.get("mean_over_diameter"), 2)])
     from .batch import ALL_RUNS, fit_selection
 
-    notes = [f"<li><b>{html.escape(run) or 'fits'}</b> (left out of the fits): {html.escape(why)}</li>"
-             for run, why in fit_selection(tab)[1].items() if run == ALL_RUNS or why != "no plugs measured"]
+    notes = [f"<li><b>{html.escape(run) or 'fits'}</b>: {html.escape(why)}</li>"
+             for run, why in fit_selection(tab)[1].items() if run == ALL_RUNS or not why.endswith("no plugs measured")]
     for _, r in tab.iterrows():
         for what, key in (("error", "error"), ("warning", "warnings")):
             text = r.get(key)

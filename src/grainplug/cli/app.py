@@ -897,9 +897,9 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         from ..campaigns.batch import ALL_RUNS, fit_selection
 
         for run, why in fit_selection(t)[1].items():
-            if run == ALL_RUNS or why != "no plugs measured":
-                err_console.print(f"[yellow]warning:[/] {escape(f'run {run} left out of the fits' if run else 'fits')}:"
-                                  f" {escape(why)}", highlight=False, soft_wrap=True)
+            if run == ALL_RUNS or not why.endswith("no plugs measured"):
+                err_console.print(f"[yellow]warning:[/] {escape(f'run {run}' if run else 'fits')}: {escape(why)}",
+                                  highlight=False, soft_wrap=True)
         fits = {g: f["celerity"] for g, f in camp.fits.items() if f.get("celerity")}
         if fits:
             click.echo("plug celerity against the mass flow rate ṁ (g/s), fitted as v_p = a + b ṁ:")

@@ -34,8 +34,9 @@ def choose_fps(given: float | None, in_file: float | None) -> tuple[float | None
         return in_file, "file" if in_file else "none", []
     if in_file and abs(given / in_file - 1) > FPS_DISAGREEMENT:
         return float(given), "user", [
-            f"the frame rate given ({given:g} fps) is not the file's ({in_file:.6g} fps): the given one is used, "
-            "and every time and speed scales with it — check --fps (leave it out to use the file's)"]
+            f"the frame rate given ({given:g} fps) is not the one the file records ({in_file:.6g} fps): the given "
+            "one is used, and every time and speed scales with it — right for a video saved at a playback rate, "
+            "but check --fps"]
     return float(given), "user", []
 
 
