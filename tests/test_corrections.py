@@ -149,7 +149,7 @@ def test_a_bad_corrections_file_is_one_line_and_changes_nothing(result, tmp_path
     assert (out / "summary.json").read_bytes() == before
 
 
-def test_batch_honours_each_runs_corrections(movie, tmp_path):
+def test_batch_honours_each_runs_corrections(movie, tmp_path, capsys):
     manifest = tmp_path / "m.csv"
     manifest.write_text(f"run,movie,mass_flow_rate_g_s,surface\na,{movie.movie},0.5,rough\n")
     out = tmp_path / "camp"
@@ -169,6 +169,10 @@ def test_batch_honours_each_runs_corrections(movie, tmp_path):
     assert third.n_reused == 1 and third.n_remeasured == 0
     assert third.table.celerity_m_s.tolist() == second.table.celerity_m_s.tolist()
     assert np.isfinite(third.table.celerity_m_s.iloc[0])
+    (out / "runs" / "a" / "corrections.json").write_text(json.dumps(Corrections().as_dict()))
+    assert main(["batch", str(manifest), "--out", str(out), "--no-figures", "--json"]) == 0
+    said = json.loads(capsys.readouterr().out)  # the command line's JSON says the same
+    assert (said["n_reused"], said["n_remeasured"], said["left_out_of_fits"]) == (1, 1, {})
 
 
 def test_batch_says_when_edits_without_traces_meet_a_new_analysis_until_they_go(movie, tmp_path):

@@ -887,8 +887,11 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
                           "(killed, or out of memory); their runs were started again — if it repeats, use fewer "
                           "--workers", highlight=False, soft_wrap=True)
     if as_json:
+        from ..campaigns.batch import fit_selection
+
         _echo_json({"grainplug_version": __version__, "fits": camp.fits,
-                    "runs": t[["run", "status"]].to_dict(orient="records"), "n_reused": camp.n_reused})
+                    "runs": t[["run", "status"]].to_dict(orient="records"), "n_reused": camp.n_reused,
+                    "n_remeasured": camp.n_remeasured, "left_out_of_fits": fit_selection(t)[1]})
     else:
         counts = t.status.value_counts().to_dict()
         again = f", {camp.n_remeasured} of them measured again with their new corrections" if camp.n_remeasured else ""
