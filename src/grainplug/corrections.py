@@ -358,21 +358,25 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
     return _State(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied))
 
 
+def _replayed(res: AnalysisResult) -> _State | None:
+    """``res``'s corrections replayed on its detected tracks (None without corrections)."""
+    if res.corrections is None:
+        return None
+    runs, links = res.detected if res.detected is not None else (res.runs, res.links)
+    return _replay(runs, links, res.corrections, res.diagram)
+
+
 def applied_edits(res: AnalysisResult) -> tuple[Edit, ...]:
     """The edits of ``res``'s corrections that were applied to it (those that no longer fit it left out: its
     warnings say why)."""
-    if res.corrections is None:
-        return ()
-    runs, links = res.detected if res.detected is not None else (res.runs, res.links)
-    return _replay(runs, links, res.corrections, res.diagram).applied
+    st = _replayed(res)
+    return () if st is None else st.applied
 
 
 def excluded_tracks(res: AnalysisResult) -> frozenset[int]:
     """The tracks of ``res`` its corrections exclude (edits that no longer fit it left out)."""
-    if res.corrections is None:
-        return frozenset()
-    runs, links = res.detected if res.detected is not None else (res.runs, res.links)
-    return _replay(runs, links, res.corrections, res.diagram).excluded
+    st = _replayed(res)
+    return frozenset() if st is None else st.excluded
 
 
 def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks) -> Tracks:

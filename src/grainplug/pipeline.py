@@ -124,15 +124,16 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
     timings = dict(laps.timings, stream_fps=round(diagram.n_frames / max(laps.timings["stream_s"], 1e-9), 1))
+    has_plugs = bool(norm.two_phase and len(runs) > 0)
     return AnalysisResult(
         params=params, input=identity, info=info, tube=tube, mm_per_px=mm_per_px, scale_source=scale_source,
         flow_direction=flow.direction, flow_direction_source=flow.source, diagram=diagram, normalized=norm,
-        runs=runs, links=links, motion=motion, lengths=lengths, has_plugs=bool(norm.two_phase and len(runs) > 0),
+        runs=runs, links=links, motion=motion, lengths=lengths, has_plugs=has_plugs,
         statement=statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *scale_warnings,
-                  *_given_scale_doubts(tube, params, has_plugs=bool(norm.two_phase and len(runs) > 0)), *light_warnings,
+                  *_given_scale_doubts(tube, params, has_plugs=has_plugs), *light_warnings,
                   *filter(None, [repair.describe(diagram.n_frames)]), *time_warnings,
                   *flow.warnings, *other_tubes,
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,

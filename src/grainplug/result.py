@@ -505,6 +505,6 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
 
 
 def _applied_edits(res: AnalysisResult) -> tuple:
-    from .corrections import applied_edits  # the corrections' replay, only for a corrected result
+    from .corrections import applied_edits  # imported here: only a corrected result needs the replay
 
-    return applied_edits(res) if res.corrections is not None else ()
+    return applied_edits(res)

@@ -157,7 +157,7 @@ class OpenCVVideoMovie(Movie):
         use_fps, source, fps_doubts = choose_fps(fps, file_fps)
         warnings.extend(fps_doubts)
         info = MovieInfo(
-            path=str(path), format=f"video-opencv:{path.suffix.lower().lstrip('.')}/{codec}", width=width,
+            path=str(path), format=f"video-opencv:{suffix.lstrip('.')}/{codec}", width=width,
             height=height, n_frames=announced, fps=use_fps, channels=channels, bit_depth=depth,
             dtype="uint16" if depth == 16 else "uint8", fps_source=source, warnings=tuple(warnings),
             details={"reader": "opencv", "pixel_format": _pixel_format(pix)},
