@@ -158,15 +158,15 @@ def test_threads_do_not_change_the_result(tmp_path, capsys):
     assert out[0]["plug_length_mm"] == out[1]["plug_length_mm"]
 
 
-def test_publication_figures_png_svg_pdf_at_200_dpi(movie, tmp_path, capsys):
-    """--publication: every figure as PNG at 200 dpi, SVG and PDF, listed in the summary; --style applies a
-    matplotlib style sheet; bad values are one line."""
+def test_figures_by_default_png_at_200_dpi_svg_and_pdf(movie, tmp_path, capsys):
+    """By default every figure as PNG at 200 dpi, SVG and PDF, listed in the summary; --style applies a
+    matplotlib style sheet; --draft writes PNG only, at 110 dpi; bad values are one line."""
     from PIL import Image
 
     out = tmp_path / "pub"
     style = tmp_path / "journal.mplstyle"
     style.write_text("font.size: 7\naxes.linewidth: 0.5\n")
-    code, _, err = run(capsys, "analyze", movie.movie, "--out", out, "--publication", "--style", style)
+    code, _, err = run(capsys, "analyze", movie.movie, "--out", out, "--style", style)
     assert code == 0, err
     for stem in ("diagram", "frame"):
         for ext in ("png", "svg", "pdf"):
@@ -179,11 +179,37 @@ def test_publication_figures_png_svg_pdf_at_200_dpi(movie, tmp_path, capsys):
     s = json.loads((out / "summary.json").read_text())
     assert s["figures"] == {"dpi": 200, "formats": ["png", "svg", "pdf"], "style": str(style)}
     assert {"diagram.svg", "diagram.pdf", "frame.pdf"} <= set(s["outputs"].values())
+    draft = tmp_path / "draft"
+    code, _, err = run(capsys, "analyze", movie.movie, "--out", draft, "--draft")
+    assert code == 0, err
+    assert {p.suffix for p in draft.glob("*.*") if p.suffix in (".png", ".svg", ".pdf")} == {".png"}
+    assert {"diagram.png", "frame.png"} <= {p.name for p in draft.glob("*.png")}
+    with Image.open(draft / "diagram.png") as im:
+        assert round(im.info["dpi"][0]) == 110
     code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "x", "--figure-formats", "png,tiff")
     assert_one_line_error(code, err, "--figure-formats", "tiff")
     code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "y", "--style", "no-such-style")
     assert_one_line_error(code, err, "--style", "no-such-style")
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
+def test_remeasure_redraws_the_figures_as_they_were_written(movie, tmp_path, capsys):
+    """remeasure (and the review app's corrections, through it) keeps the run's figure formats, resolution and
+    style: it used to rewrite a publication run's figures as PNG at 110 dpi and delete its SVG and PDF."""
+    from PIL import Image
+
+    for flags, files, dpi in ((["--figure-formats", "png,pdf", "--dpi", "150"], {"png", "pdf"}, 150),
+                              (["--draft"], {"png"}, 110)):
+        out = tmp_path / flags[0].strip("-")
+        code, _, err = run(capsys, "analyze", movie.movie, "--out", out, *flags)
+        assert code == 0, err
+        before = json.loads((out / "summary.json").read_text())["figures"]
+        code, _, err = run(capsys, "remeasure", out)
+        assert code == 0, err
+        assert json.loads((out / "summary.json").read_text())["figures"] == before
+        assert {p.suffix[1:] for p in out.glob("diagram.*") if p.suffix != ".npz"} == files
+        with Image.open(out / "frame.png") as im:
+            assert round(im.info["dpi"][0]) == dpi
 
 
 def test_progress_on_a_terminal_counts_to_the_real_total(tmp_path):

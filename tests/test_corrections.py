@@ -175,6 +175,27 @@ def test_batch_honours_each_runs_corrections(movie, tmp_path, capsys):
     assert (said["n_reused"], said["n_remeasured"], said["left_out_of_fits"]) == (1, 1, {})
 
 
+def test_batch_redraws_a_reused_runs_figures_when_their_options_change(movie, tmp_path):
+    """A reused run whose figures were written otherwise (--draft then the default) has them redrawn from the
+    saved result, without reading the movie: it is not counted as measured again."""
+    from grainplug.outputs import DRAFT
+
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"run,movie,mass_flow_rate_g_s,surface\na,{movie.movie},0.5,rough\n")
+    out = tmp_path / "camp"
+    run_dir = out / "runs" / "a"
+    gp.run_campaign(manifest, out, figure_options=DRAFT, simulate=False)
+    assert {p.name for p in run_dir.glob("diagram.*")} == {"diagram.npz", "diagram.png"}
+    again = gp.run_campaign(manifest, out, simulate=False)
+    assert again.n_reused == 1 and again.n_remeasured == 0
+    assert {p.name for p in run_dir.glob("diagram.*")} == {"diagram.npz", "diagram.png", "diagram.svg",
+                                                            "diagram.pdf"}
+    written = (run_dir / "summary.json").stat().st_mtime_ns
+    third = gp.run_campaign(manifest, out, simulate=False)  # the same options: nothing rewritten
+    assert third.n_reused == 1 and (run_dir / "summary.json").stat().st_mtime_ns == written
+    assert json.loads((run_dir / "summary.json").read_text())["figures"]["formats"] == ["png", "svg", "pdf"]
+
+
 def test_batch_says_when_edits_without_traces_meet_a_new_analysis_until_they_go(movie, tmp_path):
     """Edits saved without where their tracks were (format 1) are replayed by number on a re-analysis, with a
     warning; the warning stays through later remeasures while such edits remain, and goes with them."""

@@ -89,23 +89,32 @@ def figures_of(res: AnalysisResult) -> list[str]:
     return keys
 
 
+#: formats a figure can be written in
+FIGURE_FORMATS = ("png", "svg", "pdf")
+
+
 @dataclass(frozen=True)
 class FigureOptions:
-    """How the figures are written.
+    """How the figures are written: by default each as PNG at 200 dpi, SVG and PDF, ready for print.
 
     Attributes
     ----------
     dpi : int
-        Resolution of the PNG files (110: quick to write and to look at; 200 or more for print).
+        Resolution of the PNG files (200 for print; 110 is quicker to write, enough on a screen).
     formats : tuple of str
         ``"png"``, ``"svg"``, ``"pdf"``: each figure in each format (vector for journals).
     style : str, optional
         A matplotlib style sheet (a name such as ``"seaborn-v0_8-paper"`` or a ``.mplstyle`` file)
         applied to every figure.
+
+    Notes
+    -----
+    Writing the two vector formats costs about 0.5 s a run (docs/performance.md):
+    :data:`DRAFT` (``--draft``) leaves them out, for a first look or a large campaign.
     """
 
-    dpi: int = 110
-    formats: tuple[str, ...] = ("png",)
+    dpi: int = 200
+    formats: tuple[str, ...] = FIGURE_FORMATS
     style: str | None = None
 
     def __post_init__(self) -> None:
@@ -118,11 +127,33 @@ class FigureOptions:
             raise ParameterError(f"figure formats are {', '.join(FIGURE_FORMATS)}; got {', '.join(self.formats)}",
                                  param="formats")
 
+    def as_record(self) -> dict[str, object]:
+        """As ``summary.json`` records them (``"figures"``)."""
+        return {"dpi": self.dpi, "formats": list(self.formats), "style": self.style}
 
-#: formats a figure can be written in
-FIGURE_FORMATS = ("png", "svg", "pdf")
-#: for print: 200 dpi PNG, and SVG and PDF
-PUBLICATION = FigureOptions(dpi=200, formats=FIGURE_FORMATS)
+    @classmethod
+    def recorded(cls, summary: dict) -> FigureOptions:
+        """The options a saved analysis's figures were written with (its ``summary.json``), for
+        rewriting them alike; the defaults where it records none, a style sheet that is gone left out."""
+        from .errors import GrainplugError
+
+        rec = summary.get("figures")
+        if not isinstance(rec, dict):
+            return cls()
+        style = rec.get("style")
+        if style and Path(style).suffix and not Path(style).is_file():
+            log.warning("the style sheet %s the figures were drawn with is gone: they are redrawn without it",
+                        style)
+            style = None
+        try:
+            return cls(dpi=int(rec.get("dpi", cls.dpi)), formats=tuple(rec.get("formats", FIGURE_FORMATS)),
+                       style=style)
+        except (TypeError, ValueError, GrainplugError):
+            return cls()
+
+
+#: a first look: PNG only, at 110 dpi (``--draft``)
+DRAFT = FigureOptions(dpi=110, formats=("png",))
 
 
 def save_figure(fig: object, folder: str | Path, name: str, options: FigureOptions | None = None) -> list[str]:
@@ -194,7 +225,7 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
         summary["outputs"] = {k: v for k, v in FILES.items() if not k.startswith("fig_")}
         if figures:
             summary["outputs"].update(figure_files(res, options))
-            summary["figures"] = {"dpi": options.dpi, "formats": list(options.formats), "style": options.style}
+            summary["figures"] = options.as_record()
         pending = None
         if figures and figure_worker is not None:  # drawn while the tables are written
             pending = figure_worker.submit(res, tmp, options)
@@ -240,9 +271,12 @@ def remeasure(folder: str | Path, *, figures: bool = True, report: bool = True) 
     extra = {}
     try:
         old = json.loads((Path(folder) / FILES["summary"]).read_text())
-        if isinstance(old.get("batch"), dict):
-            extra["batch"] = old["batch"]  # a campaign's run keeps its key
     except (OSError, ValueError):
-        pass
-    write_outputs(new, folder, figures=figures, report=report, extra=extra)
+        old = {}
+    old = old if isinstance(old, dict) else {}
+    if isinstance(old.get("batch"), dict):
+        extra["batch"] = old["batch"]  # a campaign's run keeps its key
+    # the figures as they were written: their formats, resolution and style
+    write_outputs(new, folder, figures=figures, report=report, extra=extra,
+                  figure_options=FigureOptions.recorded(old))
     return new

@@ -322,11 +322,12 @@ class AnalysisResult:
 
         Writes ``summary.json``, ``plug_edges.csv``, ``tracks.csv``, ``diagram.npz``,
         ``result.npz`` (everything :func:`~grainplug.load_result` needs) and, unless
-        switched off, the PNG figures and ``report.html``. Returns the paths written.
+        switched off, the figures and ``report.html``. Returns the paths written.
         ``figure_worker`` (:class:`grainplug.plotting.worker.FigureWorker`, started
         before the analysis) draws the figures in another process meanwhile.
         ``figure_options`` (:class:`grainplug.outputs.FigureOptions`): resolution, formats
-        (PNG, SVG, PDF) and a matplotlib style sheet; ``grainplug.outputs.PUBLICATION`` for print.
+        (PNG, SVG, PDF) and a matplotlib style sheet; by default PNG at 200 dpi, SVG and
+        PDF, ``grainplug.outputs.DRAFT`` for PNG only at 110 dpi.
         """
         from .outputs import write_outputs
 

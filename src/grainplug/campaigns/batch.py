@@ -96,13 +96,16 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
         done = old.get("batch") or {}
         if done.get("run_key") == key and (not verify or done.get("input_sha256") == ident["sha256"]):
             wanted = corr.as_dict()["edits"] if corr is not None else []
-            if (old.get("corrections_applied") or []) == wanted:
+            same_figures = not figures or old.get("figures") == (figure_options or FigureOptions()).as_record()
+            if (old.get("corrections_applied") or []) == wanted and same_figures:
                 return {**record, "status": "ok", "reused": True, **_flat(old)}
-            try:  # the corrections changed since: measures again from the detected plugs, no movie read
+            try:  # the corrections or the figures' options changed since: measures again from the detected
+                # plugs, no movie read
                 res = apply_corrections(load_result(run_dir), corr or Corrections())
                 write_outputs(res, run_dir, figures=figures, report=figures, extra=extra,
                               figure_options=figure_options)
-                return {**record, "status": "ok", "reused": True, "remeasured": True, **_flat(res.summary)}
+                changed = (old.get("corrections_applied") or []) != wanted  # else only the figures are redrawn
+                return {**record, "status": "ok", "reused": True, "remeasured": changed, **_flat(res.summary)}
             except GrainplugError:
                 pass  # an unreadable result: analyse again below
     try:
@@ -271,7 +274,8 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         With figures, the report's model-against-experiment panel includes the
         nonlinear simulations (about 4 s); otherwise linear theory only.
     figure_options : FigureOptions, optional
-        Resolution and formats of every figure (``grainplug.outputs.PUBLICATION`` for print).
+        Resolution and formats of every figure (by default PNG at 200 dpi, SVG and PDF; ``grainplug.outputs.DRAFT``
+        for PNG only).
     progress : callable, optional
         ``progress(done, total, run)`` after each run.
 

@@ -2,15 +2,19 @@
 
 Importing matplotlib and drawing the first figure costs ~0.5 s, as much as the whole
 analysis of a short movie. :class:`FigureWorker` starts a fresh interpreter (spawned,
-never forked) before the analysis; it imports matplotlib and warms up its renderer on
-the other core while the frames stream, then draws the figures while the parent writes
-the tables (measured in docs/performance.md: a 40-frame movie end to end 1.35 -> 1.08 s).
-The parent owns it: a context manager that always stops and reaps the process, and
-falls back to drawing in-process on any failure of the worker.
+never forked) before the analysis; it imports matplotlib and warms up its renderer, in
+each figure format the parent will ask for, on the other core while the frames stream,
+then draws the figures while the parent writes the tables (measured in
+docs/performance.md: a 40-frame movie end to end 1.35 -> 1.08 s). A second helper, to
+draw the figures two at a time, was measured slower on two cores: its imports take the
+CPU that the analysis leaves idle. The parent owns the helper: a context manager that
+always stops and reaps the process, and falls back to drawing in-process on any failure
+of the helper.
 
-Protocol: the parent writes one pickled ``(AnalysisResult, folder)`` to the worker's
-standard input; the worker answers with a pickled ``("ok", [paths])`` or
-``("error", message)`` on its standard output.
+Protocol: the parent writes a line naming the formats to warm up (``png,svg,pdf``), then
+one pickled ``(AnalysisResult, folder, FigureOptions)``, to the worker's standard input;
+the worker answers with a pickled ``("ok", [paths])`` or ``("error", message)`` on its
+standard output.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import pickle
 import subprocess
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING
@@ -54,6 +58,12 @@ class FigureWorker:
     figures. Any failure of the helper (no process allowed, a crash, a result that
     cannot be sent) falls back to :func:`grainplug.outputs.draw_figures` in this process.
 
+    Parameters
+    ----------
+    formats : sequence of str
+        The figure formats the job will ask for: the helper warms up their writers while
+        it waits (the first PDF of a process costs ~0.1 s more than the next).
+
     Examples
     --------
     >>> with FigureWorker() as fw:                      # doctest: +SKIP
@@ -61,7 +71,7 @@ class FigureWorker:
     ...     write_outputs(res, "out", figure_worker=fw)
     """
 
-    def __init__(self) -> None:
+    def __init__(self, formats: Sequence[str] = ("png",)) -> None:
         import grainplug
 
         # the child's environment only: a headless backend, and this very grainplug on its path
@@ -74,6 +84,8 @@ class FigureWorker:
             self._proc = subprocess.Popen([sys.executable, "-m", "grainplug.plotting.worker"],
                                           stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                           stderr=subprocess.DEVNULL, env=env)
+            self._proc.stdin.write((",".join(formats) + "\n").encode())  # a few bytes: never blocks
+            self._proc.stdin.flush()
         except OSError as exc:
             log.debug("figure worker not started (%s); figures are drawn in this process", exc)
 
@@ -152,9 +164,10 @@ class FigureWorker:
         self.close()
 
 
-def _warm_up() -> None:
+def _warm_up(formats: Sequence[str] = ("png",)) -> None:
     """Import what drawing needs and draw once what the figures draw (an image, markers,
-    lines, a legend, text at their sizes), so that the caches are filled before the job."""
+    lines, a legend, text at their sizes) in each of ``formats``, so that the caches are
+    filled before the job."""
     import numpy as np
 
     from .. import outputs, result  # noqa: F401 - unpickling the job needs them
@@ -168,7 +181,8 @@ def _warm_up() -> None:
     ax.legend(loc="upper right", fontsize=7)
     ax.set_title("grainplug", fontsize=10)
     ax.set_xlabel("time (s)")
-    fig.savefig(io.BytesIO(), format="png", dpi=20, pil_kwargs={"compress_level": 1})
+    for fmt in formats:
+        fig.savefig(io.BytesIO(), format=fmt, dpi=20, **({"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}))
 
 
 def _yield_to_the_analysis() -> None:
@@ -191,7 +205,8 @@ def main() -> int:
     sys.stdout = sys.stderr  # nothing but the reply goes to the parent's pipe
     _yield_to_the_analysis()
     try:
-        _warm_up()
+        formats = sys.stdin.buffer.readline().decode("ascii", "replace").strip().split(",")
+        _warm_up([f for f in formats if f in ("png", "svg", "pdf")] or ["png"])
         res, folder, options = pickle.load(sys.stdin.buffer)
         from ..outputs import draw_figures
 
