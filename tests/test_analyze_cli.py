@@ -158,15 +158,15 @@ def test_threads_do_not_change_the_result(tmp_path, capsys):
     assert out[0]["plug_length_mm"] == out[1]["plug_length_mm"]
 
 
-def test_figures_by_default_png_at_200_dpi_svg_and_pdf(movie, tmp_path, capsys):
-    """By default every figure as PNG at 200 dpi, SVG and PDF, listed in the summary; --style applies a
-    matplotlib style sheet; --draft writes PNG only, at 110 dpi; bad values are one line."""
+def test_publication_figures_png_svg_pdf_at_200_dpi(movie, tmp_path, capsys):
+    """--publication: every figure as PNG at 200 dpi, SVG and PDF, listed in the summary (by default PNG at
+    200 dpi only); --style applies a matplotlib style sheet; bad values are one line."""
     from PIL import Image
 
     out = tmp_path / "pub"
     style = tmp_path / "journal.mplstyle"
     style.write_text("font.size: 7\naxes.linewidth: 0.5\n")
-    code, _, err = run(capsys, "analyze", movie.movie, "--out", out, "--style", style)
+    code, _, err = run(capsys, "analyze", movie.movie, "--out", out, "--publication", "--style", style)
     assert code == 0, err
     for stem in ("diagram", "frame"):
         for ext in ("png", "svg", "pdf"):
@@ -179,13 +179,12 @@ def test_figures_by_default_png_at_200_dpi_svg_and_pdf(movie, tmp_path, capsys):
     s = json.loads((out / "summary.json").read_text())
     assert s["figures"] == {"dpi": 200, "formats": ["png", "svg", "pdf"], "style": str(style)}
     assert {"diagram.svg", "diagram.pdf", "frame.pdf"} <= set(s["outputs"].values())
-    draft = tmp_path / "draft"
-    code, _, err = run(capsys, "analyze", movie.movie, "--out", draft, "--draft")
+    plain = tmp_path / "plain"
+    code, _, err = run(capsys, "analyze", movie.movie, "--out", plain)
     assert code == 0, err
-    assert {p.suffix for p in draft.glob("*.*") if p.suffix in (".png", ".svg", ".pdf")} == {".png"}
-    assert {"diagram.png", "frame.png"} <= {p.name for p in draft.glob("*.png")}
-    with Image.open(draft / "diagram.png") as im:
-        assert round(im.info["dpi"][0]) == 110
+    assert {p.suffix for p in plain.glob("*.*") if p.suffix in (".png", ".svg", ".pdf")} == {".png"}
+    with Image.open(plain / "diagram.png") as im:
+        assert round(im.info["dpi"][0]) == 200
     code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "x", "--figure-formats", "png,tiff")
     assert_one_line_error(code, err, "--figure-formats", "tiff")
     code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "y", "--style", "no-such-style")
@@ -199,7 +198,7 @@ def test_remeasure_redraws_the_figures_as_they_were_written(movie, tmp_path, cap
     from PIL import Image
 
     for flags, files, dpi in ((["--figure-formats", "png,pdf", "--dpi", "150"], {"png", "pdf"}, 150),
-                              (["--draft"], {"png"}, 110)):
+                              (["--publication"], {"png", "svg", "pdf"}, 200)):
         out = tmp_path / flags[0].strip("-")
         code, _, err = run(capsys, "analyze", movie.movie, "--out", out, *flags)
         assert code == 0, err

@@ -253,8 +253,8 @@ def test_manifest_calibration_column(tmp_path):
 
 
 def test_paper_figures_for_print(tmp_path, capsys):
-    """By default every figure of the reproduction as PNG (200 dpi), SVG and PDF."""
-    code, _, err = run(capsys, "paper", "--out", tmp_path / "p", "--no-simulations")
+    """--publication: every figure of the reproduction as PNG (200 dpi), SVG and PDF."""
+    code, _, err = run(capsys, "paper", "--out", tmp_path / "p", "--no-simulations", "--publication")
     assert code == 0, err
     pngs = sorted(p.stem for p in (tmp_path / "p").glob("*.png"))
     assert len(pngs) >= 7

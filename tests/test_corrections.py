@@ -176,22 +176,22 @@ def test_batch_honours_each_runs_corrections(movie, tmp_path, capsys):
 
 
 def test_batch_redraws_a_reused_runs_figures_when_their_options_change(movie, tmp_path):
-    """A reused run whose figures were written otherwise (--draft then the default) has them redrawn from the
-    saved result, without reading the movie: it is not counted as measured again."""
-    from grainplug.outputs import DRAFT
+    """A reused run whose figures were written otherwise (the default, then --publication) has them redrawn
+    from the saved result, without reading the movie: it is not counted as measured again."""
+    from grainplug.outputs import PUBLICATION
 
     manifest = tmp_path / "m.csv"
     manifest.write_text(f"run,movie,mass_flow_rate_g_s,surface\na,{movie.movie},0.5,rough\n")
     out = tmp_path / "camp"
     run_dir = out / "runs" / "a"
-    gp.run_campaign(manifest, out, figure_options=DRAFT, simulate=False)
+    gp.run_campaign(manifest, out, simulate=False)
     assert {p.name for p in run_dir.glob("diagram.*")} == {"diagram.npz", "diagram.png"}
-    again = gp.run_campaign(manifest, out, simulate=False)
+    again = gp.run_campaign(manifest, out, figure_options=PUBLICATION, simulate=False)
     assert again.n_reused == 1 and again.n_remeasured == 0
     assert {p.name for p in run_dir.glob("diagram.*")} == {"diagram.npz", "diagram.png", "diagram.svg",
                                                             "diagram.pdf"}
     written = (run_dir / "summary.json").stat().st_mtime_ns
-    third = gp.run_campaign(manifest, out, simulate=False)  # the same options: nothing rewritten
+    third = gp.run_campaign(manifest, out, figure_options=PUBLICATION, simulate=False)  # the same: nothing rewritten
     assert third.n_reused == 1 and (run_dir / "summary.json").stat().st_mtime_ns == written
     assert json.loads((run_dir / "summary.json").read_text())["figures"]["formats"] == ["png", "svg", "pdf"]
 

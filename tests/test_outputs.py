@@ -45,8 +45,7 @@ def test_a_dead_worker_falls_back_to_drawing_here(result, tmp_path, caplog, when
             wait = fw.submit(result, tmp_path)
             fw._proc.kill()
         paths = wait()
-    assert {p.name for p in paths} == {f"{stem}.{ext}" for stem in ("diagram", "frame", "spectrum")
-                                       for ext in ("png", "svg", "pdf")}
+    assert {p.name for p in paths} == {"diagram.png", "frame.png", "spectrum.png"}
     assert all(p.stat().st_size > 10_000 for p in paths)
     if when == "during the job":
         assert "drawing in this process" in caplog.text

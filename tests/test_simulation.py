@@ -488,9 +488,8 @@ def test_simulate_refuses_an_existing_folder_unless_overwrite(tmp_path, capsys):
     assert main(args) == 2
     assert "already exists — pass --overwrite" in capsys.readouterr().err
     assert (out / "summary.json").read_bytes() == before
+    assert main([*args, "--overwrite", "--publication"]) == 0
     assert {p.name for p in out.glob("diagram.*")} == {"diagram.png", "diagram.svg", "diagram.pdf"}
-    assert main([*args, "--overwrite", "--draft"]) == 0
-    assert {p.name for p in out.glob("diagram.*")} == {"diagram.png"}
     theirs = tmp_path / "theirs"
     theirs.mkdir()
     (theirs / "notes.txt").write_text("mine")

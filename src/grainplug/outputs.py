@@ -95,12 +95,13 @@ FIGURE_FORMATS = ("png", "svg", "pdf")
 
 @dataclass(frozen=True)
 class FigureOptions:
-    """How the figures are written: by default each as PNG at 200 dpi, SVG and PDF, ready for print.
+    """How the figures are written: by default each as PNG at 200 dpi; :data:`PUBLICATION`
+    adds SVG and PDF.
 
     Attributes
     ----------
     dpi : int
-        Resolution of the PNG files (200 for print; 110 is quicker to write, enough on a screen).
+        Resolution of the PNG files (200, enough for print; 110 is quicker to write).
     formats : tuple of str
         ``"png"``, ``"svg"``, ``"pdf"``: each figure in each format (vector for journals).
     style : str, optional
@@ -109,12 +110,14 @@ class FigureOptions:
 
     Notes
     -----
-    Writing the two vector formats costs about 0.5 s a run (docs/performance.md):
-    :data:`DRAFT` (``--draft``) leaves them out, for a first look or a large campaign.
+    The two vector formats are not written by default: they cost about 0.6 s a run
+    (docs/performance.md), which would break issue 14's speed targets on short and
+    in-memory movies. ``--publication``, or ``publication = true`` in ``grainplug.toml``,
+    writes them.
     """
 
     dpi: int = 200
-    formats: tuple[str, ...] = FIGURE_FORMATS
+    formats: tuple[str, ...] = ("png",)
     style: str | None = None
 
     def __post_init__(self) -> None:
@@ -152,8 +155,8 @@ class FigureOptions:
             return cls()
 
 
-#: a first look: PNG only, at 110 dpi (``--draft``)
-DRAFT = FigureOptions(dpi=110, formats=("png",))
+#: for print: PNG at 200 dpi, SVG and PDF (``--publication``)
+PUBLICATION = FigureOptions(dpi=200, formats=FIGURE_FORMATS)
 
 
 def save_figure(fig: object, folder: str | Path, name: str, options: FigureOptions | None = None) -> list[str]:

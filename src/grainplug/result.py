@@ -326,8 +326,8 @@ class AnalysisResult:
         ``figure_worker`` (:class:`grainplug.plotting.worker.FigureWorker`, started
         before the analysis) draws the figures in another process meanwhile.
         ``figure_options`` (:class:`grainplug.outputs.FigureOptions`): resolution, formats
-        (PNG, SVG, PDF) and a matplotlib style sheet; by default PNG at 200 dpi, SVG and
-        PDF, ``grainplug.outputs.DRAFT`` for PNG only at 110 dpi.
+        (PNG, SVG, PDF) and a matplotlib style sheet; by default PNG at 200 dpi,
+        ``grainplug.outputs.PUBLICATION`` adds SVG and PDF.
         """
         from .outputs import write_outputs
 

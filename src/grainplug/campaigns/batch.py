@@ -274,8 +274,8 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         With figures, the report's model-against-experiment panel includes the
         nonlinear simulations (about 4 s); otherwise linear theory only.
     figure_options : FigureOptions, optional
-        Resolution and formats of every figure (by default PNG at 200 dpi, SVG and PDF; ``grainplug.outputs.DRAFT``
-        for PNG only).
+        Resolution and formats of every figure (by default PNG at 200 dpi;
+        ``grainplug.outputs.PUBLICATION`` adds SVG and PDF).
     progress : callable, optional
         ``progress(done, total, run)`` after each run.
 

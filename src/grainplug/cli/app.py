@@ -54,8 +54,8 @@ def cli(debug: bool, verbose: bool) -> None:
 
 OVERWRITE_HELP = ("Replace --out if it holds an earlier result (the whole folder; refused if it holds anything "
                   "grainplug did not write there, such as your notes or a reviewer's corrections.json).")
-DRAFT_HELP = ("Figures for a first look: PNG only, at 110 dpi (about 0.5 s quicker a run). By default every "
-              "figure is written as PNG at 200 dpi, SVG and PDF.")
+PUBLICATION_HELP = ("Every figure also as SVG and PDF, for a journal (about 0.6 s more a run; "
+                    "publication = true in grainplug.toml keeps it on).")
 
 
 def _refuse_existing(out: Path, overwrite: bool) -> None:
@@ -81,11 +81,11 @@ def _roi_option(text: str | None) -> tuple[int, int, int, int] | None:
     return values  # type: ignore[return-value]
 
 
-def _figure_options(dpi: int | None, formats: str | None, draft: bool, style: str | None):
+def _figure_options(dpi: int | None, formats: str | None, publication: bool, style: str | None):
     """``FigureOptions`` of the figure flags (checked before the analysis)."""
-    from ..outputs import DRAFT, FigureOptions
+    from ..outputs import PUBLICATION, FigureOptions
 
-    base = DRAFT if draft else FigureOptions()
+    base = PUBLICATION if publication else FigureOptions()
     fmts = tuple(f.strip().lower() for f in formats.split(",") if f.strip()) if formats else base.formats
     if style and not (Path(style).is_file() or _known_style(style)):
         raise ParameterError(f"--style {style}: neither a file nor a matplotlib style sheet name")
@@ -247,10 +247,10 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
                    "the frame holds several.")
 @click.option("--no-figures", is_flag=True, help="Skip the figures and the HTML report.")
 @click.option("--dpi", type=Number(20, 1200, integer=True), default=None,
-              help="Resolution of the PNG figures [default: 200, or 110 with --draft].")
+              help="Resolution of the PNG figures [default: 200].")
 @click.option("--figure-formats", default=None, metavar="png,svg,pdf",
-              help="Formats of every figure, comma-separated [default: all three, or png with --draft].")
-@click.option("--draft", is_flag=True, help=DRAFT_HELP)
+              help="Formats of every figure, comma-separated [default: png, or all three with --publication].")
+@click.option("--publication", is_flag=True, help=PUBLICATION_HELP)
 @click.option("--style", "style", default=None,
               help="A matplotlib style sheet (a name or a .mplstyle file) for every figure.")
 @click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
@@ -261,7 +261,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
             calibration: Path | None, background: Path | None, allow_truncated: bool,
             start: tuple[str, float] | None, end: tuple[str, float] | None, roi: str | None, no_figures: bool,
             dpi: int | None,
-            figure_formats: str | None, draft: bool, style: str | None, overwrite: bool,
+            figure_formats: str | None, publication: bool, style: str | None, overwrite: bool,
             as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -272,7 +272,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
 
     check_output_place(out, inputs=[movie], replace=True)  # before the analysis, not after it
     _refuse_existing(out, overwrite)
-    figure_options = _figure_options(dpi, figure_formats, draft, style)
+    figure_options = _figure_options(dpi, figure_formats, publication, style)
     roi_px = _roi_option(roi)
     if mm_per_px is not None and tube_diameter_mm is not None:
         raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
@@ -530,12 +530,12 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
               help="Open pipe: mass flow rate of the grains fed at the top (sets their velocity).")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Folder for fields.nc, summary.json and diagram.png (replaced as a whole).")
-@click.option("--draft", is_flag=True, help=DRAFT_HELP)
+@click.option("--publication", is_flag=True, help=PUBLICATION_HELP)
 @click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, output_interval_tc: float, cfl: float,
              noise: float, seed: int, feed_c: float | None, feed_v: float | None, feed_rate_g_s: float | None,
-             out_dir: Path, draft: bool, overwrite: bool, as_json: bool, **model: object) -> None:
+             out_dir: Path, publication: bool, overwrite: bool, as_json: bool, **model: object) -> None:
     """Integrate the paper's 1D model in time (finite volumes) and measure what it forms.
 
     Conservative in grain and air mass (the air's mass balance replaces the printed
@@ -574,7 +574,8 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
 
     fig = plot_simulation(res)
     try:
-        save_simulation(res, out_dir, summary, figure=fig, figure_options=_figure_options(None, None, draft, None))
+        options = _figure_options(None, None, publication, None)
+        save_simulation(res, out_dir, summary, figure=fig, figure_options=options)
     finally:
         plt.close(fig)
     if as_json:
@@ -801,9 +802,9 @@ def resonance(as_json: bool, **kwargs: object) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print fits, lengths, stability and checks as JSON.")
 @click.option("--no-simulations", is_flag=True,
               help="Compare the measurements with the linear theory only (skip the ~4 s of nonlinear runs).")
-@click.option("--draft", is_flag=True, help=DRAFT_HELP)
+@click.option("--publication", is_flag=True, help=PUBLICATION_HELP)
 @click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
-def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, draft: bool,
+def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publication: bool,
           overwrite: bool) -> None:
     """Reproduce the paper's numbers and figures from its own Tables 1 and 2, and put the model's
     predictions (linear and simulated) beside the measurements."""
@@ -817,7 +818,7 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, draf
     with err_console.status(doing) if err_console.is_terminal else contextlib.nullcontext():
         rep = reproduce(simulate=not no_simulations)
     write_paper(rep, out, figures=not no_figures,
-                figure_options=_figure_options(None, None, draft, None))
+                figure_options=_figure_options(None, None, publication, None))
     if as_json:
         _echo_json({"grainplug_version": __version__, **rep.as_dict()})
         return
@@ -850,9 +851,9 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, draf
 @click.option("--json", "as_json", is_flag=True, help="Print the fits as JSON.")
 @click.option("--no-simulations", is_flag=True,
               help="In the report, compare with the model's linear theory only (skip ~4 s of simulations).")
-@click.option("--draft", is_flag=True, help=DRAFT_HELP)
+@click.option("--publication", is_flag=True, help=PUBLICATION_HELP)
 def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_figures: bool, verify: bool,
-          as_json: bool, no_simulations: bool, draft: bool) -> None:
+          as_json: bool, no_simulations: bool, publication: bool) -> None:
     """Analyse every run of MANIFEST (CSV or TOML), then tabulate, fit and report.
 
     One row per run: movie (relative to the manifest), fps, mm_per_px or tube_diameter_mm,
@@ -879,7 +880,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         try:
             camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,
                                 verify=verify, simulate=not no_simulations, progress=progress,
-                                figure_options=_figure_options(None, None, draft, None))
+                                figure_options=_figure_options(None, None, publication, None))
         except CampaignInterrupted as exc:  # before click's own handler, which prints a blank line
             raise Interrupted(str(exc)) from None
     t = camp.table
