@@ -39,8 +39,11 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
     t, s = d.time_s, d.position_mm
     # at most ~1200 samples a side (a no-op when the values were already thinned for display)
     step_t, step_s = display_stride(d.values.shape)
+    # the data's own pixels in SVG and PDF ("none"); in PNG, nearest samples of the data coloured after
+    # resampling ("data"): matplotlib's automatic choice coloured first and resampled RGBA floats, 3x the
+    # time and 100 MB more for a long record at 200 dpi (docs/performance.md)
     im = ax.imshow(d.values[::step_t, ::step_s].T, aspect="auto", cmap="gray", origin="upper",
-                   interpolation="none", extent=(t[0], t[-1], s[-1], s[0]))
+                   interpolation="none", interpolation_stage="data", extent=(t[0], t[-1], s[-1], s[0]))
     if own_figure:  # a colour bar in someone else's axes would take their space
         cbar = fig.colorbar(im, cax=fig.add_axes((0.91, 0.09, 0.012, 0.85)))
         cbar.set_label("grey level (camera units)", fontsize=8)
@@ -152,7 +155,7 @@ def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None
     fig_h = img_h + title_in + foot_in
     fig, ax = new_figure(figsize=(fig_w, fig_h))
     fig.subplots_adjust(left=0.02, right=0.98, bottom=foot_in / fig_h, top=1 - title_in / fig_h)
-    ax.imshow(img, cmap="gray", interpolation="none", extent=extent)
+    ax.imshow(img, cmap="gray", interpolation="none", interpolation_stage="data", extent=extent)
     rows = np.arange(h, dtype=float)
     axis = tube.axis_x(rows)
     half = 0.5 * tube.inner_diameter_px / np.cos(np.radians(tube.tilt_deg))
