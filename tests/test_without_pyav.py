@@ -119,6 +119,22 @@ def test_uneven_frame_times_are_used_and_said(uneven, monkeypatch, reader):
             np.testing.assert_array_equal(m.read(k), every[k])
 
 
+@pytest.mark.parametrize("reader", ["pyav", "opencv"])
+def test_a_window_of_uneven_frames_keeps_their_own_times(uneven, monkeypatch, reader):
+    """--start/--end on a variable-rate file: both readers time the window's frames by the file's stamps, with
+    the movie's own times, and warn (the OpenCV reader used to time a window by the rate, silently)."""
+    import numpy as np
+
+    if reader == "opencv":
+        monkeypatch.setitem(sys.modules, "av", None)
+    res = gp.analyze(uneven, start_frame=10, end_frame=100)
+    assert res.info.n_frames == 90
+    assert res.diagram.time_s[0] == pytest.approx(0.040, abs=1e-6)  # frame 10, 4 ms apart from the start
+    np.testing.assert_allclose(np.diff(res.diagram.time_s)[[0, 49, 50, 88]], [0.004, 0.004, 0.008, 0.008],
+                               atol=1e-6)
+    assert len([w for w in res.warnings if "not evenly spaced" in w]) == 1
+
+
 @pytest.fixture(scope="module")
 def deep_colour(tmp_path_factory):
     """A 16-bit colour FFV1 movie, which OpenCV reads as 8 bits."""

@@ -167,7 +167,10 @@ class OpenCVVideoMovie(Movie):
         self._intra = codec in INTRA_CODECS
         self._seeker = None  # a capture kept open for read(), positioned after the last frame read
         self._next = -1
-        self._raw_stamps_ms: np.ndarray | None = None  # every frame's stamp as OpenCV reports it, once read through
+        # the stamps (ms) OpenCV reported for frames 0, 1, ... of the longest pass that read on from the first
+        # frame: every frame's once read through, the first ones' after a window's pass (--end)
+        self._head_stamps_ms: list[float] = []
+        self._stamps_cache: tuple[int, np.ndarray | None] = (0, None)
         self._file_fps = file_fps
 
     def _open(self):
@@ -207,12 +210,12 @@ class OpenCVVideoMovie(Movie):
         """``(expected, tolerance)``, in ms, of frame ``index``'s time stamp as OpenCV reports it, or None when
         a seek to it cannot be checked (no frame rate in the file).
 
-        Once the movie was read through, the stamp recorded for the frame, within a quarter of the
+        Once the frame was read in order from the first, the stamp recorded for it, within a quarter of the
         interval to its nearer neighbour (frames may be unevenly spaced); before, the file's frame rate's
         ``index / fps``, within a quarter of a period (the user's ``fps`` says nothing of the file's stamps).
         """
         raw = self._raw_stamps_ms
-        if raw is not None:
+        if raw is not None and index < len(raw):
             gaps = [raw[index] - raw[index - 1] if index > 0 else np.inf,
                     raw[index + 1] - raw[index] if index + 1 < len(raw) else np.inf]
             return float(raw[index]), 0.25 * float(min(gaps))
@@ -248,8 +251,8 @@ class OpenCVVideoMovie(Movie):
     def _decode(self, start: int, stop: int, step: int, *, any_order: bool) -> Iterator[np.ndarray]:
         cap = self._open()
         index = start
-        whole = start == 0 and step == 1 and stop == self.info.n_frames
         stamps: list[float] = []
+        head = start == 0 and step == 1  # its stamps are kept as the frames come: a window's pass stops early
         try:
             first = None
             if start > 0:
@@ -266,8 +269,10 @@ class OpenCVVideoMovie(Movie):
                         ok, frame = cap.read()
                     if not ok:
                         break
-                    if whole:
+                    if head:
                         stamps.append(cap.get(self._cv2.CAP_PROP_POS_MSEC))
+                        if len(stamps) > len(self._head_stamps_ms):
+                            self._head_stamps_ms = stamps
                     yield self._convert(frame, any_order=any_order)
                 elif not cap.grab():
                     break
@@ -277,8 +282,6 @@ class OpenCVVideoMovie(Movie):
         if index < stop:
             raise MovieError(f"{self.path} is truncated: only {index} of {self.info.n_frames} frames decode — "
                              "copy the file again from the camera or recorder")
-        if whole and len(stamps) == self.info.n_frames and np.all(np.diff(stamps) > 0):
-            self._raw_stamps_ms = np.asarray(stamps, dtype=float)
 
     def _iter(self, start: int, stop: int, step: int) -> Iterator[np.ndarray]:
         return self._decode(start, stop, step, any_order=False)
@@ -322,13 +325,25 @@ class OpenCVVideoMovie(Movie):
         self._seeker, self._next = self._open(), 0
 
     @property
+    def _raw_stamps_ms(self) -> np.ndarray | None:
+        """The stamps known, of every frame or of the first ones (in order), or None."""
+        n = len(self._head_stamps_ms)
+        if self._stamps_cache[0] != n:
+            stamps = np.asarray(self._head_stamps_ms[:n], dtype=float)
+            self._stamps_cache = (n, stamps if n >= 2 and np.all(np.diff(stamps) > 0) else None)
+        return self._stamps_cache[1]
+
+    @property
     def has_file_timestamps(self) -> bool:
         return self._raw_stamps_ms is not None
 
     def timestamps_s(self) -> np.ndarray:
-        """The container's time stamps (first frame at 0) once the movie was read through, else ``index / fps``."""
-        if self._raw_stamps_ms is not None:
-            return (self._raw_stamps_ms - self._raw_stamps_ms[0]) / 1000.0
+        """The container's time stamps (first frame at 0): of every frame once the movie was read through,
+        of its first frames only after a pass that stopped early (a window's: what
+        :class:`~grainplug.readers.window.FrameWindow` needs), else ``index / fps``."""
+        raw = self._raw_stamps_ms
+        if raw is not None:
+            return (raw - raw[0]) / 1000.0
         return super().timestamps_s()
 
     def _close(self) -> None:
