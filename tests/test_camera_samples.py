@@ -152,12 +152,14 @@ def test_info_tells_the_truth_on_the_command_line(capsys):
 
 
 def test_a_still_object_is_not_given_a_direction(tmp_path, capsys):
-    """The small cine sample films an object that does not travel: its celerity's interval holds zero, and the
-    command line and the report say that no direction is measured (not '0.0000 m/s', not 'moves down')."""
+    """The small cine sample films an object that does not travel: its celerity's interval holds zero and
+    allows no motion of a pixel over the record, so the regime is static (it used to be called propagative),
+    and the command line and the report say so (not '0.0000 m/s', not 'moves down')."""
     out = tmp_path / "still"
     assert main(["analyze", str(SAMPLES / "pyidi/data_small_cine.cine"), "--out", str(out)]) == 0
     stdout = capsys.readouterr().out
-    lo, hi = json.loads((out / "summary.json").read_text())["celerity_ci95_m_s"]
-    assert lo <= 0 <= hi
-    assert "no direction of travel" in stdout and "0.0000 m/s" not in stdout
-    assert "cannot be told from zero" in (out / "report.html").read_text()
+    summary = json.loads((out / "summary.json").read_text())
+    lo, hi = summary["celerity_ci95_m_s"]
+    assert lo <= 0 <= hi and summary["regime"] == "static"
+    assert "regime          static  (the plugs did not move by a pixel" in stdout and "0.0000 m/s" not in stdout
+    assert "Static: the plugs did not move by a pixel over the record" in (out / "report.html").read_text()

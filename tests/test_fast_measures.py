@@ -149,3 +149,23 @@ def test_a_length_interval_from_few_values_is_clipped_at_zero_and_shown_as_such(
     assert lo == 0.0 and hi > 150
     assert with_uncertainty(got.bubble_length_mm, lo, hi) == f"20 (0 to {round(hi, -1):.0f})"  # to 2 digits of ±105
     assert with_uncertainty(30.6, 29.9, 31.3) == "30.6 ± 0.7"  # a centred interval keeps its ±
+
+
+@pytest.mark.parametrize(("speed_px_per_record", "regime"), [(0.0, "static"), (0.3, "static"), (4.0, "propagative"),
+                                                              (-4.0, "propagative")])
+def test_plugs_that_do_not_move_by_a_pixel_are_static(rng, speed_px_per_record, regime):
+    """Three plugs' upper edges over 200 frames, with 0.05 px of noise: a drift of under a pixel over the record
+    (every celerity of the interval too) is static, one of a few pixels is propagative, either way."""
+    from grainplug.measures.motion import measure_motion
+
+    fps, mm_per_px, n = 1000.0, 0.2, 200
+    t = np.arange(n) / fps
+    frames = np.repeat(np.arange(n), 3)
+    track = np.tile(np.arange(3), n)
+    start_mm = np.array([10.0, 40.0, 70.0])[track]
+    top = start_mm + speed_px_per_record * mm_per_px * frames / (n - 1) + rng.normal(0, 0.05 * mm_per_px, 3 * n)
+    m = measure_motion(t, top, track, frames, fps=fps, mm_per_px=mm_per_px)
+    assert m.regime == regime
+    expected = speed_px_per_record * mm_per_px / ((n - 1) / fps) / 1000.0
+    lo, hi = m.celerity_ci95_m_s
+    assert lo <= expected <= hi

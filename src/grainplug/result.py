@@ -147,7 +147,8 @@ class AnalysisResult:
 
     @property
     def regime(self) -> str:
-        """``"propagative"``, ``"oscillating"``, ... or ``"none"`` when no plug was followed over time."""
+        """``"propagative"``, ``"oscillating"``, ``"static"`` (no motion of a pixel over the record) or
+        ``"none"`` when no plug was followed over time."""
         return "none" if self.motion is None else self.motion.regime
 
     @property

@@ -337,8 +337,9 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
             return "—" if v is None else f"{v:+#.{digits}g}" if isinstance(v, float) else str(v)
 
         still = ci[0] is not None and ci[1] is not None and ci[0] <= 0 <= ci[1]
-        click.echo(f"regime          {s['regime']}" + ("  (no direction of travel: the celerity's 95% CI holds 0)"
-                                                        if still else ""))
+        note = ("  (the plugs did not move by a pixel over the record)" if s["regime"] == "static" else
+                "  (no direction of travel: the celerity's 95% CI holds 0)" if still else "")
+        click.echo(f"regime          {s['regime']}{note}")
         click.echo(f"celerity        {speed(s['celerity_m_s'])} m/s  (95% CI {speed(ci[0])} to {speed(ci[1])})")
         n_plugs = s["n_plugs"]
         click.echo(f"plug length     {fmt(s['plug_length_mm'], ' mm', 2)}  "

@@ -25,7 +25,9 @@ so that a stick-slip motion is not reported at its second harmonic.
 
 *Regime.* Oscillating when the periodic part explains at least half of the
 variance of ``X(t)`` about the drift, its amplitude (half peak-to-peak) is above
-``max(0.1 mm, 0.5 px)`` and the record holds at least 1.5 periods; otherwise
+``max(0.1 mm, 0.5 px)`` and the record holds at least 1.5 periods; static when,
+at every celerity of the 95% interval, the plugs would have moved by less than a
+pixel over the record (a jammed tube, or a scene where nothing flows); otherwise
 propagative.
 
 *Confidence interval.* From the drift fit of ``X(t)``, with the standard error
@@ -57,7 +59,7 @@ class Motion:
     celerity_ci95_m_s : tuple of float
         95% confidence interval.
     regime : str
-        ``"propagative"`` or ``"oscillating"``.
+        ``"propagative"``, ``"oscillating"`` or ``"static"`` (no motion of a pixel over the record).
     oscillation_frequency_hz : float or None
         Fundamental frequency of the oscillation (None when propagative).
     oscillation_amplitude_mm : float
@@ -332,6 +334,8 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     se_c = float(np.hypot(se_c, abs(celerity) * scale_rel_sd))
     tq = t_quantile_975(max(len(tt) - 2, 1))
     ci = (celerity - tq * se_c, celerity + tq * se_c)
+    if regime == "propagative" and max(abs(ci[0]), abs(ci[1])) * 1000.0 * duration < mm_per_px:
+        regime = "static"  # no celerity of the interval moves the plugs by a pixel over the record
     return Motion(
         celerity_m_s=celerity, celerity_ci95_m_s=ci, regime=regime,
         oscillation_frequency_hz=f_osc, oscillation_amplitude_mm=amp,

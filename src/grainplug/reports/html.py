@@ -133,6 +133,10 @@ def _regime_sentence(res: AnalysisResult) -> str:
         way = "climb the tube (against the flow)" if vertical else "move against the flow"
     else:
         way = "move down the tube (with the flow)" if vertical else "move with the flow"
+    if m.regime == "static":
+        return (f"Static: the plugs did not move by a pixel over the record (mean velocity "
+                f"{with_uncertainty(m.celerity_m_s, lo, hi)} m/s, 95 % interval) — a jammed tube, or a scene "
+                "where nothing flows.")
     if lo is not None and hi is not None and lo <= 0 <= hi:  # no direction can be told
         speed = (f"their mean velocity, {with_uncertainty(m.celerity_m_s, lo, hi)} m/s (95 % interval), "
                  "cannot be told from zero: no direction of travel is measured")
