@@ -196,6 +196,25 @@ def test_batch_redraws_a_reused_runs_figures_when_their_options_change(movie, tm
     assert json.loads((run_dir / "summary.json").read_text())["figures"]["formats"] == ["png", "svg", "pdf"]
 
 
+def test_batch_keeps_a_reused_runs_metadata_current(movie, tmp_path):
+    """A manifest's metadata corrected after a batch (a mass flow rate mistyped) reaches the reused run's own
+    summary.json, not only the campaign's table; the movie is not read again."""
+    manifest = tmp_path / "m.csv"
+    out = tmp_path / "camp"
+    summary = out / "runs" / "a" / "summary.json"
+    manifest.write_text(f"run,movie,mass_flow_rate_g_s,surface\na,{movie.movie},0.5,rough\n")
+    gp.run_campaign(manifest, out, figures=False, simulate=False)
+    assert json.loads(summary.read_text())["batch"]["meta"]["mass_flow_rate_g_s"] == 0.5
+    manifest.write_text(f"run,movie,mass_flow_rate_g_s,surface\na,{movie.movie},0.45,rough\n")
+    again = gp.run_campaign(manifest, out, figures=False, simulate=False)
+    assert again.n_reused == 1 and again.n_remeasured == 0
+    assert again.table.mass_flow_rate_g_s.tolist() == [0.45]
+    assert json.loads(summary.read_text())["batch"]["meta"]["mass_flow_rate_g_s"] == 0.45
+    written = summary.stat().st_mtime_ns
+    assert gp.run_campaign(manifest, out, figures=False, simulate=False).n_reused == 1
+    assert summary.stat().st_mtime_ns == written  # unchanged: plain reuse
+
+
 def test_batch_says_when_edits_without_traces_meet_a_new_analysis_until_they_go(movie, tmp_path):
     """Edits saved without where their tracks were (format 1) are replayed by number on a re-analysis, with a
     warning; the warning stays through later remeasures while such edits remain, and goes with them."""

@@ -97,10 +97,11 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
         if done.get("run_key") == key and (not verify or done.get("input_sha256") == ident["sha256"]):
             wanted = corr.as_dict()["edits"] if corr is not None else []
             same_figures = not figures or old.get("figures") == (figure_options or FigureOptions()).as_record()
-            if (old.get("corrections_applied") or []) == wanted and same_figures:
+            same_meta = done.get("meta") == json.loads(dumps(spec.meta))  # as the summary holds it
+            if (old.get("corrections_applied") or []) == wanted and same_figures and same_meta:
                 return {**record, "status": "ok", "reused": True, **_flat(old)}
-            try:  # the corrections or the figures' options changed since: measures again from the detected
-                # plugs, no movie read
+            try:  # the corrections, the figures' options or the manifest's metadata changed since: measures
+                # again from the detected plugs, no movie read
                 res = apply_corrections(load_result(run_dir), corr or Corrections())
                 write_outputs(res, run_dir, figures=figures, report=figures, extra=extra,
                               figure_options=figure_options)
