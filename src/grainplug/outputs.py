@@ -111,9 +111,9 @@ class FigureOptions:
     Notes
     -----
     The two vector formats are not written by default: they cost about 0.6 s a run
-    (docs/performance.md), which would break issue 14's speed targets on short and
-    in-memory movies. ``--publication``, or ``publication = true`` in ``grainplug.toml``,
-    writes them.
+    (docs/performance.md), against issue 14's fixed-cost target and at the edge of its
+    in-memory speed targets. ``--publication``, or ``publication = true`` in
+    ``grainplug.toml``, writes them.
     """
 
     dpi: int = 200
