@@ -58,3 +58,16 @@ def test_bad_settings_are_one_line(movie, tmp_path, capsys, text, words):
     assert not (tmp_path / "o").exists()
     code, _, err = analyze(capsys, movie, "--out", tmp_path / "o", "--config", tmp_path / "none.toml")
     assert code == 2 and "no such settings file" in err
+
+
+def test_a_lab_keeps_publication_figures_on_in_its_settings(movie, tmp_path, capsys):
+    """publication = true in grainplug.toml: every figure also as SVG and PDF, as --publication does."""
+    folder = tmp_path / "lab"
+    folder.mkdir()
+    local = folder / movie.name
+    shutil.copy(movie, local)
+    (folder / "grainplug.toml").write_text("[analyze]\npublication = true\n")
+    assert main(["analyze", str(local), "--out", str(tmp_path / "o"), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["figures"]["formats"] == ["png", "svg", "pdf"]
+    assert {p.suffix for p in (tmp_path / "o").glob("diagram.*")} == {".npz", ".png", ".svg", ".pdf"}
