@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 from pathlib import Path
 
@@ -311,7 +312,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
             result = run_analysis(movie, params, progress=progress, threads=threads)
         result.save(out, figures=not no_figures, report=not no_figures, figure_worker=figure_worker,
                     figure_options=figure_options)
-    s = result.summary
+    s = json.loads((out / "summary.json").read_text())  # what was written: outputs and figure settings too
     settings = click.get_current_context().meta.get("grainplug.config")
     if settings is not None:  # said once the run is done: a refusal stays one line
         err_console.print(f"settings from {escape(str(settings))}", highlight=False, soft_wrap=True)
