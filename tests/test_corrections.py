@@ -79,6 +79,40 @@ def test_a_time_window_and_spans_without_plugs(result):
     assert again.has_plugs and _measures(again) == _measures(result) and again.statement == result.statement
 
 
+def test_two_plugs_seen_together_are_not_merged(result):
+    """Merging two tracks seen in the same frames made one track of two plugs (two rows a frame, a celerity of
+    neither): refused when made on the analysis, and not applied (with a warning) from a file."""
+    e = result.edges
+    frames = {tid: set(g.frame) for tid, g in e.groupby("plug_id")}
+    a, b = next((x, y) for x in frames for y in frames if x < y and frames[x] & frames[y])
+    with pytest.raises(ParameterError, match=rf"merge: tracks {a} and {b} are both seen in \d+ frames"):
+        Corrections().add("merge", track=a, other=b, on=result)
+    by_hand = apply_corrections(result, Corrections().add("merge", track=a, other=b))  # no trace: replayed by number
+    assert _measures(by_hand) == _measures(result)
+    assert any("two plugs at once are not one plug" in w for w in by_hand.warnings)
+
+
+def test_start_here_then_end_here_keep_the_frames_between(result):
+    """The review page's two clicks make two window edits, each naming one end: together they keep the frames
+    between them (the second used to replace the first, keeping the start-up transient the report said was cut);
+    a later edit moves one end back, a window without ends keeps the whole record, an end before the start is
+    not applied and said."""
+    t_end = float(result.diagram.time_s[-1])
+    a, b = 0.2 * t_end, 0.8 * t_end
+    two = apply_corrections(result, Corrections().add("window", start_s=a).add("window", end_s=b))
+    one = apply_corrections(result, Corrections().add("window", start_s=a, end_s=b))
+    assert two.edges.time_s.min() >= a and two.edges.time_s.max() <= b
+    assert _measures(two) == _measures(one)
+    assert two.summary["corrections"] == [f"kept the frames from {a:g} s on", f"kept the frames up to {b:g} s"]
+    wider = apply_corrections(result, two.corrections.add("window", start_s=0.1 * t_end))
+    assert wider.edges.time_s.min() < a and wider.edges.time_s.max() <= b
+    whole = apply_corrections(result, two.corrections.add("window"))
+    assert _measures(whole) == _measures(result)
+    crossed = apply_corrections(result, two.corrections.add("window", start_s=0.9 * t_end))
+    assert _measures(crossed) == _measures(two)
+    assert any("would end the window" in w for w in crossed.warnings)
+
+
 def test_a_run_emptied_by_its_corrections_comes_back_when_they_go(result, tmp_path, capsys):
     """Saved with corrections that leave no plugs, then the corrections file removed: remeasure gives the
     detection's measures back (the emptied result is not the new detection)."""
@@ -325,7 +359,7 @@ def test_edits_that_name_nothing_are_said_not_applied(result):
     assert "frame 1000000 is outside this analysis" in notes[1]
     assert res.summary["corrections"] == []  # none applied (the file's edits stay in corrections_applied)
     late = apply_corrections(result, corr.add("window", start_s=t_end + 5.0))
-    assert not late.has_plugs and late.summary["corrections"] == [f"kept the frames from {t_end + 5.0:g} s to the end"]
+    assert not late.has_plugs and late.summary["corrections"] == [f"kept the frames from {t_end + 5.0:g} s on"]
     assert any("holds none of this record" in w and "no plugs are left" in w for w in late.warnings)
 
 

@@ -59,4 +59,4 @@ def test_the_corrections_file_documented_is_read():
     assert len(blocks) == 1
     corr = Corrections.from_dict(json.loads(blocks[0]))
     assert [e.describe() for e in corr.edits] == [
-        "kept the frames from 0.2 s to the end", "excluded track 4", "split track 2 at analysed frame 150"]
+        "kept the frames from 0.2 s on", "excluded track 4", "split track 2 at analysed frame 150"]

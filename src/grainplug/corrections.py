@@ -6,10 +6,13 @@ A :class:`Corrections` is a list of edits, each with what was done and when, rep
 in order on the detected plug tracks:
 
 - ``exclude`` / ``restore`` a track (a false detection, a plug cut by a splash);
-- ``merge`` track ``b`` into track ``a`` (one plug the tracker cut in two);
+- ``merge`` track ``b`` into track ``a`` (one plug the tracker cut in two; two tracks seen
+  in the same frame are two plugs, and are not merged);
 - ``split`` a track at a frame (two plugs the tracker joined: the part from that frame
   on becomes a new track);
-- ``window``: keep the frames between two times (cut away a start-up transient);
+- ``window``: keep the frames between two times (cut away a start-up transient); an edit
+  that names one end moves that end only, so "start here" then "end here" keep the frames
+  between the two (a window with neither end keeps the whole record again);
 - ``no_plugs``: mark a time span as not plugs (a stretch where the flow is compact or
   the view blocked), and ``clear_no_plugs``.
 
@@ -94,9 +97,13 @@ class Edit:
             when = f" ({self.frame_time_s:g} s)" if self.frame_time_s is not None else ""
             return f"split track {self.track} at analysed frame {self.frame}{when}"
         if a == "window":
-            lo = "the start" if self.start_s is None else f"{self.start_s:g} s"
-            hi = "the end" if self.end_s is None else f"{self.end_s:g} s"
-            return f"kept the frames from {lo} to {hi}"
+            if self.start_s is None and self.end_s is None:
+                return "kept the whole record again"
+            if self.end_s is None:
+                return f"kept the frames from {self.start_s:g} s on"
+            if self.start_s is None:
+                return f"kept the frames up to {self.end_s:g} s"
+            return f"kept the frames from {self.start_s:g} s to {self.end_s:g} s"
         if a == "no_plugs":
             return f"marked {self.start_s:g}–{self.end_s:g} s as not plugs"
         return "cleared the spans marked as not plugs"
@@ -138,6 +145,10 @@ class Corrections:
                         extra[name] = trace
                     elif action != "restore":  # a restore may name a track left without plugs
                         raise ParameterError(f"{action}: there is no track {tid}")
+            if action == "merge":
+                why = _both_seen(runs, st.run_track, on.diagram.time_s, edit.track, edit.other)
+                if why is not None:
+                    raise ParameterError(f"merge: {why} — merge tracks that follow one another")
             if action == "split":
                 if not 0 <= edit.frame < len(on.diagram.time_s):
                     raise ParameterError(f"split: frame {edit.frame} is outside the analysis")
@@ -230,6 +241,15 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
     if action == "merge" and ints["track"] == ints["other"]:
         raise ParameterError("merge: a track cannot be merged into itself")
     return Edit(action, at=at, **ints, **times, **places)
+
+
+def _both_seen(runs: Runs, track: np.ndarray, time_s: np.ndarray, a: int, b: int) -> str | None:
+    """Why tracks ``a`` and ``b`` cannot be one plug (None: they can): seen in the same frames."""
+    both = np.intersect1d(runs.frame[track == a], runs.frame[track == b])
+    if not both.size:
+        return None
+    return (f"tracks {a} and {b} are both seen in {both.size} frame{'s' if both.size > 1 else ''} "
+            f"({time_s[both[0]]:.3f}–{time_s[both[-1]]:.3f} s): two plugs at once are not one plug")
 
 
 def _excluded(edits: tuple[Edit, ...] | list[Edit]) -> frozenset[int]:
@@ -330,19 +350,29 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
                            else f"track {missing[0]} has no plugs left")
                 elif e.action == "split" and not 0 <= split_at < len(diagram.time_s):
                     why = f"frame {split_at} is outside this analysis (0 to {len(diagram.time_s) - 1})"
+                elif e.action == "merge":
+                    why = _both_seen(runs, track, diagram.time_s, e.track, e.other)
             if why is not None:
                 seen = " and ".join(f"{trace[0][0]:.3f}–{trace[-1][0]:.3f} s" for trace in
                                     filter(None, (e.track_trace, e.other_trace)))
                 made = f" (made on plugs seen {seen})" if seen else ""
                 skipped.append(f"edit {k}, {e.describe()}{made}, was not applied: {why}")
                 continue
-        if e.action == "window" and len(diagram.time_s):  # applied all the same: what it cuts away stays cut
-            t0, t1 = float(diagram.time_s[0]), float(diagram.time_s[-1])
-            lo = t0 if e.start_s is None else e.start_s
-            hi = t1 if e.end_s is None else e.end_s
-            if lo > t1 or hi < t0:
-                skipped.append(f"edit {k}, {e.describe()}, holds none of this record ({t0:g} to {t1:g} s): no "
-                               "plugs are left")
+        if e.action == "window":  # the ends it names move; the other stays where an earlier window put it
+            both = e.start_s is None and e.end_s is None
+            start = None if both else e.start_s if e.start_s is not None else window[0]
+            end = None if both else e.end_s if e.end_s is not None else window[1]
+            if start is not None and end is not None and end <= start:
+                skipped.append(f"edit {k}, {e.describe()}, was not applied: it would end the window ({end:g} s) "
+                               f"before it starts ({start:g} s)")
+                continue
+            if len(diagram.time_s):  # applied all the same: what it cuts away stays cut
+                t0, t1 = float(diagram.time_s[0]), float(diagram.time_s[-1])
+                lo = t0 if start is None else start
+                hi = t1 if end is None else end
+                if lo > t1 or hi < t0:
+                    skipped.append(f"edit {k}, {e.describe()}, holds none of this record ({t0:g} to {t1:g} s): no "
+                                   "plugs are left")
         applied.append(e)
         if e.action == "merge":
             track[track == e.other] = e.track
@@ -350,7 +380,7 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
             new = int(track.max()) + 1 if track.size else 0
             track[(track == e.track) & (runs.frame >= split_at)] = new
         elif e.action == "window":
-            window = (e.start_s, e.end_s)
+            window = (start, end)
         elif e.action == "no_plugs":
             spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
         elif e.action == "clear_no_plugs":
