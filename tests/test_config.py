@@ -71,3 +71,33 @@ def test_a_lab_keeps_publication_figures_on_in_its_settings(movie, tmp_path, cap
     s = json.loads(capsys.readouterr().out)
     assert s["figures"]["formats"] == ["png", "svg", "pdf"]
     assert {p.suffix for p in (tmp_path / "o").glob("diagram.*")} == {".npz", ".png", ".svg", ".pdf"}
+
+
+def test_a_style_sheet_beside_the_settings_is_found_from_anywhere(movie, tmp_path, capsys, monkeypatch):
+    """style = "paper.mplstyle" in grainplug.toml is the sheet beside that file (it was looked for in the
+    working directory, and refused as '--style'); it is recorded as a full path, so that remeasure, run from
+    another directory, draws the figures with it again (it silently dropped it)."""
+    folder = tmp_path / "lab"
+    folder.mkdir()
+    local = folder / movie.name
+    shutil.copy(movie, local)
+    (folder / "paper.mplstyle").write_text("font.family: serif\nfont.size: 7\n")
+    (folder / "grainplug.toml").write_text('[analyze]\nstyle = "paper.mplstyle"\n')
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    out = tmp_path / "o"
+    assert main(["analyze", str(local), "--out", str(out)]) == 0, capsys.readouterr().err
+    style = json.loads((out / "summary.json").read_text())["figures"]["style"]
+    assert style == str(folder / "paper.mplstyle")
+    monkeypatch.chdir(tmp_path)
+    assert main(["remeasure", str(out)]) == 0
+    assert json.loads((out / "summary.json").read_text())["figures"]["style"] == style
+
+
+def test_a_relative_style_path_is_recorded_in_full(movie, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mine.mplstyle").write_text("font.size: 7\n")
+    assert main(["analyze", str(movie), "--out", "o", "--style", "mine.mplstyle"]) == 0
+    assert json.loads((tmp_path / "o" / "summary.json").read_text())["figures"]["style"] == str(
+        tmp_path / "mine.mplstyle")

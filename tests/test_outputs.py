@@ -120,3 +120,16 @@ def test_a_short_record_has_its_time_axis_in_ms(result):
         labels = [t.get_text() for t in ax.get_xticklabels() if t.get_text()]
         assert labels and all(len(lab.replace("−", "")) <= 5 for lab in labels), labels
         assert ax.get_xlim()[1] == res.diagram.time_s[-1]
+
+
+def test_the_report_shows_figures_written_as_svg_only(result, tmp_path):
+    """Figures in SVG only: the report shows them (it said "No figures were drawn"); in PDF only, it links them."""
+    from grainplug.outputs import FigureOptions
+
+    svg, pdf = tmp_path / "svg", tmp_path / "pdf"
+    write_outputs(result, svg, figure_options=FigureOptions(formats=("svg",)))
+    page = (svg / "report.html").read_text()
+    assert page.count('src="data:image/svg+xml;base64,') == 3 and "No figures were drawn" not in page
+    write_outputs(result, pdf, figure_options=FigureOptions(formats=("pdf",)))
+    page = (pdf / "report.html").read_text()
+    assert '<a href="diagram.pdf">diagram.pdf</a>' in page and "No figures were drawn" not in page

@@ -129,6 +129,9 @@ class FigureOptions:
         if bad or not self.formats:
             raise ParameterError(f"figure formats are {', '.join(FIGURE_FORMATS)}; got {', '.join(self.formats)}",
                                  param="formats")
+        if self.style and Path(self.style).is_file() and not Path(self.style).is_absolute():
+            # recorded in summary.json as a full path: remeasure, run from anywhere, finds it again
+            object.__setattr__(self, "style", str(Path(self.style).resolve()))
 
     def as_record(self) -> dict[str, object]:
         """As ``summary.json`` records them (``"figures"``)."""
@@ -164,12 +167,21 @@ def save_figure(fig: object, folder: str | Path, name: str, options: FigureOptio
     options = options or FigureOptions()
     stem = Path(name).stem
     names = []
+    # images drawn as the data's own pixels ("none"): so in SVG, whose viewers show them crisp; in PDF resampled
+    # at the figure's resolution instead, as PDF viewers (pdfium, Chrome's) smooth an image drawn larger
+    # than its pixels
+    unsampled = [im for ax in fig.axes for im in ax.get_images()  # type: ignore[attr-defined]
+                 if im.get_interpolation() == "none"]
     for fmt in options.formats:
         target = Path(folder) / f"{stem}.{fmt}"
+        for im in unsampled:
+            im.set_interpolation("nearest" if fmt == "pdf" else "none")
         # PNG at zlib level 1: a fraction of the default's time, files ~15% larger
         kw = {"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}
         fig.savefig(target, dpi=options.dpi, format=fmt, **kw)  # type: ignore[attr-defined]
         names.append(target.name)
+    for im in unsampled:
+        im.set_interpolation("none")
     return names
 
 

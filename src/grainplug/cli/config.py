@@ -77,6 +77,8 @@ def _settings(ctx: click.Context, command: click.Command, path: Path) -> dict[st
             continue  # given on the command line: it wins
         if isinstance(param.type, click.Path) and isinstance(value, str) and not Path(value).is_absolute():
             value = str(path.parent / value)  # relative to the settings file
+        elif param.name == "style" and isinstance(value, str) and (path.parent / value).is_file():
+            value = str(path.parent / value)  # a style sheet beside the settings file (else a sheet's name)
         try:
             out[param.name] = param.type_cast_value(ctx, value)
         except click.BadParameter as exc:

@@ -31,7 +31,8 @@ td.n,th.n{text-align:right;font-variant-numeric:tabular-nums}th.sort{cursor:poin
 
 def _img(path: Path) -> str:
     data = base64.b64encode(path.read_bytes()).decode()
-    return f'<img alt="{html.escape(path.stem)}" src="data:image/png;base64,{data}">'
+    mime = "image/svg+xml" if path.suffix == ".svg" else "image/png"
+    return f'<img alt="{html.escape(path.stem)}" src="data:{mime};base64,{data}">'
 
 
 def _table(rows: list[tuple[str, object]]) -> str:
@@ -261,9 +262,14 @@ def run_report(res: AnalysisResult, folder: Path, *, summary: dict | None = None
                        "(corrections.json; <code>grainplug remeasure</code>)."
                        + (f" {left} more in the file were not applied: the warnings say why." if left else "")
                        + "</p></div>")
-    figs = "".join(
-        f"<figure>{_img(folder / f)}<figcaption>{html.escape(c)}</figcaption></figure>"
-        for f, c in _captions(res) if (folder / f).exists())
+    figs = []
+    for f, c in _captions(res):  # the PNG, else the SVG (figures written in those formats only), else a link
+        shown = next((p for p in (folder / f, (folder / f).with_suffix(".svg")) if p.exists()), None)
+        pdf = (folder / f).with_suffix(".pdf")
+        if shown is not None:
+            figs.append(f"<figure>{_img(shown)}<figcaption>{html.escape(c)}</figcaption></figure>")
+        elif pdf.exists():
+            figs.append(f'<p><a href="{html.escape(pdf.name)}">{html.escape(pdf.name)}</a>: {html.escape(c)}</p>')
     prov = provenance({"grainplug_version": s["grainplug_version"], "input": s["input"],
                        "parameters": s["parameters"], "movie": s["movie"]},
                       folded="Provenance (version, input, parameters)")
@@ -275,7 +281,7 @@ def run_report(res: AnalysisResult, folder: Path, *, summary: dict | None = None
 {_cards(res)}
 {warnings}
 {corrections}
-<h2>Figures</h2>{figs or "<p>No figures were drawn (--no-figures).</p>"}
+<h2>Figures</h2>{"".join(figs) or "<p>No figures were drawn (--no-figures).</p>"}
 <h2>Plugs</h2>
 <p>One row per plug followed over time; click a column to sort. Celerity: the slope of its upper edge;
 length: the median over the frames where both edges are in view.</p>
