@@ -189,7 +189,10 @@ def test_publication_figures_png_svg_pdf_at_200_dpi(movie, tmp_path, capsys):
     assert_one_line_error(code, err, "--figure-formats", "tiff")
     code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "y", "--style", "no-such-style")
     assert_one_line_error(code, err, "--style", "no-such-style")
-    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+    code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "z", "--publication", "--figure-formats",
+                       "png")
+    assert_one_line_error(code, err, "--publication", "--figure-formats")
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists() and not (tmp_path / "z").exists()
 
 
 def test_remeasure_redraws_the_figures_as_they_were_written(movie, tmp_path, capsys):

@@ -219,3 +219,11 @@ def test_a_movie_filmed_upside_down_gives_the_same_plugs(movie, result):
     assert up.celerity_m_s == pytest.approx(down.celerity_m_s, rel=0.005)
     assert up.plug_length_mm == pytest.approx(down.plug_length_mm, rel=0.005)
     assert up.summary["tube_axis_angle_deg"] == pytest.approx(-90.0, abs=1.0)
+
+
+def test_a_celerity_that_rounds_to_zero_has_no_sign():
+    """A static run's repr and figure title read 0.0000, not -0.0000."""
+    from grainplug._format import signed
+
+    assert [signed(v, 4) for v in (-1e-6, 0.0, 2e-5, -0.05, 0.05109)] == ["0.0000", "0.0000", "0.0000", "-0.0500",
+                                                                           "+0.0511"]

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._format import signed
 from ._version import __version__
 from .calibration.tube import TubeGeometry
 from .calibration.tube_model import BoreEstimate
@@ -233,7 +234,8 @@ class AnalysisResult:
         m, ln = self.motion, self.lengths
         if m is not None:
             lo, hi = m.celerity_ci95_m_s
-            lines.append(f"{m.regime}: celerity {m.celerity_m_s:+.4f} m/s (95% CI {lo:+.4f} to {hi:+.4f})"
+            lines.append(f"{m.regime}: celerity {signed(m.celerity_m_s, 4)} m/s (95% CI {signed(lo, 4)} to "
+                         f"{signed(hi, 4)})"
                          + (f", oscillation {m.oscillation_frequency_hz:.2f} Hz" if m.oscillation_frequency_hz
                             else ""))
         if ln is not None and ln.plug_length_mm is not None:

@@ -86,6 +86,8 @@ def _figure_options(dpi: int | None, formats: str | None, publication: bool, sty
     """``FigureOptions`` of the figure flags (checked before the analysis)."""
     from ..outputs import PUBLICATION, FigureOptions
 
+    if publication and formats:
+        raise ParameterError("give either --publication (PNG, SVG and PDF) or --figure-formats, not both")
     base = PUBLICATION if publication else FigureOptions()
     fmts = tuple(f.strip().lower() for f in formats.split(",") if f.strip()) if formats else base.formats
     if style and not (Path(style).is_file() or _known_style(style)):

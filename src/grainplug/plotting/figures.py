@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from matplotlib.figure import Figure
 
+from .._format import signed
 from ..diagram.extract import display_stride
 from ..params import runs_backwards
 from . import palette
@@ -68,9 +69,9 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
             y0 = runs.top_mm[ok]
             k = int(np.argmin(np.abs(t0 - t0.mean())))
             ax.plot(t, y0[k] + c_mm_s * (t - t0[k]), "--", color=palette.FIT, lw=1.4,
-                    label=f"mean celerity {m.celerity_m_s:+.4f} m s⁻¹".replace("-", "−"))
+                    label=f"mean celerity {signed(m.celerity_m_s, 4)} m s⁻¹".replace("-", "−"))
         L = res.lengths.plug_length_mm if res.lengths else None
-        title = f"{m.regime}: c = {m.celerity_m_s:+.4f} m s⁻¹"
+        title = f"{m.regime}: c = {signed(m.celerity_m_s, 4)} m s⁻¹"
         if L:
             title += f", plug length λ = {L:.2f} mm (λ/D = {L / res.params.tube_diameter_mm:.1f})"
         if m.oscillation_frequency_hz:
@@ -99,11 +100,11 @@ def plot_spectrum(res: AnalysisResult) -> Figure:
     fig, (a1, a2) = new_figure(2, 1, figsize=(8, 5.5))
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.09, top=0.94, hspace=0.36)
     x = m.displacement_mm - m.celerity_m_s * 1000 * m.time_s
-    a1.plot(m.time_s, x - np.nanmean(x), "k-", lw=0.8)
+    a1.plot(m.time_s, x - np.nanmean(x), "-", color=palette.foreground(), lw=0.8)
     a1.set_xlabel("time t (s)")
     a1.set_ylabel("displacement about the drift (mm)")
     sel = m.spectrum_hz <= min(60.0, m.spectrum_hz[-1])
-    a2.plot(m.spectrum_hz[sel], m.spectrum_mm[sel], "k-", lw=0.8)
+    a2.plot(m.spectrum_hz[sel], m.spectrum_mm[sel], "-", color=palette.foreground(), lw=0.8)
     if m.oscillation_frequency_hz:
         a2.axvline(m.oscillation_frequency_hz, color=palette.FIT, ls="--", lw=1,
                    label=f"f = {m.oscillation_frequency_hz:.3f} Hz, A = {m.oscillation_amplitude_mm:.2f} mm")

@@ -9,6 +9,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from ._figure import new_figure
+from .palette import foreground
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -28,10 +29,11 @@ def plot_model_panel(measured: Measured, preds: list[Prediction], *, diameter_mm
     """
     fig, axes = new_figure(1, 2, figsize=(10, 5), constrained_layout=True)
     ax, bx = axes
-    ax.axhspan(measured.celerity_min_m_s, measured.celerity_max_m_s, color="0.2", alpha=0.3)
-    bx.axhline(measured.plug_length_mm / diameter_mm, color="k", lw=2)
+    fg = foreground()  # black, or the style sheet's text colour (white on a dark background)
+    ax.axhspan(measured.celerity_min_m_s, measured.celerity_max_m_s, color=fg, alpha=0.25)
+    bx.axhline(measured.plug_length_mm / diameter_mm, color=fg, lw=2)
     if measured.wavelength_mm is not None:
-        bx.axhline(measured.wavelength_mm / diameter_mm, color="k", lw=1.2, ls="--")
+        bx.axhline(measured.wavelength_mm / diameter_mm, color=fg, lw=1.2, ls="--")
     boxes = sorted({n.box_D for q in preds for n in q.nonlinear})
     for i, q in enumerate(preds):
         col = COLOURS[i % len(COLOURS)]
@@ -45,17 +47,17 @@ def plot_model_panel(measured: Measured, preds: list[Prediction], *, diameter_mm
             mk = MARKERS["box0"] if n.box_D == boxes[0] else MARKERS["box1"]
             ax.plot([i], [n.front_speed_m_s], mk, mfc="none", mew=1.5, color=col, ms=8)
             bx.plot([i], [n.dense_length_D], mk, mfc="none", mew=1.5, color=col, ms=8)
-    key = [Line2D([], [], ls="", marker=MARKERS["linear"], color="k", label="linear theory")]
-    key += [Line2D([], [], ls="", marker=MARKERS[f"box{j}"], mfc="none", color="k",
+    key = [Line2D([], [], ls="", marker=MARKERS["linear"], color=fg, label="linear theory")]
+    key += [Line2D([], [], ls="", marker=MARKERS[f"box{j}"], mfc="none", color=fg,
                    label=f"simulated, {b:.0f} D box") for j, b in enumerate(boxes[:2])]
-    ax.legend(handles=[Patch(color="0.2", alpha=0.3, label=f"measured ({measured.n_runs} runs)"), *key],
+    ax.legend(handles=[Patch(color=fg, alpha=0.25, label=f"measured ({measured.n_runs} runs)"), *key],
               fontsize=7, loc="center left")
-    bkey = [Line2D([], [], color="k", lw=2, label="measured plug length")]
+    bkey = [Line2D([], [], color=fg, lw=2, label="measured plug length")]
     if measured.wavelength_mm is not None:
-        bkey.append(Line2D([], [], color="k", lw=1.2, ls="--", label="measured plug + bubble"))
-    bkey += [Line2D([], [], ls="", marker=MARKERS["linear"], color="k", label="linear, most unstable λ"),
-             Line2D([], [], ls="", marker=MARKERS["cutoff"], color="k", label="linear, cut-off λ")]
-    bkey += [Line2D([], [], ls="", marker=MARKERS[f"box{j}"], mfc="none", color="k",
+        bkey.append(Line2D([], [], color=fg, lw=1.2, ls="--", label="measured plug + bubble"))
+    bkey += [Line2D([], [], ls="", marker=MARKERS["linear"], color=fg, label="linear, most unstable λ"),
+             Line2D([], [], ls="", marker=MARKERS["cutoff"], color=fg, label="linear, cut-off λ")]
+    bkey += [Line2D([], [], ls="", marker=MARKERS[f"box{j}"], mfc="none", color=fg,
                     label=f"simulated dense segment, {b:.0f} D box") for j, b in enumerate(boxes[:2])]
     bx.legend(handles=bkey, fontsize=7, loc="upper left")
     for a in axes:

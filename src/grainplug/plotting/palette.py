@@ -27,3 +27,11 @@ def bgr(colour: str) -> tuple[int, int, int]:
     c = colour.lstrip("#")
     r, g, b = (int(c[i:i + 2], 16) for i in (0, 2, 4))
     return b, g, r
+
+
+def foreground() -> str:
+    """The colour of text in the style sheet in force (black by default, white on ``dark_background``): for
+    data drawn in a neutral colour."""
+    import matplotlib as mpl
+
+    return str(mpl.rcParams["text.color"])
