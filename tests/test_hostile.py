@@ -311,3 +311,16 @@ def test_a_frozen_movie_is_said_and_does_not_crash_after_writing(tmp_path, capsy
     assert "59 of 60 frames repeat the one before exactly" in err and "unexpected" not in err
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert any("frames repeat" in w for w in summary["warnings"])
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_frames_with_nan_or_infinite_pixels_are_one_clear_error(frames, bad):
+    """A masked dead pixel (NaN) in float frames was reported as "every sampled frame is uniform (all pixels
+    nan)"; an infinite one crashed with a reshape error after numpy's warnings."""
+    import grainplug as gp
+    from grainplug.errors import MovieError
+
+    a = frames.astype(np.float32)
+    a[:, 150, 30] = bad
+    with pytest.raises(MovieError, match="hold NaN or infinite pixels.*replace them first"):
+        gp.analyze(a, fps=250.0)

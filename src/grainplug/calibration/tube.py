@@ -572,6 +572,11 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
     h, w = frames[0].shape[:2]
     if min(h, w) < 8:
         raise MovieError(f"the frames are {w} x {h} px: too small to hold a tube (at least 8 px each way)")
+    bad = sum(1 for f in frames if f.dtype.kind == "f" and not np.isfinite(f).all())
+    if bad:
+        raise MovieError(f"{bad} of the {len(frames)} sampled frames hold NaN or infinite pixels (masked or dead "
+                         "pixels?): give finite grey levels — replace them first, e.g. with the frame's median "
+                         "(np.nan_to_num(frames, nan=...))")
     lo = min(float(np.min(f)) for f in frames)
     hi = max(float(np.max(f)) for f in frames)
     if not hi > lo:
