@@ -58,6 +58,9 @@ def test_split_then_merge_back_is_the_detection(result):
     new = int(split.links.run_track.max())
     assert new == len(result.links) and {tid, new} <= set(split.edges.plug_id)
     assert split.edges[split.edges.plug_id == new].frame.min() == mid
+    tracks = split.tracks.set_index("plug_id")  # each part says it was cut (the first said "end")
+    assert tracks.loc[tid, "ended_by"] == "cut" and tracks.loc[new, "started_by"] == "cut"
+    assert not tracks.loc[tid, "composite"] and not tracks.loc[new, "composite"]
     merged = apply_corrections(result, split.corrections.add("merge", track=tid, other=new))
     assert _measures(merged) == _measures(result)
 

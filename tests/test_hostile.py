@@ -322,5 +322,5 @@ def test_frames_with_nan_or_infinite_pixels_are_one_clear_error(frames, bad):
 
     a = frames.astype(np.float32)
     a[:, 150, 30] = bad
-    with pytest.raises(MovieError, match="hold NaN or infinite pixels.*replace them first"):
+    with pytest.raises(MovieError, match=r"hold NaN or infinite pixels.*replace them first"):
         gp.analyze(a, fps=250.0)

@@ -318,6 +318,7 @@ class _State:
     spans: tuple[tuple[float, float], ...]
     not_applied: tuple[str, ...] = ()
     applied: tuple[Edit, ...] = ()
+    split_from: frozenset[int] = frozenset()  # tracks whose later part a split made another track
 
 
 def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _State:
@@ -326,6 +327,7 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
     spans: list[tuple[float, float]] = []
     applied: list[Edit] = []
     skipped: list[str] = []
+    split_from: set[int] = set()
     centre = _centres(runs, diagram)
     for k, e in enumerate(corr.edits, 1):
         split_at = e.frame
@@ -379,13 +381,15 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
         elif e.action == "split":
             new = int(track.max()) + 1 if track.size else 0
             track[(track == e.track) & (runs.frame >= split_at)] = new
+            split_from.add(e.track)
         elif e.action == "window":
             window = (start, end)
         elif e.action == "no_plugs":
             spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
         elif e.action == "clear_no_plugs":
             spans.clear()
-    return _State(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied))
+    return _State(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied),
+                  frozenset(split_from))
 
 
 def _replayed(res: AnalysisResult) -> _State | None:
@@ -409,8 +413,11 @@ def excluded_tracks(res: AnalysisResult) -> frozenset[int]:
     return frozenset() if st is None else st.excluded
 
 
-def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks) -> Tracks:
-    """Per-track first/last frames and how each began and ended, for the relabelled runs."""
+def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks,
+               split_from: frozenset[int] = frozenset()) -> Tracks:
+    """Per-track first/last frames and how each began and ended, for the relabelled runs: a track a reviewer's
+    split cut ends by a ``"cut"``, and the part after it starts by one (not the tracker's ``"split"``, which
+    marks a plug breaking up, and makes the track before it composite)."""
     n = int(track.max()) + 1 if track.size else 0
     first = np.full(n, -1, np.int64)
     last = np.full(n, -1, np.int64)
@@ -421,8 +428,8 @@ def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks) -> Tracks
         ends = np.r_[starts[1:] - 1, len(t_sorted) - 1]
         first[t_sorted[starts]] = f_sorted[starts]
         last[t_sorted[ends]] = f_sorted[ends]
-    started = [detected.started_by[i] if i < len(detected) else "split" for i in range(n)]
-    ended = [detected.ended_by[i] if i < len(detected) else "end" for i in range(n)]
+    started = [detected.started_by[i] if i < len(detected) else "cut" for i in range(n)]
+    ended = ["cut" if i in split_from else detected.ended_by[i] if i < len(detected) else "end" for i in range(n)]
     return Tracks(track, first, last, started, ended)
 
 
@@ -455,7 +462,7 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     for a, b in st.spans:
         keep &= ~((t >= a) & (t <= b))
     new_runs = Runs(runs.frame[keep], runs.start[keep], runs.stop[keep], runs.top_mm[keep], runs.bottom_mm[keep])
-    new_links = _tracks_of(st.run_track[keep], runs.frame[keep], links)
+    new_links = _tracks_of(st.run_track[keep], runs.frame[keep], links, st.split_from)
     # excluded and emptied tracks keep their ids (so edits and tables stay readable) but have no runs
     motion = lengths = None
     statement = res.statement

@@ -367,8 +367,8 @@ TRACK_SCHEMA: dict[str, tuple[str, str]] = {
                                 "downstream; empty with fewer than two edges"),
     "mean_length_mm": ("float64", "mean length over the frames where it is whole, mm; empty if never whole"),
     "median_length_mm": ("float64", "median of the same, mm"),
-    "started_by": ("string", "start (first frame), entered (the view), merge or split"),
-    "ended_by": ("string", "end (last frame), left (the view), merge or split"),
+    "started_by": ("string", "start (first frame), entered (the view), merge, split or cut (a reviewer's split)"),
+    "ended_by": ("string", "end (last frame), left (the view), merge, split or cut (a reviewer's split)"),
     "composite": ("bool", "True when born of a merge or ended by a split (left out of length averages)"),
 }
 

@@ -33,7 +33,8 @@ class Tracks:
         Per track.
     started_by, ended_by : list of str
         ``"start"``, ``"entered"``, ``"merge"``, ``"split"`` / ``"end"``, ``"left"``,
-        ``"merge"``, ``"split"``.
+        ``"merge"``, ``"split"``; ``"cut"`` either way where a reviewer split a track
+        (:mod:`grainplug.corrections`).
     """
 
     run_track: np.ndarray
