@@ -133,3 +133,14 @@ def test_the_report_shows_figures_written_as_svg_only(result, tmp_path):
     write_outputs(result, pdf, figure_options=FigureOptions(formats=("pdf",)))
     page = (pdf / "report.html").read_text()
     assert '<a href="diagram.pdf">diagram.pdf</a>' in page and "No figures were drawn" not in page
+
+
+def test_save_returns_every_file_it_wrote(result, tmp_path):
+    """Every figure format under its own key (diagram.svg and diagram.pdf used to overwrite diagram.npz's)."""
+    from grainplug.outputs import PUBLICATION
+
+    paths = result.save(tmp_path / "o", figure_options=PUBLICATION)
+    assert {"diagram", "fig_diagram", "fig_diagram_svg", "fig_diagram_pdf", "fig_spectrum_pdf"} <= set(paths)
+    assert paths["diagram"].name == "diagram.npz" and paths["fig_diagram_svg"].name == "diagram.svg"
+    assert sorted(p.name for p in paths.values()) == sorted(p.name for p in (tmp_path / "o").iterdir()
+                                                           if not p.name.startswith("."))

@@ -20,6 +20,8 @@ The public API, imported on first use so that ``import grainplug`` stays fast:
   ruler) giving a :class:`Calibration`, :func:`save_calibration` / :func:`load_calibration`; pass
   it as ``analyze(..., calibration=cal)``; :func:`read_background` (a light calibration, the
   tube with nothing moving in it) giving a :class:`Background` for ``analyze(..., background=bg)``;
+- :class:`FigureOptions` (and :data:`PUBLICATION`, PNG, SVG and PDF) for
+  ``result.save(dir, figure_options=...)``;
 - :class:`Corrections`, :func:`apply_corrections`, :func:`remeasure`: a reviewer's edits of the
   detected tracks (exclude, merge, split, time window, spans without plugs), measures recomputed;
 - :func:`run_campaign`: many movies from a manifest, optionally on Dask;
@@ -52,6 +54,8 @@ _EXPORTS = {
     "Corrections": "grainplug.corrections",
     "apply_corrections": "grainplug.corrections",
     "remeasure": "grainplug.outputs",
+    "FigureOptions": "grainplug.outputs",
+    "PUBLICATION": "grainplug.outputs",
     "SimulationParams": "grainplug.simulation",
     "run_campaign": "grainplug.campaigns.batch",
     "calibrate_image": "grainplug.calibration.pattern",
@@ -68,12 +72,12 @@ _EXPORTS = {
 _SUBMODULES = ("datasets", "stability", "simulation", "synthetic", "readers", "plotting")
 
 __all__ = [
-    "FLOW_DIRECTIONS", "AnalysisParams", "AnalysisResult", "Background", "Calibration", "Corrections",
-    "GrainplugError", "ModelParams", "Movie", "MovieError", "MovieInfo", "ParameterError", "SimulationParams",
-    "SynthConfig", "__version__", "analyze", "analyze_stability", "apply_corrections", "calibrate_file",
-    "calibrate_image", "datasets", "load_calibration", "load_result", "open_movie", "plotting", "read_background",
-    "readers", "remeasure", "run_campaign", "save_calibration", "simulate", "simulation", "stability", "sweep",
-    "synthesize", "synthetic",
+    "FLOW_DIRECTIONS", "PUBLICATION", "AnalysisParams", "AnalysisResult", "Background", "Calibration",
+    "Corrections", "FigureOptions", "GrainplugError", "ModelParams", "Movie", "MovieError", "MovieInfo",
+    "ParameterError", "SimulationParams", "SynthConfig", "__version__", "analyze", "analyze_stability",
+    "apply_corrections", "calibrate_file", "calibrate_image", "datasets", "load_calibration", "load_result",
+    "open_movie", "plotting", "read_background", "readers", "remeasure", "run_campaign", "save_calibration",
+    "simulate", "simulation", "stability", "sweep", "synthesize", "synthetic"
 ]
 
 

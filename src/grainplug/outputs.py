@@ -267,8 +267,18 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
             (tmp / "report.html").write_text(run_report(res, tmp, summary=summary))
         summary["timings_s"]["write_s"] = round(time.perf_counter() - t_write, 4)
         (tmp / FILES["summary"]).write_text(jsonio.dumps(summary))
-    return {(Path(name).stem if not name.endswith(".png") else "fig_" + Path(name).stem): path
-            for name, path in written.items()}
+    return {_output_key(name): path for name, path in written.items()}
+
+
+def _output_key(name: str) -> str:
+    """The key :func:`write_outputs` returns a file under: ``diagram.npz`` -> ``diagram``, ``diagram.png`` ->
+    ``fig_diagram``, ``diagram.svg`` -> ``fig_diagram_svg`` (as in ``summary.json``'s ``outputs``)."""
+    stem, suffix = Path(name).stem, Path(name).suffix.lstrip(".")
+    if suffix == "png":
+        return f"fig_{stem}"
+    if suffix in FIGURE_FORMATS:
+        return f"fig_{stem}_{suffix}"
+    return stem
 
 
 def remeasure(folder: str | Path, *, figures: bool = True, report: bool = True) -> AnalysisResult:
