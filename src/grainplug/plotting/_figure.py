@@ -17,3 +17,11 @@ def new_figure(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], 
     """
     fig = Figure(figsize=figsize, layout="constrained" if constrained_layout else None)
     return fig, fig.subplots(nrows, ncols, **kwargs)
+
+
+def pt(size: float) -> float:
+    """A font size of the figures' design (in points, for matplotlib's default 10-point text) scaled with the
+    style sheet in force: ``font.size: 7`` draws every text of the figure at 0.7 times its size."""
+    import matplotlib as mpl
+
+    return size * float(mpl.rcParams["font.size"]) / 10.0

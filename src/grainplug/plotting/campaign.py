@@ -8,7 +8,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..campaigns.fits import LinearFit
-from ._figure import new_figure
+from ._figure import new_figure, pt
 from .palette import GROUPS
 
 MARKERS = ("o", "^", "D", "v", "s", "P", "X")
@@ -64,6 +64,6 @@ def plot_vs_mass_flow(groups: Mapping[str, tuple[np.ndarray, np.ndarray]],
         ax.axhline(hline, color="0.4", ls=":", lw=1, label=hline_label)
     ax.set_xlabel("mass flow rate ṁ (g s⁻¹)")
     ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=10)
-    ax.legend(fontsize=7)
+    ax.set_title(title, fontsize=pt(10))
+    ax.legend(fontsize=pt(7))
     return fig

@@ -13,7 +13,7 @@ from .._format import signed
 from ..diagram.extract import display_stride
 from ..params import runs_backwards
 from . import palette
-from ._figure import new_figure
+from ._figure import new_figure, pt
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -47,8 +47,8 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
                    interpolation="none", interpolation_stage="data", extent=(t[0], t[-1], s[-1], s[0]))
     if own_figure:  # a colour bar in someone else's axes would take their space
         cbar = fig.colorbar(im, cax=fig.add_axes((0.91, 0.09, 0.012, 0.85)))
-        cbar.set_label("grey level (camera units)", fontsize=8)
-        cbar.ax.tick_params(labelsize=7)
+        cbar.set_label("grey level (camera units)", fontsize=pt(8))
+        cbar.ax.tick_params(labelsize=pt(7))
     runs = res.runs
     if len(runs):
         step = max(1, len(runs) // max_markers)
@@ -87,9 +87,9 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
     else:
         ax.set_xlabel("time t (s)")
     ax.set_ylabel(f"position z along the tube (mm; flow {res.flow_direction} in the image)")
-    ax.set_title(title, fontsize=10)
+    ax.set_title(title, fontsize=pt(10))
     if len(runs):
-        ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
+        ax.legend(loc="upper right", fontsize=pt(7), framealpha=0.8)
     return fig
 
 
@@ -108,10 +108,10 @@ def plot_spectrum(res: AnalysisResult) -> Figure:
     if m.oscillation_frequency_hz:
         a2.axvline(m.oscillation_frequency_hz, color=palette.FIT, ls="--", lw=1,
                    label=f"f = {m.oscillation_frequency_hz:.3f} Hz, A = {m.oscillation_amplitude_mm:.2f} mm")
-        a2.legend(fontsize=8)
+        a2.legend(fontsize=pt(8))
     a2.set_xlabel("frequency f (Hz)")
     a2.set_ylabel("amplitude A (mm)")
-    a1.set_title(f"oscillation of the plugs ({m.regime})", fontsize=10)
+    a1.set_title(f"oscillation of the plugs ({m.regime})", fontsize=pt(10))
     return fig
 
 
@@ -187,11 +187,11 @@ def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None
     bore_px = res.bore.diameter_px if res.bore else res.params.tube_diameter_mm / res.mm_per_px
     ax.set_title(f"frame {index}: bore {res.params.tube_diameter_mm:g} mm = {bore_px:.2f} px "
                  f"(seen {tube.inner_diameter_px:.2f} px wide), tilt {round(tube.tilt_deg, 2) + 0.0:+.2f}°\n"
-                 "vermillion: upper edges, blue: lower edges", fontsize=8)
+                 "vermillion: upper edges, blue: lower edges", fontsize=pt(8))
     ax.set_xticks([])
     ax.set_yticks([])
     _scale_bar(ax, res.mm_per_px, vertical=vertical, along_px=h)
-    ax.legend(loc="lower right", fontsize=7)
+    ax.legend(loc="lower right", fontsize=pt(7))
     return fig
 
 
@@ -208,12 +208,12 @@ def _scale_bar(ax: Axes, mm_per_px: float, *, vertical: bool, along_px: int) -> 
         y = y0 + 0.03 * (y1 - y0)
         ax.plot([x, x], [y, y + n_px], "-", color="black", lw=4, solid_capstyle="butt")
         ax.plot([x, x], [y, y + n_px], "-", color="white", lw=2, solid_capstyle="butt")
-        ax.text(x + 0.05 * (x1 - x0), y + n_px / 2, f"{mm:g} mm", color="white", fontsize=7, rotation=90,
+        ax.text(x + 0.05 * (x1 - x0), y + n_px / 2, f"{mm:g} mm", color="white", fontsize=pt(7), rotation=90,
                 va="center", ha="left", bbox={"facecolor": "black", "alpha": 0.6, "lw": 0, "pad": 1})
     else:  # a horizontal bar at the top edge of the crop
         x = x0 + 0.03 * (x1 - x0)
         y = y0 + 0.12 * (y1 - y0)
         ax.plot([x, x + n_px], [y, y], "-", color="black", lw=4, solid_capstyle="butt")
         ax.plot([x, x + n_px], [y, y], "-", color="white", lw=2, solid_capstyle="butt")
-        ax.text(x + n_px / 2, y + 0.06 * (y1 - y0), f"{mm:g} mm", color="white", fontsize=7,
+        ax.text(x + n_px / 2, y + 0.06 * (y1 - y0), f"{mm:g} mm", color="white", fontsize=pt(7),
                 va="top", ha="center", bbox={"facecolor": "black", "alpha": 0.6, "lw": 0, "pad": 1})

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from ._figure import new_figure
+from ._figure import new_figure, pt
 from .palette import foreground
 
 if TYPE_CHECKING:
@@ -51,7 +51,7 @@ def plot_model_panel(measured: Measured, preds: list[Prediction], *, diameter_mm
     key += [Line2D([], [], ls="", marker=MARKERS[f"box{j}"], mfc="none", color=fg,
                    label=f"simulated, {b:.0f} D box") for j, b in enumerate(boxes[:2])]
     ax.legend(handles=[Patch(color=fg, alpha=0.25, label=f"measured ({measured.n_runs} runs)"), *key],
-              fontsize=7, loc="center left")
+              fontsize=pt(7), loc="center left")
     bkey = [Line2D([], [], color=fg, lw=2, label="measured plug length")]
     if measured.wavelength_mm is not None:
         bkey.append(Line2D([], [], color=fg, lw=1.2, ls="--", label="measured plug + bubble"))
@@ -59,10 +59,10 @@ def plot_model_panel(measured: Measured, preds: list[Prediction], *, diameter_mm
              Line2D([], [], ls="", marker=MARKERS["cutoff"], color=fg, label="linear, cut-off λ")]
     bkey += [Line2D([], [], ls="", marker=MARKERS[f"box{j}"], mfc="none", color=fg,
                     label=f"simulated dense segment, {b:.0f} D box") for j, b in enumerate(boxes[:2])]
-    bx.legend(handles=bkey, fontsize=7, loc="upper left")
+    bx.legend(handles=bkey, fontsize=pt(7), loc="upper left")
     for a in axes:
         a.set_xticks(range(len(preds)))
-        a.set_xticklabels([textwrap.fill(q.label, 14) for q in preds], fontsize=7)
+        a.set_xticklabels([textwrap.fill(q.label, 14) for q in preds], fontsize=pt(7))
         for lab, i in zip(a.get_xticklabels(), range(len(preds)), strict=True):
             lab.set_color(COLOURS[i % len(COLOURS)])
         a.set_xlim(-0.6, len(preds) - 0.4)
@@ -74,10 +74,10 @@ def plot_model_panel(measured: Measured, preds: list[Prediction], *, diameter_mm
     ax.set_ylim(lo * (3 if lo < 0 else 0.5), hi * 3)
     ax.axhline(0, color="0.5", lw=0.7)
     ax.set_ylabel("celerity c (m s⁻¹), positive downstream")
-    ax.set_title("(a) wave speed", loc="left", fontsize=10)
+    ax.set_title("(a) wave speed", loc="left", fontsize=pt(10))
     bx.set_yscale("log")
     bx.set_ylabel("length λ/D")
-    bx.set_title("(b) lengths", loc="left", fontsize=10)
+    bx.set_title("(b) lengths", loc="left", fontsize=pt(10))
     fig.suptitle(f"model against experiment ({measured.source}); set-ups without a growing wave that fits in "
-                 "the pipe are not drawn", fontsize=9)
+                 "the pipe are not drawn", fontsize=pt(9))
     return fig

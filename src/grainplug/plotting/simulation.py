@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING
 
 from matplotlib.ticker import MaxNLocator
 
-from ._figure import new_figure
+from ._figure import new_figure, pt
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -29,7 +29,7 @@ def plot_simulation(res: SimulationResult, *, max_rows: int = 1500) -> Figure:
     ax.set_ylim(z_mm[-1], z_mm[0])  # positions from the top, increasing with the flow (downward)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("position from the top (mm)")
-    ax.set_title("(a) compactness c", loc="left", fontsize=10)
+    ax.set_title("(a) compactness c", loc="left", fontsize=pt(10))
     fig.colorbar(im, ax=ax, label="compactness c", shrink=0.85)
     ax2 = axes[1]
     t_all = res.time * p.t_c_s
@@ -41,9 +41,9 @@ def plot_simulation(res: SimulationResult, *, max_rows: int = 1500) -> Figure:
     ax3.plot(t_all, res.c.max(axis=1), color="#d55e00", lw=1.0, label="max c")
     ax3.axhline(RANDOM_CLOSE_PACKING, color="#d55e00", ls=":", lw=0.8)
     ax3.set_ylabel("max c (dotted: random close packing)", color="#d55e00")
-    ax2.set_title("(b) waves", loc="left", fontsize=10)
+    ax2.set_title("(b) waves", loc="left", fontsize=pt(10))
     law = p.law
     fig.suptitle(f"{res.params.boundary} {res.params.length_D:g} D ({res.params.length_D * p.diameter_mm:g} mm), "
                  f"{res.params.n_cells} cells — friction {law}, P0 = {p.base_pressure_abs_pa:.3g} Pa"
-                 + (", jamming" if p.jamming else ""), fontsize=9)
+                 + (", jamming" if p.jamming else ""), fontsize=pt(9))
     return fig

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from matplotlib.figure import Figure
 
-from ._figure import new_figure
+from ._figure import new_figure, pt
 
 if TYPE_CHECKING:
     from ..stability import StabilityResult
@@ -35,7 +35,7 @@ def plot_growth_rates(res: StabilityResult, *, zoom_k_max: float = 0.8) -> Figur
         ax.set_xlabel("k* = kD")
         ax.set_ylabel("growth rate ω_i*")
         ax.set_title(label, loc="left")
-        ax.legend(fontsize=7, loc="lower left")
+        ax.legend(fontsize=pt(7), loc="lower left")
     g = zoom.omega.imag
     lo = max(np.percentile(g, 5), -1.0)
     hi = max(float(g.max()), 0.05)
@@ -44,5 +44,5 @@ def plot_growth_rates(res: StabilityResult, *, zoom_k_max: float = 0.8) -> Figur
     p = res.params
     verdict = "no unstable mode" if res.stable else "long-wave instability"
     fig.suptitle(f"variant '{p.variant}': B1* = {p.B1_star:.3f}, c0 = {p.c0}, κ = {p.kappa}, "
-                 f"μs = {p.mu_s:.4f}, θ = {p.theta_deg}° — {verdict}", fontsize=9)
+                 f"μs = {p.mu_s:.4f}, θ = {p.theta_deg}° — {verdict}", fontsize=pt(9))
     return fig
