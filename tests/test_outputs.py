@@ -144,3 +144,15 @@ def test_save_returns_every_file_it_wrote(result, tmp_path):
     assert paths["diagram"].name == "diagram.npz" and paths["fig_diagram_svg"].name == "diagram.svg"
     assert sorted(p.name for p in paths.values()) == sorted(p.name for p in (tmp_path / "o").iterdir()
                                                            if not p.name.startswith("."))
+
+
+def test_a_rising_flow_s_captions_say_where_the_flow_comes_from(result, tmp_path):
+    """Flow up the tube: the diagram runs from the bottom of the view (the upstream end), and the edges are
+    named upstream and downstream (the "upper" edge is the lower one in the image)."""
+    import dataclasses
+
+    out = tmp_path / "up"
+    write_outputs(dataclasses.replace(result, flow_direction="up"), out)  # captions go with figures
+    page = (out / "report.html").read_text()
+    assert "from the bottom of the view, the upstream end" in page
+    assert "upper (upstream) edges of the plugs, blue: lower (downstream) edges" in page

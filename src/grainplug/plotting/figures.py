@@ -187,7 +187,9 @@ def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None
     bore_px = res.bore.diameter_px if res.bore else res.params.tube_diameter_mm / res.mm_per_px
     ax.set_title(f"frame {index}: bore {res.params.tube_diameter_mm:g} mm = {bore_px:.2f} px "
                  f"(seen {tube.inner_diameter_px:.2f} px wide), tilt {round(tube.tilt_deg, 2) + 0.0:+.2f}°\n"
-                 "vermillion: upper edges, blue: lower edges", fontsize=pt(8))
+                 + ("vermillion: upper edges, blue: lower edges" if res.flow_direction == "down" else
+                    # in the image, the upstream edge is not the upper one (a rising or horizontal flow)
+                    "vermillion: upstream edges, blue: downstream edges"), fontsize=pt(8))
     ax.set_xticks([])
     ax.set_yticks([])
     _scale_bar(ax, res.mm_per_px, vertical=vertical, along_px=h)

@@ -226,11 +226,12 @@ CAPTIONS = (
 def _captions(res: AnalysisResult) -> tuple[tuple[str, str], ...]:
     """:data:`CAPTIONS`, the diagram's told what this run's diagram shows (its tube's orientation, edges and
     mean-celerity line only when drawn)."""
-    along = ("vertical, from the top of the view" if res.tube.orientation != "horizontal"
-             else "horizontal, from the upstream end of the view")
+    along = ("horizontal, from the upstream end of the view" if res.tube.orientation == "horizontal"
+             else "vertical, from the top of the view" if res.flow_direction != "up"
+             else "vertical, from the bottom of the view, the upstream end")
     drawn = []
     if len(res.runs):
-        drawn.append("Vermillion: upper edges of the plugs, blue: lower edges")
+        drawn.append("Vermillion: upper (upstream) edges of the plugs, blue: lower (downstream) edges")
     if res.motion is not None:
         drawn.append("the dashed green line has the mean celerity")
     extra = ("; ".join(drawn) + ".") if drawn else "No plug edge is drawn: none was detected."
