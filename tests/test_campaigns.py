@@ -319,3 +319,15 @@ def test_the_fits_table_gives_each_value_to_its_uncertainty(tmp_path):
     assert cells[:4] == ["−0.0030015", "0.0000012", "0.020020", "0.000012"]
     row_b = re.findall(r"<td[^>]*>(.*?)</td>", re.search(r"<tr><td>B</td>(.*?)</tr>", page).group(1))
     assert row_b[7] == "—"
+
+
+def test_a_line_through_two_runs_claims_no_fit_quality():
+    """Two runs give a line through them: the figure said "R² = 1.000" and listed a 95 % band it could not draw."""
+    from grainplug.campaigns.fits import fit_line
+    from grainplug.plotting.campaign import plot_vs_mass_flow
+
+    x, y = np.array([0.4, 0.6]), np.array([-0.04, -0.06])
+    fig = plot_vs_mass_flow({"g": (x, y)}, {"g": fit_line(x, y)}, ylabel="c", title="t")
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert any("line through 2 runs" in s for s in labels)
+    assert not any("R²" in s or "band" in s and "no band" not in s for s in labels)

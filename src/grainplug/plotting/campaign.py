@@ -57,6 +57,10 @@ def plot_vs_mass_flow(groups: Mapping[str, tuple[np.ndarray, np.ndarray]],
             yy = fit.predict(xx)
             if sign < 0:
                 lo, hi = -hi, -lo
+            if fit.n < 3:  # a line through two points: no R² or band to speak of
+                ax.plot(xx, sign * yy, LINES[i % len(LINES)], color=col, lw=1.3,
+                        label=f"line through {fit.n} runs: slope {sign * fit.slope:+.4g} (no band: too few runs)")
+                continue
             ax.plot(xx, sign * yy, LINES[i % len(LINES)], color=col, lw=1.3,
                     label=f"fit: slope {sign * fit.slope:+.4g}, R² = {fit.r2:.3f}")
             ax.fill_between(xx, lo, hi, color=col, alpha=0.15, lw=0, label="95 % band of the fit")
