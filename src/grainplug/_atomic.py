@@ -55,7 +55,7 @@ def _describe(exc: OSError, place: Path) -> str:
                errno.EROFS: "the file system is read-only", errno.EACCES: "permission denied",
                errno.EPERM: "permission denied", errno.ENAMETOOLONG: "the name is too long"}
     why = reasons.get(exc.errno or 0, exc.strerror or str(exc))
-    return f"cannot write {place}: {why} — choose another --out (the previous result, if any, is intact)"
+    return f"cannot write {place}: {why} — choose another output folder (the previous result, if any, is intact)"
 
 
 def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), replace: bool = True,
@@ -77,25 +77,25 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
     """
     if str(out).strip() == "" or (replace and str(out).strip() == "."):
         what = "empty" if str(out).strip() == "" else "the current folder (it would be replaced whole)"
-        raise OutputPlaceError(f"the output folder is {what} — give a folder of its own, e.g. --out results/run1")
+        raise OutputPlaceError(f"the output folder is {what} — give a folder of its own, e.g. results/run1")
     p = Path(out).expanduser()
     try:
         resolved = p.resolve(strict=False)
     except (RuntimeError, OSError) as exc:  # a symbolic-link loop
-        raise OutputPlaceError(f"{p} is a loop of symbolic links ({exc}) — give another --out") from None
+        raise OutputPlaceError(f"{p} is a loop of symbolic links ({exc}) — give another output folder") from None
     if p.is_symlink() and not p.exists():
-        raise OutputPlaceError(f"{p} is a symbolic link to nothing (or a loop of links) — give another --out")
+        raise OutputPlaceError(f"{p} is a symbolic link to nothing (or a loop of links) — give another output folder")
     for src in inputs:
         s = Path(src).expanduser().resolve(strict=False)
         if s == resolved:
-            raise OutputPlaceError(f"{p} is the input itself — give another --out, the movie would be lost")
+            raise OutputPlaceError(f"{p} is the input itself — give another output folder, the movie would be lost")
         if replace and resolved in s.parents:
             raise OutputPlaceError(f"{p} holds the input {s.name}: replacing it would delete the movie — "
-                                   "give another --out")
+                                   "give another output folder")
     for parent in [resolved, *resolved.parents]:
         if parent.exists() and not parent.is_dir():
             what = "is a file" if parent == resolved else f"is under {parent}, which is a file"
-            raise OutputPlaceError(f"{p} {what} — --out must name a folder")
+            raise OutputPlaceError(f"{p} {what} — the output must be a folder")
         if parent.exists():
             break
     if replace and resolved.is_dir():
@@ -110,7 +110,7 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
             why = (" (a reviewer's corrections: `grainplug remeasure` applies them to the analysis there)"
                    if any(f in USER_FILES for f in foreign) else "")
             raise OutputPlaceError(f"{p} holds what grainplug did not write there: {names}{why} — move it out "
-                                   "first (the folder is replaced whole), or give another --out")
+                                   "first (the folder is replaced whole), or give another output folder")
     return p
 
 
