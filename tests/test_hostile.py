@@ -324,3 +324,15 @@ def test_frames_with_nan_or_infinite_pixels_are_one_clear_error(frames, bad):
     a[:, 150, 30] = bad
     with pytest.raises(MovieError, match=r"hold NaN or infinite pixels.*replace them first"):
         gp.analyze(a, fps=250.0)
+
+
+def test_a_camera_s_dark_offset_does_not_hide_the_plugs(frames):
+    """8-bit contrast under a 16-bit camera's offset of 16000 (1 % relative contrast): the log grey levels'
+    contrast was taken as flat (too narrow for the histogram's bins in float32), and the run said "no plugs"."""
+    import grainplug as gp
+
+    clean = gp.analyze(frames, fps=250.0)
+    offset = gp.analyze(frames.astype(np.uint16) + np.uint16(16000), fps=250.0, mm_per_px=clean.mm_per_px)
+    assert offset.has_plugs
+    assert offset.celerity_m_s == pytest.approx(clean.celerity_m_s, rel=0.01)
+    assert offset.plug_length_mm == pytest.approx(clean.plug_length_mm, rel=0.02)

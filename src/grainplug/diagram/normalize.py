@@ -80,17 +80,24 @@ def _otsu(values: np.ndarray) -> tuple[float, float]:
     """Otsu threshold and its effectiveness (between-class / total variance)."""
     from .._filters import threshold_otsu
     v = values[np.isfinite(values)]
-    # a range of a few rounding steps is flat (and too narrow for the histogram's bins)
-    eps = np.finfo(v.dtype).eps if np.issubdtype(v.dtype, np.floating) else 0.0
-    if v.size < 4 or np.ptp(v) <= 1e4 * eps * max(1.0, float(np.abs(v).max())):
+    if v.size < 4:
         return float(np.median(v)) if v.size else 0.0, 0.0
+    # a range of a few rounding steps of the values given is flat
+    eps = np.finfo(v.dtype).eps if np.issubdtype(v.dtype, np.floating) else 0.0
+    lo, hi_v = float(v.min()), float(v.max())
+    if hi_v - lo <= 64 * eps * max(1.0, abs(lo), abs(hi_v)):
+        return float(np.median(v)), 0.0
+    # about 0: log grey levels carry their light's level (log 16000 = 9.7 under a camera's dark offset), and
+    # a contrast of 1 % there was too narrow for the histogram's bins in float32 (it was taken as flat)
+    centre = v.dtype.type(0.5 * (lo + hi_v)) if np.issubdtype(v.dtype, np.floating) else 0
+    v = v - centre
     thr = threshold_otsu(v, nbins=512)
     hi = v > thr
     w1 = hi.mean()
     if w1 in (0.0, 1.0):
-        return thr, 0.0
+        return thr + float(centre), 0.0
     between = w1 * (1 - w1) * (v[hi].mean() - v[~hi].mean()) ** 2
-    return thr, float(between / v.var())
+    return thr + float(centre), float(between / v.var())
 
 
 def _class_levels(R: np.ndarray) -> tuple[float, float, float, np.ndarray]:
