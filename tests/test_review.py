@@ -106,6 +106,24 @@ def test_edits_are_kept_at_once_and_measures_recomputed(copy):
         assert again.state("run1")["corrections"] == []
 
 
+def test_the_page_is_told_what_the_window_and_the_spans_keep(copy):
+    """The state carries the time window and the spans marked as not plugs, as applied, for the page to shade
+    what is cut away; "start here" then "end here" keep the frames between them."""
+    with ReviewSession(copy) as s:
+        st = s.state("run1")
+        assert st["window"] == [None, None] and st["no_plugs"] == []
+        t0, t1 = st["diagram"]["t0"], st["diagram"]["t1"]
+        a, b = t0 + 0.2 * (t1 - t0), t0 + 0.8 * (t1 - t0)
+        s.edit("run1", {"action": "window", "start_s": a})
+        s.edit("run1", {"action": "window", "end_s": b})
+        s.edit("run1", {"action": "no_plugs", "start_s": a, "end_s": a + 0.05})
+        st = s.state("run1")
+        assert st["window"] == [pytest.approx(a), pytest.approx(b)]
+        assert st["no_plugs"] == [[pytest.approx(a), pytest.approx(a + 0.05)]]
+        kept = [t for e in st["edges"].values() for t in e["t"]]
+        assert min(kept) >= a + 0.05 - 1e-9 and max(kept) <= b + 1e-9
+
+
 def test_a_moved_movie_is_said_and_the_rest_still_works(copy, tmp_path):
     res = gp.load_result(copy)
     moved = dict(res.input, path=str(tmp_path / "gone.tif"))

@@ -407,6 +407,13 @@ def applied_edits(res: AnalysisResult) -> tuple[Edit, ...]:
     return () if st is None else st.applied
 
 
+def kept_times(res: AnalysisResult) -> tuple[tuple[float | None, float | None], tuple[tuple[float, float], ...]]:
+    """The time window ``res``'s corrections keep (None: that end of the record) and the spans they mark as
+    not plugs, as applied to it."""
+    st = _replayed(res)
+    return ((None, None), ()) if st is None else (st.window, st.spans)
+
+
 def excluded_tracks(res: AnalysisResult) -> frozenset[int]:
     """The tracks of ``res`` its corrections exclude (edits that no longer fit it left out)."""
     st = _replayed(res)

@@ -40,7 +40,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from .._atomic import atomic_file
-from ..corrections import CORRECTIONS_FILE, Corrections, apply_corrections, excluded_tracks
+from ..corrections import CORRECTIONS_FILE, Corrections, apply_corrections, excluded_tracks, kept_times
 from ..errors import GrainplugError, ParameterError
 from ..jsonio import dumps
 from ..result import AnalysisResult
@@ -141,6 +141,7 @@ class ReviewSession:
 
         s = res.summary
         excluded = excluded_tracks(res)
+        window, spans = kept_times(res)
         detected_links = res.detected[1] if res.detected is not None else res.links
         rows = [{k: None if isinstance(v, float) and not np.isfinite(v) else v for k, v in r.items()}
                 for r in track_rows(res)]
@@ -169,6 +170,7 @@ class ReviewSession:
                         "fps": res.info.fps},
             "tracks": rows, "edges": edges,
             "corrections": [{"text": e.describe(), "at": e.at} for e in run.corrections.edits],
+            "window": list(window), "no_plugs": [list(span) for span in spans],
             "movie": run.movie_error or "ok",
         }
 

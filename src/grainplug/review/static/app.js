@@ -90,10 +90,59 @@ function draw() {
       ctx.stroke();
     }
   }
+  // what the corrections cut away: outside the time window, and the spans marked as not plugs
+  ctx.fillStyle = "rgba(255, 255, 255, 0.6)";
+  const [w0, w1] = state.window || [null, null];
+  if (w0 !== null) ctx.fillRect(0, 0, Math.max(0, tToX(w0, w)), h);
+  if (w1 !== null) { const x = Math.min(w, tToX(w1, w)); ctx.fillRect(x, 0, w - x, h); }
+  ctx.fillStyle = "rgba(86, 180, 233, 0.35)";  // palette.BUBBLE
+  for (const [a, b] of state.no_plugs || []) ctx.fillRect(tToX(a, w), 0, tToX(b, w) - tToX(a, w), h);
+  labelTracks(ctx, w, zToY);
+  axes(ctx, w, h, d);
   if (frame !== null) {
     const t = d.t0 + frame / Math.max(d.n_frames - 1, 1) * (d.t1 - d.t0);
     ctx.strokeStyle = "#ffbf00"; ctx.lineWidth = 2;
     ctx.beginPath(); ctx.moveTo(tToX(t, w), 0); ctx.lineTo(tToX(t, w), h); ctx.stroke();
+  }
+}
+
+function niceStep(span, n) {  // 1, 2 or 5 x 10^k, about span / n
+  const raw = span / n, p = Math.pow(10, Math.floor(Math.log10(raw)));
+  return [1, 2, 5, 10].map((m) => m * p).find((s) => s >= raw);
+}
+
+function tag(ctx, text, x, y, align, base) {  // text on a white box, readable over the grey levels
+  ctx.font = "13px system-ui, sans-serif"; ctx.textAlign = align; ctx.textBaseline = base;
+  const m = ctx.measureText(text), bw = m.width + 6, bh = 16;
+  const bx = align === "left" ? x - 3 : align === "right" ? x - bw + 3 : x - bw / 2;
+  const by = base === "top" ? y - 1 : base === "bottom" ? y - bh + 1 : y - bh / 2;
+  ctx.fillStyle = "rgba(255, 255, 255, 0.85)"; ctx.fillRect(bx, by, bw, bh);
+  ctx.fillStyle = "#222"; ctx.fillText(text, x, y);
+}
+
+function axes(ctx, w, h, d) {  // time along the bottom, position along the flow on the left
+  const dt = niceStep(view[1] - view[0], 6), digits = Math.max(0, -Math.floor(Math.log10(dt)));
+  ctx.strokeStyle = "#222"; ctx.lineWidth = 1;
+  for (let t = Math.ceil(view[0] / dt) * dt; t <= view[1]; t += dt) {
+    const x = tToX(t, w);
+    ctx.beginPath(); ctx.moveTo(x, h); ctx.lineTo(x, h - 6); ctx.stroke();
+    if (x > 30 && x < w - 30) tag(ctx, `${t.toFixed(digits)} s`, x, h - 7, "center", "bottom");
+  }
+  const dz = niceStep(Math.abs(d.z1 - d.z0), 5);
+  for (let z = Math.ceil(Math.min(d.z0, d.z1) / dz) * dz; z <= Math.max(d.z0, d.z1); z += dz) {
+    const y = (z - d.z0) / (d.z1 - d.z0 || 1) * h;
+    ctx.beginPath(); ctx.moveTo(0, y); ctx.lineTo(6, y); ctx.stroke();
+    if (y > 12 && y < h - 28) tag(ctx, `${Math.round(z)} mm`, 8, y, "left", "middle");
+  }
+}
+
+function labelTracks(ctx, w, zToY) {  // each track's number at the middle of what is in view
+  for (const [tid, e] of Object.entries(state.edges)) {
+    const inView = e.t.map((t, i) => [t, i]).filter(([t, i]) => t >= view[0] && t <= view[1] && e.top[i] !== null);
+    if (!inView.length) continue;
+    const [t, i] = inView[Math.floor(inView.length / 2)];
+    const y = zToY(e.top[i]) - 4;
+    tag(ctx, tid, tToX(t, w), Math.max(18, y), "center", "bottom");
   }
 }
 
