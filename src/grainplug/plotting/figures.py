@@ -72,8 +72,10 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
                     label=f"mean celerity {signed(m.celerity_m_s, 4)} m s⁻¹".replace("-", "−"))
         L = res.lengths.plug_length_mm if res.lengths else None
         title = f"{m.regime}: c = {signed(m.celerity_m_s, 4)} m s⁻¹"
+        # in someone else's axes (a panel of their figure), on two lines: the full one is 9 inches wide
+        sep = ", " if own_figure else "\n"
         if L:
-            title += f", plug length λ = {L:.2f} mm (λ/D = {L / res.params.tube_diameter_mm:.1f})"
+            title += f"{sep}plug length λ = {L:.2f} mm (λ/D = {L / res.params.tube_diameter_mm:.1f})"
         if m.oscillation_frequency_hz:
             title += f", f = {m.oscillation_frequency_hz:.2f} Hz"
         title = title.replace("-", "−")
@@ -86,7 +88,8 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
         ax.set_xlabel("time t (ms)")
     else:
         ax.set_xlabel("time t (s)")
-    ax.set_ylabel(f"position z along the tube (mm; flow {res.flow_direction} in the image)")
+    ax.set_ylabel(f"position z along the tube (mm; flow {res.flow_direction} in the image)" if own_figure
+                  else "position z (mm)")
     ax.set_title(title, fontsize=pt(10))
     if len(runs):
         ax.legend(loc="upper right", fontsize=pt(7), framealpha=0.8)
