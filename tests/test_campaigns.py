@@ -330,4 +330,4 @@ def test_a_line_through_two_runs_claims_no_fit_quality():
     fig = plot_vs_mass_flow({"g": (x, y)}, {"g": fit_line(x, y)}, ylabel="c", title="t")
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert any("line through 2 runs" in s for s in labels)
-    assert not any("R²" in s or "band" in s and "no band" not in s for s in labels)
+    assert not any("R²" in s or ("band" in s and "no band" not in s) for s in labels)

@@ -17,6 +17,15 @@ def movie(tmp_path_factory):
     return synthesize(SynthConfig(n_frames=120, seed=4, noise_sigma=2), d / "run", fmt="tiff").movie
 
 
+def beside(movie, folder, settings: str):
+    """A copy of ``movie`` in ``folder`` with a ``grainplug.toml`` of ``settings``; its path."""
+    folder.mkdir()
+    local = folder / movie.name
+    shutil.copy(movie, local)
+    (folder / "grainplug.toml").write_text(settings)
+    return local
+
+
 def analyze(capsys, *args):
     code = main(["analyze", *map(str, args), "--no-figures", "--json"])
     out, err = capsys.readouterr()
@@ -24,11 +33,7 @@ def analyze(capsys, *args):
 
 
 def test_settings_beside_the_movie_and_the_command_line_wins(movie, tmp_path, capsys):
-    folder = tmp_path / "day1"
-    folder.mkdir()
-    local = folder / movie.name
-    shutil.copy(movie, local)
-    (folder / "grainplug.toml").write_text('[analyze]\nmm-per-px = 0.2\nstart = "20"\nmin_plug_mm = 4.0\n')
+    local = beside(movie, tmp_path / "day1", '[analyze]\nmm-per-px = 0.2\nstart = "20"\nmin_plug_mm = 4.0\n')
     code, s, err = analyze(capsys, local, "--out", tmp_path / "a")
     assert code == 0, err
     assert s["mm_per_px"] == 0.2 and s["n_frames"] == 100 and s["parameters"]["min_plug_mm"] == 4.0
@@ -62,11 +67,7 @@ def test_bad_settings_are_one_line(movie, tmp_path, capsys, text, words):
 
 def test_a_lab_keeps_publication_figures_on_in_its_settings(movie, tmp_path, capsys):
     """publication = true in grainplug.toml: every figure also as SVG and PDF, as --publication does."""
-    folder = tmp_path / "lab"
-    folder.mkdir()
-    local = folder / movie.name
-    shutil.copy(movie, local)
-    (folder / "grainplug.toml").write_text("[analyze]\npublication = true\n")
+    local = beside(movie, tmp_path / "lab", "[analyze]\npublication = true\n")
     assert main(["analyze", str(local), "--out", str(tmp_path / "o"), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["figures"]["formats"] == ["png", "svg", "pdf"]
@@ -78,11 +79,8 @@ def test_a_style_sheet_beside_the_settings_is_found_from_anywhere(movie, tmp_pat
     working directory, and refused as '--style'); it is recorded as a full path, so that remeasure, run from
     another directory, draws the figures with it again (it silently dropped it)."""
     folder = tmp_path / "lab"
-    folder.mkdir()
-    local = folder / movie.name
-    shutil.copy(movie, local)
+    local = beside(movie, folder, '[analyze]\nstyle = "paper.mplstyle"\n')
     (folder / "paper.mplstyle").write_text("font.family: serif\nfont.size: 7\n")
-    (folder / "grainplug.toml").write_text('[analyze]\nstyle = "paper.mplstyle"\n')
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     monkeypatch.chdir(elsewhere)
