@@ -63,6 +63,8 @@ def test_split_then_merge_back_is_the_detection(result):
     assert not tracks.loc[tid, "composite"] and not tracks.loc[new, "composite"]
     merged = apply_corrections(result, split.corrections.add("merge", track=tid, other=new))
     assert _measures(merged) == _measures(result)
+    assert merged.tracks.set_index("plug_id").loc[tid, "ended_by"] == result.tracks.set_index("plug_id").loc[
+        tid, "ended_by"]  # whole again
 
 
 def test_a_time_window_and_spans_without_plugs(result):

@@ -318,7 +318,7 @@ class _State:
     spans: tuple[tuple[float, float], ...]
     not_applied: tuple[str, ...] = ()
     applied: tuple[Edit, ...] = ()
-    split_from: frozenset[int] = frozenset()  # tracks whose later part a split made another track
+    cuts: frozenset[tuple[int, int]] = frozenset()  # (track, the track a split made of its later part)
 
 
 def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _State:
@@ -327,7 +327,7 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
     spans: list[tuple[float, float]] = []
     applied: list[Edit] = []
     skipped: list[str] = []
-    split_from: set[int] = set()
+    cuts: set[tuple[int, int]] = set()
     centre = _centres(runs, diagram)
     for k, e in enumerate(corr.edits, 1):
         split_at = e.frame
@@ -381,7 +381,7 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
         elif e.action == "split":
             new = int(track.max()) + 1 if track.size else 0
             track[(track == e.track) & (runs.frame >= split_at)] = new
-            split_from.add(e.track)
+            cuts.add((e.track, new))
         elif e.action == "window":
             window = (start, end)
         elif e.action == "no_plugs":
@@ -389,7 +389,7 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
         elif e.action == "clear_no_plugs":
             spans.clear()
     return _State(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied),
-                  frozenset(split_from))
+                  frozenset(cuts))
 
 
 def _replayed(res: AnalysisResult) -> _State | None:
@@ -421,7 +421,7 @@ def excluded_tracks(res: AnalysisResult) -> frozenset[int]:
 
 
 def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks,
-               split_from: frozenset[int] = frozenset()) -> Tracks:
+               cuts: frozenset[tuple[int, int]] = frozenset()) -> Tracks:
     """Per-track first/last frames and how each began and ended, for the relabelled runs: a track a reviewer's
     split cut ends by a ``"cut"``, and the part after it starts by one (not the tracker's ``"split"``, which
     marks a plug breaking up, and makes the track before it composite)."""
@@ -436,7 +436,8 @@ def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks,
         first[t_sorted[starts]] = f_sorted[starts]
         last[t_sorted[ends]] = f_sorted[ends]
     started = [detected.started_by[i] if i < len(detected) else "cut" for i in range(n)]
-    ended = ["cut" if i in split_from else detected.ended_by[i] if i < len(detected) else "end" for i in range(n)]
+    cut = {a for a, b in cuts if b < n and first[b] >= 0}  # a part merged back leaves its track whole again
+    ended = ["cut" if i in cut else detected.ended_by[i] if i < len(detected) else "end" for i in range(n)]
     return Tracks(track, first, last, started, ended)
 
 
@@ -469,7 +470,7 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     for a, b in st.spans:
         keep &= ~((t >= a) & (t <= b))
     new_runs = Runs(runs.frame[keep], runs.start[keep], runs.stop[keep], runs.top_mm[keep], runs.bottom_mm[keep])
-    new_links = _tracks_of(st.run_track[keep], runs.frame[keep], links, st.split_from)
+    new_links = _tracks_of(st.run_track[keep], runs.frame[keep], links, st.cuts)
     # excluded and emptied tracks keep their ids (so edits and tables stay readable) but have no runs
     motion = lengths = None
     statement = res.statement
