@@ -109,6 +109,8 @@ def test_start_here_then_end_here_keep_the_frames_between(result):
     assert two.edges.time_s.min() >= a and two.edges.time_s.max() <= b
     assert _measures(two) == _measures(one)
     assert two.summary["corrections"] == [f"kept the frames from {a:g} s on", f"kept the frames up to {b:g} s"]
+    assert two.summary["kept_window_s"] == [pytest.approx(a), pytest.approx(b)]  # n_frames is the record's
+    assert result.summary["kept_window_s"] == [result.diagram.time_s[0], pytest.approx(t_end)]
     wider = apply_corrections(result, two.corrections.add("window", start_s=0.1 * t_end))
     assert wider.edges.time_s.min() < a and wider.edges.time_s.max() <= b
     whole = apply_corrections(result, two.corrections.add("window"))

@@ -156,3 +156,14 @@ def test_a_rising_flow_s_captions_say_where_the_flow_comes_from(result, tmp_path
     page = (out / "report.html").read_text()
     assert "from the bottom of the view, the upstream end" in page
     assert "upper (upstream) edges of the plugs, blue: lower (downstream) edges" in page
+
+
+def test_the_report_says_what_the_corrections_keep_of_the_record(result, tmp_path):
+    from grainplug.corrections import Corrections, apply_corrections
+
+    t_end = float(result.diagram.time_s[-1])
+    fixed = apply_corrections(result, Corrections().add("window", start_s=0.25 * t_end)
+                              .add("no_plugs", start_s=0.5 * t_end, end_s=0.6 * t_end))
+    write_outputs(fixed, tmp_path / "o", figures=False)
+    page = (tmp_path / "o" / "report.html").read_text()
+    assert f"the corrections keep {0.25 * t_end:.3f}–{t_end:.3f} s" in page and "marked as not plugs" in page

@@ -495,6 +495,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
         "warnings": list(res.warnings),
         "corrections": [e.describe() for e in _applied_edits(res)],
+        **_kept_times(res),
         "corrections_applied": res.corrections.as_dict()["edits"] if res.corrections is not None else [],
         "view_length_mm": _r(float(res.diagram.position_mm[-1] + 0.5 * res.mm_per_px), 4),
         "illumination": {
@@ -506,6 +507,20 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "timings_s": dict(res.timings),
         "conventions": CONVENTIONS,
     }
+
+
+def _kept_times(res: AnalysisResult) -> dict[str, object]:
+    """The times the measures use: the record, or what its corrections keep of it (``kept_window_s``,
+    ``not_plugs_s``)."""
+    t0, t1 = float(res.diagram.time_s[0]), float(res.diagram.time_s[-1])
+    if res.corrections is None:
+        return {"kept_window_s": [_r(t0, 6), _r(t1, 6)], "not_plugs_s": []}
+    from .corrections import kept_times
+
+    (lo, hi), spans = kept_times(res)
+    lo = t0 if lo is None else min(max(lo, t0), t1)
+    hi = t1 if hi is None else max(min(hi, t1), t0)
+    return {"kept_window_s": [_r(lo, 6), _r(hi, 6)], "not_plugs_s": [[_r(a, 6), _r(b, 6)] for a, b in spans]}
 
 
 def _applied_edits(res: AnalysisResult) -> tuple:

@@ -196,13 +196,26 @@ def _plug_table(res: AnalysisResult) -> str:
     return f'<table class="sortable"><thead>{head}</thead><tbody>{"".join(body)}</tbody></table>'
 
 
+def _kept_note(res: AnalysisResult, s: dict) -> str:
+    """What the corrections keep of the record, when not all of it."""
+    t = res.diagram.time_s
+    lo, hi = s.get("kept_window_s") or (float(t[0]), float(t[-1]))
+    spans = s.get("not_plugs_s") or []
+    parts = []
+    if lo > float(t[0]) or hi < float(t[-1]):
+        parts.append(f"the corrections keep {number(lo, 3)}–{number(hi, 3)} s")
+    if spans:
+        parts.append(f"{sum(b - a for a, b in spans):.3g} s marked as not plugs")
+    return "; " + ", ".join(parts) if parts else ""
+
+
 def _details(res: AnalysisResult, s: dict) -> str:
     D = res.params.tube_diameter_mm
     rows = [
         ("scale", f"{number(res.mm_per_px, 5)} mm/px ± {number(100 * res.scale_rel_sd, 2)} %"),
         ("scale from", res.scale_source),
         ("frames", f"{s['n_frames']} at {number(res.info.fps, 6 if res.info.fps % 1 else 0)} fps "
-                   f"({number(s['duration_s'], 3)} s)"),
+                   f"({number(s['duration_s'], 3)} s)" + _kept_note(res, s)),
         ("tube", f"{number(D, 2)} mm bore = {number(s['tube_diameter_px'], 2)} px, "
                  f"{res.tube.orientation}, tilt {number(res.tube.tilt_deg, 2)}°"),
         ("flow", f"{res.flow_direction} in the image ({res.flow_direction_source})"),
