@@ -336,3 +336,12 @@ def test_a_camera_s_dark_offset_does_not_hide_the_plugs(frames):
     assert offset.has_plugs
     assert offset.celerity_m_s == pytest.approx(clean.celerity_m_s, rel=0.01)
     assert offset.plug_length_mm == pytest.approx(clean.plug_length_mm, rel=0.02)
+
+
+def test_float16_frames_are_analysed_without_numpy_warnings(frames):
+    """The saturation check compared float16 frames with 65535, beyond float16's range ("overflow encountered in
+    cast"); float frames have no top value a camera clips at (the suite runs with warnings as errors)."""
+    import grainplug as gp
+
+    res = gp.analyze(frames.astype(np.float16), fps=250.0)
+    assert res.has_plugs and res.celerity_m_s == pytest.approx(gp.analyze(frames, fps=250.0).celerity_m_s, rel=0.01)

@@ -433,7 +433,7 @@ def _check_background(params: AnalysisParams, info: MovieInfo) -> None:
 def _saturated_share(frames: list[np.ndarray], band: Band, info: MovieInfo) -> float:
     """Share of the tube's pixels (the band's, in the frames kept from the sample) at the top
     value the camera can give (``2**bit_depth - 1``, any channel)."""
-    if not frames:
+    if not frames or np.dtype(info.dtype).kind == "f":  # float frames have no top value a camera clips at
         return 0.0
     top = (1 << min(info.bit_depth, 8 * np.dtype(info.dtype).itemsize)) - 1
     hits = [np.asarray(f)[band.rows, band.cols] >= top for f in frames]
