@@ -84,6 +84,39 @@ def test_a_time_window_and_spans_without_plugs(result):
     assert again.has_plugs and _measures(again) == _measures(result) and again.statement == result.statement
 
 
+@pytest.fixture(scope="module")
+def joined(tmp_path_factory):
+    """Plugs that merge: tracks 0 and 1 end by a merge at frame 169, track 3 starts by it (composite), track 2
+    enters at frame 60 and lasts to the end."""
+    movie = synthesize(SynthConfig(n_frames=200, fps=250.0, merge_split=True, seed=0), tmp_path_factory.mktemp("j"),
+                       fmt="tiff")
+    return gp.analyze(movie.movie)
+
+
+def _ends(res, tid):
+    row = res.tracks.set_index("plug_id").loc[tid]
+    return row.started_by, row.ended_by, bool(row.composite)
+
+
+def test_a_reviewer_s_cut_is_said_where_it_is_whatever_follows(joined):
+    """Each part of a split says "cut" where it was cut and keeps the detected beginning or ending elsewhere,
+    whatever is done to the other part (excluded, windowed away) and whichever way it is merged back."""
+    assert _ends(joined, 2) == ("entered", "end", False)
+    split = Corrections().add("split", track=2, frame=100, on=joined)
+    new = len(joined.links)
+    cut = apply_corrections(joined, split)
+    assert _ends(cut, 2) == ("entered", "cut", False) and _ends(cut, new) == ("cut", "end", False)
+    gone = apply_corrections(joined, split.add("exclude", track=new, on=joined))
+    assert _ends(gone, 2)[1] == "cut"  # its later part excluded: it was cut all the same
+    for a, b in ((2, new), (new, 2)):  # merged back either way: whole again
+        back = apply_corrections(joined, split.add("merge", track=a, other=b, on=joined))
+        assert _ends(back, a) == ("entered", "end", False)
+        assert _measures(back) == _measures(joined)
+    # a part cut off a track that begins by the tracker's merge keeps it, and stays composite
+    three = apply_corrections(joined, Corrections().add("split", track=3, frame=185, on=joined))
+    assert _ends(three, 3) == ("merge", "cut", True) and _ends(three, new) == ("cut", "end", False)
+
+
 def test_two_plugs_seen_together_are_not_merged(result):
     """Merging two tracks seen in the same frames made one track of two plugs (two rows a frame, a celerity of
     neither): refused when made on the analysis, and not applied (with a warning) from a file."""

@@ -318,7 +318,6 @@ class _State:
     spans: tuple[tuple[float, float], ...]
     not_applied: tuple[str, ...] = ()
     applied: tuple[Edit, ...] = ()
-    cuts: frozenset[tuple[int, int]] = frozenset()  # (track, the track a split made of its later part)
 
 
 def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _State:
@@ -327,7 +326,6 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
     spans: list[tuple[float, float]] = []
     applied: list[Edit] = []
     skipped: list[str] = []
-    cuts: set[tuple[int, int]] = set()
     centre = _centres(runs, diagram)
     for k, e in enumerate(corr.edits, 1):
         split_at = e.frame
@@ -381,15 +379,13 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
         elif e.action == "split":
             new = int(track.max()) + 1 if track.size else 0
             track[(track == e.track) & (runs.frame >= split_at)] = new
-            cuts.add((e.track, new))
         elif e.action == "window":
             window = (start, end)
         elif e.action == "no_plugs":
             spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
         elif e.action == "clear_no_plugs":
             spans.clear()
-    return _State(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied),
-                  frozenset(cuts))
+    return _State(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied))
 
 
 def _replayed(res: AnalysisResult) -> _State | None:
@@ -420,25 +416,44 @@ def excluded_tracks(res: AnalysisResult) -> frozenset[int]:
     return frozenset() if st is None else st.excluded
 
 
-def _tracks_of(track: np.ndarray, frame: np.ndarray, detected: Tracks,
-               cuts: frozenset[tuple[int, int]] = frozenset()) -> Tracks:
-    """Per-track first/last frames and how each began and ended, for the relabelled runs: a track a reviewer's
-    split cut ends by a ``"cut"``, and the part after it starts by one (not the tracker's ``"split"``, which
-    marks a plug breaking up, and makes the track before it composite)."""
+def _first_last(track: np.ndarray, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The tracks that have runs, and the index of each one's first and last run (by frame)."""
+    order = np.lexsort((frame, track))
+    t_sorted = track[order]
+    starts = np.flatnonzero(np.r_[True, t_sorted[1:] != t_sorted[:-1]])
+    ends = np.r_[starts[1:] - 1, len(t_sorted) - 1]
+    return t_sorted[starts], order[starts], order[ends]
+
+
+def _how_tracks_begin_and_end(track: np.ndarray, runs: Runs, detected: Tracks) -> tuple[list[str], list[str]]:
+    """How each track of the replayed runs began and ended (before any run is left out by an exclusion, the
+    window or a span): as the detected track its first (last) run belongs to, where that run was its first
+    (last); else it was cut there by a reviewer's split: ``"cut"``. A part merged back into its track leaves
+    it whole again; a part split off a track the tracker saw split keeps that ending (and is composite)."""
     n = int(track.max()) + 1 if track.size else 0
+    started = [detected.started_by[i] if i < len(detected) else "cut" for i in range(n)]
+    ended = [detected.ended_by[i] if i < len(detected) else "cut" for i in range(n)]
+    if track.size:
+        orig = detected.run_track
+        for tid, i0, i1 in zip(*_first_last(track, runs.frame), strict=True):
+            d0, d1 = orig[i0], orig[i1]
+            started[tid] = detected.started_by[d0] if runs.frame[i0] == detected.first_frame[d0] else "cut"
+            ended[tid] = detected.ended_by[d1] if runs.frame[i1] == detected.last_frame[d1] else "cut"
+    return started, ended
+
+
+def _tracks_of(track: np.ndarray, frame: np.ndarray, began_ended: tuple[list[str], list[str]]) -> Tracks:
+    """Per-track first/last frames of the kept runs, and how each track began and ended."""
+    started, ended = began_ended
+    n = max(len(started), int(track.max()) + 1 if track.size else 0)
     first = np.full(n, -1, np.int64)
     last = np.full(n, -1, np.int64)
     if track.size:
-        order = np.lexsort((frame, track))
-        t_sorted, f_sorted = track[order], frame[order]
-        starts = np.flatnonzero(np.r_[True, t_sorted[1:] != t_sorted[:-1]])
-        ends = np.r_[starts[1:] - 1, len(t_sorted) - 1]
-        first[t_sorted[starts]] = f_sorted[starts]
-        last[t_sorted[ends]] = f_sorted[ends]
-    started = [detected.started_by[i] if i < len(detected) else "cut" for i in range(n)]
-    cut = {a for a, b in cuts if b < n and first[b] >= 0}  # a part merged back leaves its track whole again
-    ended = ["cut" if i in cut else detected.ended_by[i] if i < len(detected) else "end" for i in range(n)]
-    return Tracks(track, first, last, started, ended)
+        tids, i0, i1 = _first_last(track, frame)
+        first[tids] = frame[i0]
+        last[tids] = frame[i1]
+    return Tracks(track, first, last, list(started) + ["cut"] * (n - len(started)),
+                  list(ended) + ["cut"] * (n - len(ended)))
 
 
 def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: bool = False) -> AnalysisResult:
@@ -470,7 +485,7 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     for a, b in st.spans:
         keep &= ~((t >= a) & (t <= b))
     new_runs = Runs(runs.frame[keep], runs.start[keep], runs.stop[keep], runs.top_mm[keep], runs.bottom_mm[keep])
-    new_links = _tracks_of(st.run_track[keep], runs.frame[keep], links, st.cuts)
+    new_links = _tracks_of(st.run_track[keep], runs.frame[keep], _how_tracks_begin_and_end(st.run_track, runs, links))
     # excluded and emptied tracks keep their ids (so edits and tables stay readable) but have no runs
     motion = lengths = None
     statement = res.statement
