@@ -287,6 +287,21 @@ def test_batch_keeps_a_reused_runs_metadata_current(movie, tmp_path):
     written = summary.stat().st_mtime_ns
     assert gp.run_campaign(manifest, out, figures=False, simulate=False).n_reused == 1
     assert summary.stat().st_mtime_ns == written  # unchanged: plain reuse
+    assert not (out / "runs" / "a" / "corrections.json").exists()  # no empty corrections file made up
+
+
+def test_a_metadata_change_in_a_batch_without_figures_keeps_the_run_s_figures(movie, tmp_path):
+    manifest = tmp_path / "m.csv"
+    out = tmp_path / "camp"
+    run_dir = out / "runs" / "a"
+    manifest.write_text(f"run,movie,mass_flow_rate_g_s,operator\na,{movie.movie},0.5,alice\n")
+    gp.run_campaign(manifest, out, simulate=False)
+    drawn = {p.name for p in run_dir.iterdir()}
+    assert {"diagram.png", "frame.png", "report.html"} <= drawn
+    manifest.write_text(f"run,movie,mass_flow_rate_g_s,operator\na,{movie.movie},0.5,bob\n")
+    gp.run_campaign(manifest, out, figures=False, simulate=False)
+    assert {p.name for p in run_dir.iterdir()} == drawn  # nothing deleted, nothing added
+    assert json.loads((run_dir / "summary.json").read_text())["batch"]["meta"]["operator"] == "bob"
 
 
 def test_batch_says_when_edits_without_traces_meet_a_new_analysis_until_they_go(movie, tmp_path):

@@ -98,14 +98,18 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
             wanted = corr.as_dict()["edits"] if corr is not None else []
             same_figures = not figures or old.get("figures") == (figure_options or FigureOptions()).as_record()
             same_meta = done.get("meta") == json.loads(dumps(spec.meta))  # as the summary holds it
-            if (old.get("corrections_applied") or []) == wanted and same_figures and same_meta:
+            changed = (old.get("corrections_applied") or []) != wanted
+            if not changed and same_figures and same_meta:
                 return {**record, "status": "ok", "reused": True, **_flat(old)}
-            try:  # the corrections, the figures' options or the manifest's metadata changed since: measures
-                # again from the detected plugs, no movie read
-                res = apply_corrections(load_result(run_dir), corr or Corrections())
-                write_outputs(res, run_dir, figures=figures, report=figures, extra=extra,
-                              figure_options=figure_options)
-                changed = (old.get("corrections_applied") or []) != wanted  # else only the figures are redrawn
+            try:  # the corrections, the figures' options or the manifest's metadata changed since: written again
+                # from the saved result (measured again from the detected plugs if the corrections changed)
+                res = load_result(run_dir)
+                if changed:
+                    res = apply_corrections(res, corr or Corrections())
+                # a batch without figures keeps those the run has, drawn again as they were
+                draw = figures or isinstance(old.get("figures"), dict)
+                write_outputs(res, run_dir, figures=draw, report=draw, extra=extra,
+                              figure_options=figure_options if figures else FigureOptions.recorded(old))
                 return {**record, "status": "ok", "reused": True, "remeasured": changed, **_flat(res.summary)}
             except GrainplugError:
                 pass  # an unreadable result: analyse again below
