@@ -167,3 +167,26 @@ def test_the_report_says_what_the_corrections_keep_of_the_record(result, tmp_pat
     write_outputs(fixed, tmp_path / "o", figures=False)
     page = (tmp_path / "o" / "report.html").read_text()
     assert f"the corrections keep {0.25 * t_end:.3f}–{t_end:.3f} s" in page and "marked as not plugs" in page
+
+
+def test_what_the_corrections_keep_is_said_within_the_record(result, tmp_path):
+    """A window beyond the record keeps nothing (it said "0.796–0.796 s"), spans are clipped to the record and
+    joined (three overlapping ones summed past its length); an uncorrected run says nothing (a 30 fps record's
+    rounded end time read as a window)."""
+    import dataclasses
+
+    from grainplug.corrections import Corrections, apply_corrections
+
+    t_end = float(result.diagram.time_s[-1])
+    none = apply_corrections(result, Corrections().add("window", start_s=t_end + 5))
+    assert none.summary["kept_window_s"] is None
+    spans = apply_corrections(result, Corrections().add("no_plugs", start_s=0.1 * t_end, end_s=0.3 * t_end)
+                              .add("no_plugs", start_s=0.2 * t_end, end_s=0.3 * t_end)
+                              .add("no_plugs", start_s=0.5 * t_end, end_s=t_end + 5))
+    assert spans.summary["not_plugs_s"] == [[pytest.approx(0.1 * t_end), pytest.approx(0.3 * t_end)],
+                                            [pytest.approx(0.5 * t_end), pytest.approx(t_end)]]
+    write_outputs(spans, tmp_path / "s", figures=False)
+    assert f"{0.7 * t_end:.3g} s marked as not plugs" in (tmp_path / "s" / "report.html").read_text()
+    odd = dataclasses.replace(result, info=dataclasses.replace(result.info, fps=30.0))
+    write_outputs(odd, tmp_path / "o", figures=False)
+    assert "the corrections keep" not in (tmp_path / "o" / "report.html").read_text()

@@ -518,9 +518,18 @@ def _kept_times(res: AnalysisResult) -> dict[str, object]:
     from .corrections import kept_times
 
     (lo, hi), spans = kept_times(res)
-    lo = t0 if lo is None else min(max(lo, t0), t1)
-    hi = t1 if hi is None else max(min(hi, t1), t0)
-    return {"kept_window_s": [_r(lo, 6), _r(hi, 6)], "not_plugs_s": [[_r(a, 6), _r(b, 6)] for a, b in spans]}
+    lo = t0 if lo is None else max(lo, t0)
+    hi = t1 if hi is None else min(hi, t1)
+    window = [_r(lo, 6), _r(hi, 6)] if lo <= hi else None  # None: the window holds none of the record
+    merged: list[list[float]] = []  # the spans within the record, overlaps joined
+    for a, b in sorted((max(a, t0), min(b, t1)) for a, b in spans):
+        if a > b:
+            continue
+        if merged and a <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], b)
+        else:
+            merged.append([a, b])
+    return {"kept_window_s": window, "not_plugs_s": [[_r(a, 6), _r(b, 6)] for a, b in merged]}
 
 
 def _applied_edits(res: AnalysisResult) -> tuple:

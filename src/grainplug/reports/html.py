@@ -198,12 +198,17 @@ def _plug_table(res: AnalysisResult) -> str:
 
 def _kept_note(res: AnalysisResult, s: dict) -> str:
     """What the corrections keep of the record, when not all of it."""
+    if res.corrections is None:
+        return ""
     t = res.diagram.time_s
-    lo, hi = s.get("kept_window_s") or (float(t[0]), float(t[-1]))
+    half = 0.5 / res.info.fps  # the times are rounded in the summary: half a frame tells them apart
+    window = s.get("kept_window_s", [float(t[0]), float(t[-1])])
     spans = s.get("not_plugs_s") or []
     parts = []
-    if lo > float(t[0]) or hi < float(t[-1]):
-        parts.append(f"the corrections keep {number(lo, 3)}–{number(hi, 3)} s")
+    if window is None:
+        parts.append("the corrections' time window holds none of them")
+    elif window[0] > float(t[0]) + half or window[1] < float(t[-1]) - half:
+        parts.append(f"the corrections keep {number(window[0], 3)}–{number(window[1], 3)} s")
     if spans:
         parts.append(f"{sum(b - a for a, b in spans):.3g} s marked as not plugs")
     return "; " + ", ".join(parts) if parts else ""
