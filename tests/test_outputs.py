@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -141,6 +143,8 @@ def test_save_returns_every_file_it_wrote(result, tmp_path):
 
     paths = result.save(tmp_path / "o", figure_options=PUBLICATION)
     assert {"diagram", "fig_diagram", "fig_diagram_svg", "fig_diagram_pdf", "fig_spectrum_pdf"} <= set(paths)
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert set(summary["outputs"]) <= set(paths)  # the same keys (plug_edges.csv is "edges")
     assert paths["diagram"].name == "diagram.npz" and paths["fig_diagram_svg"].name == "diagram.svg"
     assert sorted(p.name for p in paths.values()) == sorted(p.name for p in (tmp_path / "o").iterdir()
                                                            if not p.name.startswith("."))
@@ -190,3 +194,17 @@ def test_what_the_corrections_keep_is_said_within_the_record(result, tmp_path):
     odd = dataclasses.replace(result, info=dataclasses.replace(result.info, fps=30.0))
     write_outputs(odd, tmp_path / "o", figures=False)
     assert "the corrections keep" not in (tmp_path / "o" / "report.html").read_text()
+
+
+def test_figure_options_recorded_and_given_as_paths(tmp_path):
+    """A record without formats gives the default formats (not all three); a style given as a Path is recorded as
+    the string summary.json holds (a PosixPath never equalled it, and batch rewrote every reused run)."""
+    from pathlib import Path
+
+    from grainplug.outputs import FigureOptions
+
+    assert FigureOptions.recorded({"figures": {"dpi": 150}}) == FigureOptions(dpi=150)
+    sheet = tmp_path / "my.mplstyle"
+    sheet.write_text("font.size: 7\n")
+    given = FigureOptions(style=Path(sheet))
+    assert given.as_record()["style"] == str(sheet) and FigureOptions.recorded({"figures": given.as_record()}) == given

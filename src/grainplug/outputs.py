@@ -129,9 +129,10 @@ class FigureOptions:
         if bad or not self.formats:
             raise ParameterError(f"figure formats are {', '.join(FIGURE_FORMATS)}; got {', '.join(self.formats)}",
                                  param="formats")
-        if self.style and Path(self.style).is_file() and not Path(self.style).is_absolute():
-            # recorded in summary.json as a full path: remeasure, run from anywhere, finds it again
-            object.__setattr__(self, "style", str(Path(self.style).resolve()))
+        if self.style is not None:
+            # a file is recorded in summary.json as a full path: remeasure, run from anywhere, finds it again
+            style = Path(self.style)
+            object.__setattr__(self, "style", str(style.resolve()) if style.is_file() else str(self.style))
 
     def as_record(self) -> dict[str, object]:
         """As ``summary.json`` records them (``"figures"``)."""
@@ -152,7 +153,7 @@ class FigureOptions:
                         style)
             style = None
         try:
-            return cls(dpi=int(rec.get("dpi", cls.dpi)), formats=tuple(rec.get("formats", FIGURE_FORMATS)),
+            return cls(dpi=int(rec.get("dpi", cls.dpi)), formats=tuple(rec.get("formats", cls.formats)),
                        style=style)
         except (TypeError, ValueError, GrainplugError):
             return cls()
@@ -271,14 +272,17 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
 
 
 def _output_key(name: str) -> str:
-    """The key :func:`write_outputs` returns a file under: ``diagram.npz`` -> ``diagram``, ``diagram.png`` ->
-    ``fig_diagram``, ``diagram.svg`` -> ``fig_diagram_svg`` (as in ``summary.json``'s ``outputs``)."""
-    stem, suffix = Path(name).stem, Path(name).suffix.lstrip(".")
-    if suffix == "png":
-        return f"fig_{stem}"
-    if suffix in FIGURE_FORMATS:
-        return f"fig_{stem}_{suffix}"
-    return stem
+    """The key :func:`write_outputs` returns a file under, as in ``summary.json``'s ``outputs``:
+    ``plug_edges.csv`` -> ``edges``, ``diagram.png`` -> ``fig_diagram``, ``diagram.svg`` -> ``fig_diagram_svg``;
+    other files (``report.html``, ``corrections.json``) under their stem."""
+    keys = {file: key for key, file in FILES.items()}
+    path = Path(name)
+    if name in keys:
+        return keys[name]
+    png = path.with_suffix(".png").name
+    if path.suffix.lstrip(".") in FIGURE_FORMATS and png in keys:
+        return f"{keys[png]}_{path.suffix.lstrip('.')}"
+    return path.stem
 
 
 def remeasure(folder: str | Path, *, figures: bool = True, report: bool = True) -> AnalysisResult:
