@@ -99,3 +99,14 @@ def test_a_relative_style_path_is_recorded_in_full(movie, tmp_path, capsys, monk
     assert main(["analyze", str(movie), "--out", "o", "--style", "mine.mplstyle"]) == 0
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["figures"]["style"] == str(
         tmp_path / "mine.mplstyle")
+
+
+def test_the_command_line_s_figure_formats_win_over_publication_in_the_settings(movie, tmp_path, capsys):
+    """publication = true in grainplug.toml and --figure-formats on the command line: the command line wins (it
+    was refused as giving both); the other way round too."""
+    local = beside(movie, tmp_path / "lab", "[analyze]\npublication = true\n")
+    assert main(["analyze", str(local), "--out", str(tmp_path / "a"), "--figure-formats", "png", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["figures"]["formats"] == ["png"]
+    (tmp_path / "lab" / "grainplug.toml").write_text('[analyze]\nfigure_formats = "svg"\n')
+    assert main(["analyze", str(local), "--out", str(tmp_path / "b"), "--publication", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["figures"]["formats"] == ["png", "svg", "pdf"]

@@ -41,7 +41,7 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "bubble_length_mm": ("Float64", "mean bubble length, mm"),
     "oscillation_frequency_hz": ("Float64", "frequency of the oscillating regime, Hz"),
     "oscillation_amplitude_mm": ("Float64", "its amplitude, mm"),
-    "regime": ("string", "propagative, oscillating or none"),
+    "regime": ("string", "propagative, oscillating, static (no motion of a pixel over the record) or none"),
     "has_plugs": ("boolean", "whether plugs were found"),
     "n_plugs": ("Int64", "plugs whose length entered the mean"),
     "n_frames": ("Int64", "frames analysed"),

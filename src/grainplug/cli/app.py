@@ -8,6 +8,7 @@ import logging
 from pathlib import Path
 
 import click
+from click.core import ParameterSource
 from rich.console import Console
 from rich.markup import escape
 
@@ -275,6 +276,14 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
 
     check_output_place(out, inputs=[movie], replace=True)  # before the analysis, not after it
     _refuse_existing(out, overwrite)
+    # a setting of grainplug.toml gives way to the command line: --figure-formats over publication = true, and
+    # --publication over figure_formats = "..."
+    source = click.get_current_context().get_parameter_source
+    if publication and figure_formats and source("publication") != source("figure_formats"):
+        if source("publication") is ParameterSource.COMMANDLINE:
+            figure_formats = None
+        else:
+            publication = False
     figure_options = _figure_options(dpi, figure_formats, publication, style)
     roi_px = _roi_option(roi)
     if mm_per_px is not None and tube_diameter_mm is not None:
