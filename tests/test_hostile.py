@@ -314,15 +314,21 @@ def test_a_frozen_movie_is_said_and_does_not_crash_after_writing(tmp_path, capsy
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
-def test_frames_with_nan_or_infinite_pixels_are_one_clear_error(frames, bad):
+@pytest.mark.parametrize("where", ["every frame", "one frame"])
+def test_frames_with_nan_or_infinite_pixels_are_one_clear_error(frames, bad, where):
     """A masked dead pixel (NaN) in float frames was reported as "every sampled frame is uniform (all pixels
-    nan)"; an infinite one crashed with a reshape error after numpy's warnings."""
+    nan)"; an infinite one crashed with a reshape error after numpy's warnings; one in a frame that was not
+    sampled gave "no plugs"."""
     import grainplug as gp
     from grainplug.errors import MovieError
 
     a = frames.astype(np.float32)
-    a[:, 150, 30] = bad
-    with pytest.raises(MovieError, match=r"hold NaN or infinite pixels.*replace them first"):
+    if where == "every frame":
+        a[:, 150, 30] = bad
+    else:
+        a[1, 150, 32] = bad  # in the tube, in a frame the tube search does not sample
+    said = r"1 of the 60 frames \(frame 1 of" if where == "one frame" else "sampled frames"
+    with pytest.raises(MovieError, match=said + r".*hold NaN or infinite pixels.*replace them first"):
         gp.analyze(a, fps=250.0)
 
 

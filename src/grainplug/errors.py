@@ -53,3 +53,9 @@ class ParameterError(GrainplugError, ValueError):
         self.message = message
         self.param = param
         super().__init__(f"{param}: {message}" if param else message)
+
+
+def non_finite_frames(which: str) -> MovieError:
+    """The error for frames with NaN or infinite pixels (``which``: the frames, in words), with the fix."""
+    return MovieError(f"{which} hold NaN or infinite pixels (masked or dead pixels?): give finite grey levels — "
+                      "replace them first, e.g. with the frame's median (np.nan_to_num(frames, nan=...))")

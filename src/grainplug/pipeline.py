@@ -32,7 +32,7 @@ from .calibration.pattern import Calibration
 from .calibration.tube_model import AGREEMENT, BoreEstimate, WallMeasure, bore_from_model
 from .diagram import Diagram, Normalized, band_along_tube, normalize
 from .diagram.frames import repair_frames
-from .errors import ParameterError
+from .errors import ParameterError, non_finite_frames
 from .measures import Lengths, Motion, measure_lengths, measure_motion
 from .measures.grains import GrainMotion, falling_grains
 from .params import AnalysisParams, opposite, runs_backwards, tube_orientation
@@ -103,6 +103,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("setup_s")
         values = movie.read_band(band, threads=threads,
                                  progress=(lambda k: progress(k, info.n_frames)) if progress else None)
+        _check_finite(values, info)
         light_warnings: list[str] = []
         if params.background is not None:
             values, light_warnings = flat_field(values, band, params.background)
@@ -428,6 +429,18 @@ def _check_background(params: AnalysisParams, info: MovieInfo) -> None:
         raise ParameterError(f"the background is {bg.image.shape[1]} x {bg.image.shape[0]} px but the movie's frames "
                              f"are {info.width} x {info.height}: take it with the movie's camera and settings",
                              param="background")
+
+
+def _check_finite(values: np.ndarray, info: MovieInfo) -> None:
+    """Float frames with NaN or infinite pixels in the tube (beyond the sampled frames, checked with the tube) are
+    refused: their band averages would read as a change of light."""
+    if np.dtype(info.dtype).kind != "f":
+        return
+    bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
+    if bad.size:
+        shown = ", ".join(str(k) for k in bad[:5]) + (", ..." if bad.size > 5 else "")
+        raise non_finite_frames(f"{bad.size} of the {len(values)} frames (frame{'s' if bad.size > 1 else ''} "
+                                f"{shown} of the analysis)")
 
 
 def _saturated_share(frames: list[np.ndarray], band: Band, info: MovieInfo) -> float:

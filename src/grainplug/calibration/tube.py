@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._filters import gaussian_filter, gaussian_filter1d
-from ..errors import MovieError
+from ..errors import MovieError, non_finite_frames
 from .tube_model import WallMeasure, measure_walls
 
 log = logging.getLogger(__name__)
@@ -574,9 +574,7 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
         raise MovieError(f"the frames are {w} x {h} px: too small to hold a tube (at least 8 px each way)")
     bad = sum(1 for f in frames if f.dtype.kind == "f" and not np.isfinite(f).all())
     if bad:
-        raise MovieError(f"{bad} of the {len(frames)} sampled frames hold NaN or infinite pixels (masked or dead "
-                         "pixels?): give finite grey levels — replace them first, e.g. with the frame's median "
-                         "(np.nan_to_num(frames, nan=...))")
+        raise non_finite_frames(f"{bad} of the {len(frames)} sampled frames")
     lo = min(float(np.min(f)) for f in frames)
     hi = max(float(np.max(f)) for f in frames)
     if not hi > lo:
