@@ -135,6 +135,22 @@ def test_a_window_of_uneven_frames_keeps_their_own_times(uneven, monkeypatch, re
     assert len([w for w in res.warnings if "not evenly spaced" in w]) == 1
 
 
+def test_the_opencv_reader_s_stamps_keep_the_movie_protocol(uneven, no_pyav):
+    """After reading the first frames only, timestamps_s still has one time a frame (by the rate) and says no
+    file stamps; the first frames' own stamps are there for a window; after a whole pass, every frame's."""
+    import numpy as np
+
+    with gp.open_movie(uneven) as m:
+        for _ in m.frames(0, 10):
+            pass
+        assert not m.has_file_timestamps and len(m.timestamps_s()) == 120
+        np.testing.assert_allclose(m.file_timestamps_upto(10), 0.004 * np.arange(10), atol=1e-6)
+        assert m.file_timestamps_upto(11) is None
+        for _ in m.frames():
+            pass
+        assert m.has_file_timestamps and m.timestamps_s()[-1] == pytest.approx(0.004 * 60 + 0.008 * 59)
+
+
 @pytest.fixture(scope="module")
 def deep_colour(tmp_path_factory):
     """A 16-bit colour FFV1 movie, which OpenCV reads as 8 bits."""

@@ -400,6 +400,12 @@ class Movie(abc.ABC):
         """Whether :meth:`timestamps_s` comes from times stored in the file."""
         return False
 
+    def file_timestamps_upto(self, stop: int) -> np.ndarray | None:
+        """The file's time stamps of frames ``0 .. stop - 1`` (s, first frame at 0), or None when the file
+        records none or they are not known yet (a video's, before those frames were read): what a window of
+        the movie (:class:`~grainplug.readers.window.FrameWindow`) is timed by."""
+        return np.asarray(self.timestamps_s())[:stop] if self.has_file_timestamps else None
+
     # -- context manager ----------------------------------------------------
     def close(self) -> None:
         """Stop the read-ahead (joining its thread) and release the file."""

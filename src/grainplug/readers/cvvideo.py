@@ -335,16 +335,22 @@ class OpenCVVideoMovie(Movie):
 
     @property
     def has_file_timestamps(self) -> bool:
-        return self._raw_stamps_ms is not None
+        raw = self._raw_stamps_ms
+        return raw is not None and len(raw) == self.info.n_frames
 
     def timestamps_s(self) -> np.ndarray:
-        """The container's time stamps (first frame at 0): of every frame once the movie was read through,
-        of its first frames only after a pass that stopped early (a window's: what
-        :class:`~grainplug.readers.window.FrameWindow` needs), else ``index / fps``."""
-        raw = self._raw_stamps_ms
-        if raw is not None:
-            return (raw - raw[0]) / 1000.0
+        """The container's time stamps (first frame at 0) once the movie was read through, else ``index / fps``."""
+        if self.has_file_timestamps:
+            return self.file_timestamps_upto(self.info.n_frames)  # type: ignore[return-value]
         return super().timestamps_s()
+
+    def file_timestamps_upto(self, stop: int) -> np.ndarray | None:
+        """The container's stamps of the first ``stop`` frames once they were read in order from the first (a
+        window's pass reads no further than its end)."""
+        raw = self._raw_stamps_ms
+        if raw is None or len(raw) < stop:
+            return None
+        return (raw[:stop] - raw[0]) / 1000.0
 
     def _close(self) -> None:
         if self._seeker is not None:

@@ -65,5 +65,8 @@ class RegionOfInterest(Movie):
     def has_file_timestamps(self) -> bool:
         return self.inner.has_file_timestamps
 
+    def file_timestamps_upto(self, stop: int) -> np.ndarray | None:
+        return self.inner.file_timestamps_upto(stop)
+
     def _stop_prefetch(self) -> None:  # the movie's own read-ahead is the movie's to stop
         pass

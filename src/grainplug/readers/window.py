@@ -67,14 +67,14 @@ class FrameWindow(Movie):
         return self.inner._read_sampled(index + self.start)
 
     def timestamps_s(self) -> np.ndarray:
-        stamps = np.asarray(self.inner.timestamps_s(), float)
-        if len(stamps) >= self.stop:
-            return stamps[self.start:self.stop]
+        stamps = self.inner.file_timestamps_upto(self.stop)
+        if stamps is not None:
+            return np.asarray(stamps, float)[self.start:self.stop]
         return (np.arange(self.start, self.stop) + self.inner.first_frame_index) / self.info.fps
 
     @property
     def has_file_timestamps(self) -> bool:
-        return self.inner.has_file_timestamps
+        return self.inner.file_timestamps_upto(self.stop) is not None
 
     def _stop_prefetch(self) -> None:  # the movie's own read-ahead is the movie's to stop
         pass
