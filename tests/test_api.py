@@ -146,7 +146,7 @@ def test_plot_draws_into_given_axes(result):
 
 def test_save_and_load_round_trip(result, tmp_path):
     written = result.save(tmp_path / "run", figures=False, report=False)
-    assert {"summary", "plug_edges", "tracks", "diagram", "result"} <= set(written)
+    assert {"summary", "edges", "tracks", "diagram", "result"} <= set(written)  # the keys of summary.json's outputs
     again = gp.load_result(tmp_path / "run")
     assert_same(result, again)
     assert again.summary == result.summary
