@@ -311,7 +311,11 @@ def _misfit(runs: Runs, track: np.ndarray, time_s: np.ndarray, centre: np.ndarra
 
 
 @dataclass(frozen=True)
-class _State:
+class Replay:
+    """A result's corrections as replayed on its detected tracks: each run's track, the tracks excluded, the
+    time window kept (None: that end of the record), the spans marked as not plugs, why edits were not applied,
+    and the edits applied."""
+
     run_track: np.ndarray
     excluded: frozenset[int]
     window: tuple[float | None, float | None]
@@ -320,7 +324,7 @@ class _State:
     applied: tuple[Edit, ...] = ()
 
 
-def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _State:
+def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> Replay:
     track = links.run_track.astype(np.int64).copy()
     window: tuple[float | None, float | None] = (None, None)
     spans: list[tuple[float, float]] = []
@@ -385,10 +389,10 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> _
             spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
         elif e.action == "clear_no_plugs":
             spans.clear()
-    return _State(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied))
+    return Replay(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied))
 
 
-def _replayed(res: AnalysisResult) -> _State | None:
+def replayed(res: AnalysisResult) -> Replay | None:
     """``res``'s corrections replayed on its detected tracks (None without corrections)."""
     if res.corrections is None:
         return None
@@ -399,20 +403,13 @@ def _replayed(res: AnalysisResult) -> _State | None:
 def applied_edits(res: AnalysisResult) -> tuple[Edit, ...]:
     """The edits of ``res``'s corrections that were applied to it (those that no longer fit it left out: its
     warnings say why)."""
-    st = _replayed(res)
+    st = replayed(res)
     return () if st is None else st.applied
-
-
-def kept_times(res: AnalysisResult) -> tuple[tuple[float | None, float | None], tuple[tuple[float, float], ...]]:
-    """The time window ``res``'s corrections keep (None: that end of the record) and the spans they mark as
-    not plugs, as applied to it."""
-    st = _replayed(res)
-    return ((None, None), ()) if st is None else (st.window, st.spans)
 
 
 def excluded_tracks(res: AnalysisResult) -> frozenset[int]:
     """The tracks of ``res`` its corrections exclude (edits that no longer fit it left out)."""
-    st = _replayed(res)
+    st = replayed(res)
     return frozenset() if st is None else st.excluded
 
 

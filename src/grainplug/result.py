@@ -494,8 +494,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "flow_direction_source": res.flow_direction_source,
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
         "warnings": list(res.warnings),
-        "corrections": [e.describe() for e in _applied_edits(res)],
-        **_kept_times(res),
+        **_corrections_fields(res),
         "corrections_applied": res.corrections.as_dict()["edits"] if res.corrections is not None else [],
         "view_length_mm": _r(float(res.diagram.position_mm[-1] + 0.5 * res.mm_per_px), 4),
         "illumination": {
@@ -509,30 +508,26 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
     }
 
 
-def _kept_times(res: AnalysisResult) -> dict[str, object]:
-    """The times the measures use: the record, or what its corrections keep of it (``kept_window_s``,
-    ``not_plugs_s``)."""
+def _corrections_fields(res: AnalysisResult) -> dict[str, object]:
+    """The edits applied, in words, and the times the measures use: the record, or what its corrections keep
+    of it (``kept_window_s``, ``not_plugs_s``); the corrections replayed once."""
     t0, t1 = float(res.diagram.time_s[0]), float(res.diagram.time_s[-1])
     if res.corrections is None:
-        return {"kept_window_s": [_r(t0, 6), _r(t1, 6)], "not_plugs_s": []}
-    from .corrections import kept_times
+        return {"corrections": [], "kept_window_s": [_r(t0, 6), _r(t1, 6)], "not_plugs_s": []}
+    from .corrections import replayed  # imported here: only a corrected result needs the replay
 
-    (lo, hi), spans = kept_times(res)
+    st = replayed(res)
+    lo, hi = st.window
     lo = t0 if lo is None else max(lo, t0)
     hi = t1 if hi is None else min(hi, t1)
     window = [_r(lo, 6), _r(hi, 6)] if lo <= hi else None  # None: the window holds none of the record
     merged: list[list[float]] = []  # the spans within the record, overlaps joined
-    for a, b in sorted((max(a, t0), min(b, t1)) for a, b in spans):
+    for a, b in sorted((max(a, t0), min(b, t1)) for a, b in st.spans):
         if a > b:
             continue
         if merged and a <= merged[-1][1]:
             merged[-1][1] = max(merged[-1][1], b)
         else:
             merged.append([a, b])
-    return {"kept_window_s": window, "not_plugs_s": [[_r(a, 6), _r(b, 6)] for a, b in merged]}
-
-
-def _applied_edits(res: AnalysisResult) -> tuple:
-    from .corrections import applied_edits  # imported here: only a corrected result needs the replay
-
-    return applied_edits(res)
+    return {"corrections": [e.describe() for e in st.applied], "kept_window_s": window,
+            "not_plugs_s": [[_r(a, 6), _r(b, 6)] for a, b in merged]}

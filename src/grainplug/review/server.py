@@ -40,7 +40,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from .._atomic import atomic_file
-from ..corrections import CORRECTIONS_FILE, Corrections, apply_corrections, excluded_tracks, kept_times
+from ..corrections import CORRECTIONS_FILE, Corrections, apply_corrections, replayed
 from ..errors import GrainplugError, ParameterError
 from ..jsonio import dumps
 from ..result import AnalysisResult
@@ -140,8 +140,8 @@ class ReviewSession:
         from ..result import track_rows
 
         s = res.summary
-        excluded = excluded_tracks(res)
-        window, spans = kept_times(res)
+        st = replayed(res)  # what the corrections exclude and keep, as applied
+        excluded, window, spans = (frozenset(), (None, None), ()) if st is None else (st.excluded, st.window, st.spans)
         detected_links = res.detected[1] if res.detected is not None else res.links
         rows = [{k: None if isinstance(v, float) and not np.isfinite(v) else v for k, v in r.items()}
                 for r in track_rows(res)]
