@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
     from .corrections import Corrections
-    from .outputs import FigureOptions
+    from .plotting.options import FigureOptions
     from .plotting.worker import FigureWorker
 
 CONVENTIONS = ("positions in mm along the tube from the upstream end of the view, increasing "

@@ -85,7 +85,7 @@ def _roi_option(text: str | None) -> tuple[int, int, int, int] | None:
 
 def _figure_options(dpi: int | None, formats: str | None, publication: bool, style: str | None):
     """``FigureOptions`` of the figure flags (checked before the analysis)."""
-    from ..outputs import PUBLICATION, FigureOptions
+    from ..plotting.options import PUBLICATION, FigureOptions
 
     if publication and formats:
         raise ParameterError("give either --publication (PNG, SVG and PDF) or --figure-formats, not both")
@@ -268,8 +268,6 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
             figure_formats: str | None, publication: bool, style: str | None, overwrite: bool,
             as_json: bool) -> None:
     """Find the plugs in MOVIE and measure their celerity, length and oscillation."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
     from .._atomic import check_output_place
     from ..params import AnalysisParams
     from ..plotting.worker import FigureWorker
@@ -307,9 +305,11 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_,
                             allow_truncated=allow_truncated, calibration=cal, background=light, roi=roi_px,
                             **_window_params(start, end))
-    # the figures' worker starts now, before the analysis' own imports: it imports matplotlib
-    # while the tube is found and the frames stream
+    # the figures' worker starts now, before the analysis' own imports (numpy among them): it imports
+    # matplotlib while they load, the tube is found and the frames stream
     with FigureWorker(figure_options.formats) if not no_figures else contextlib.nullcontext() as figure_worker:
+        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
         from ..pipeline import analyze as run_analysis
 
         with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),

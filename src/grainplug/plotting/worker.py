@@ -33,8 +33,8 @@ from types import TracebackType
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from ..outputs import FigureOptions
     from ..result import AnalysisResult
+    from .options import FigureOptions
 
 log = logging.getLogger(__name__)
 
