@@ -124,6 +124,24 @@ def test_a_short_record_has_its_time_axis_in_ms(result):
         assert ax.get_xlim()[1] == res.diagram.time_s[-1]
 
 
+def test_the_diagram_legend_covers_no_data(result):
+    """The diagram's own figure keeps its legend between the axes and the title (inside the axes it hid plug
+    edges), with the title above it and both inside the figure."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from grainplug.plotting.figures import plot_diagram
+
+    fig = plot_diagram(result)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    ax = fig.axes[0]
+    axes_box = ax.get_window_extent(renderer)
+    legend = ax.get_legend().get_window_extent(renderer)
+    title = ax.title.get_window_extent(renderer)
+    assert legend.y0 >= axes_box.y1 - 1e-6
+    assert title.y0 >= legend.y1 - 1e-6
+    assert title.y1 <= fig.bbox.y1 and legend.x0 >= 0 and legend.x1 <= fig.bbox.x1
+
+
 def test_the_report_shows_figures_written_as_svg_only(result, tmp_path):
     """Figures in SVG only: the report shows them (it said "No figures were drawn"); in PDF only, it links them."""
     from grainplug.outputs import FigureOptions

@@ -128,7 +128,12 @@ class AnalysisResult:
     # -- figures --------------------------------------------------------------
     @property
     def summary(self) -> dict[str, object]:
-        """The figures of ``summary.json`` (JSON-ready, with provenance)."""
+        """The figures of ``summary.json`` (JSON-ready, with provenance).
+
+        What the result knows: ``summary.json`` also lists the files written (``outputs``)
+        and the figure settings (``figures``), which a result does not keep; read that file
+        for them.
+        """
         return build_summary(self)
 
     @property

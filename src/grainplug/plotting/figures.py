@@ -34,7 +34,8 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
     if ax is None:
         # fixed margins (this layout never changes): a layout engine would double the drawing time
         fig, ax = new_figure(figsize=(9, 5.5))
-        fig.subplots_adjust(left=0.075, right=0.9, bottom=0.09, top=0.94)
+        # room above the axes for the title and, under it, the legend (inside, it hid edges)
+        fig.subplots_adjust(left=0.075, right=0.9, bottom=0.09, top=0.9)
     else:
         fig = ax.figure
     t, s = d.time_s, d.position_mm
@@ -46,7 +47,7 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
     im = ax.imshow(d.values[::step_t, ::step_s].T, aspect="auto", cmap="gray", origin="upper",
                    interpolation="none", interpolation_stage="data", extent=(t[0], t[-1], s[-1], s[0]))
     if own_figure:  # a colour bar in someone else's axes would take their space
-        cbar = fig.colorbar(im, cax=fig.add_axes((0.91, 0.09, 0.012, 0.85)))
+        cbar = fig.colorbar(im, cax=fig.add_axes((0.91, 0.09, 0.012, 0.81)))
         cbar.set_label("grey level (camera units)", fontsize=pt(8))
         cbar.ax.tick_params(labelsize=pt(7))
     runs = res.runs
@@ -90,9 +91,14 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
         ax.set_xlabel("time t (s)")
     ax.set_ylabel(f"position z along the tube (mm; flow {res.flow_direction} in the image)" if own_figure
                   else "position z (mm)")
-    ax.set_title(title, fontsize=pt(10))
-    if len(runs):
-        ax.legend(loc="upper right", fontsize=pt(7), framealpha=0.8)
+    if len(runs) and own_figure:  # one row between the axes and the title, over no data
+        ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=3, fontsize=pt(7), frameon=False,
+                  borderaxespad=0.15, handletextpad=0.4, columnspacing=1.6)
+        ax.set_title(title, fontsize=pt(10), pad=pt(7) * 2 + 6)
+    else:  # a panel of someone else's figure keeps its own space: the legend inside
+        ax.set_title(title, fontsize=pt(10))
+        if len(runs):
+            ax.legend(loc="upper right", fontsize=pt(7), framealpha=0.8)
     return fig
 
 
