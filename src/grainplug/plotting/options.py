@@ -29,7 +29,8 @@ class FigureOptions:
         ``"png"``, ``"svg"``, ``"pdf"``: each figure in each format (vector for journals).
     style : str, optional
         A matplotlib style sheet (a name such as ``"seaborn-v0_8-paper"`` or a ``.mplstyle`` file)
-        applied to every figure.
+        applied to every figure: fonts (text sizes scale with its ``font.size``), colours, line
+        widths. Each figure keeps its own size and layout (a sheet's ``figure.figsize`` is not used).
 
     Notes
     -----
