@@ -145,12 +145,30 @@ def test_manifest_formats_agree(campaign_dir):
 
 @pytest.mark.parametrize("content,word", [("movie,fps\n,250\n", "movie"), ("a,b\n1,2\n", "movie"),
                                           ("movie,fps\nx.avi,fast\n", "fps"), ("movie\n", "no runs"),
-                                          ("run,movie\nx,a.avi\nx,b.avi\n", "repeat")])
+                                          ("run,movie\nx,a.avi\nx,b.avi\n", "repeat"),
+                                          ("movie,mm_per_pix\na.avi,0.185\n", "did you mean 'mm_per_px'"),
+                                          ("movie,Tube_Diameter_mm\na.avi,3\n", "did you mean 'tube_diameter_mm'"),
+                                          ('movie,roi\na.avi,"0,0,64"\n', "four pixel numbers"),
+                                          ("movie,allow_truncated\na.avi,maybe\n", "true or false")])
 def test_bad_manifests(tmp_path, content, word):
     p = tmp_path / "m.csv"
     p.write_text(content)
     with pytest.raises(ParameterError, match=word):
         read_manifest(p)
+
+
+def test_every_analysis_setting_is_a_manifest_column(tmp_path):
+    """roi, allow_truncated and the detection thresholds reach the run's parameters (roi was kept as metadata, the
+    run analysed on the whole frame), in CSV and in TOML; a column of one's own notes stays metadata."""
+    (tmp_path / "m.csv").write_text('movie,roi,allow_truncated,min_gap_mm,sample_frames,operator\n'
+                                    'a.tif,"0,0,64,640",yes,0.8,16,lab-3\n')
+    (tmp_path / "m.toml").write_text('[defaults]\nallow_truncated = true\n[[run]]\nmovie = "a.tif"\n'
+                                     'roi = [0, 0, 64, 640]\nmin_gap_mm = 0.8\nsample_frames = 16\noperator = "lab-3"\n')
+    for name in ("m.csv", "m.toml"):
+        [spec] = read_manifest(tmp_path / name)
+        p = spec.params
+        assert (p.roi, p.allow_truncated, p.min_gap_mm, p.sample_frames) == ((0, 0, 64, 640), True, 0.8, 16)
+        assert spec.meta == {"operator": "lab-3"}
 
 
 def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):

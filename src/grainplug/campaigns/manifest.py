@@ -18,11 +18,18 @@ Columns (CSV header, or keys of each ``[[run]]`` table in TOML; a TOML
 ``flow_direction``             down, up, left or right
 ``glob``                       for image folders
 ``start_frame``, ``end_frame``  analyse these frames only (or ``start_s``, ``end_s`` in seconds)
+``roi``                        analyse this rectangle only: ``x0,y0,x1,y1`` in pixels (one tube of
+                               several)
+``min_plug_mm``, ``min_gap_mm``  shortest plug and gap counted (3 and 0.6 mm)
+``sample_frames``              frames sampled to find the tube (32)
+``allow_truncated``            true: analyse a camera file that ends early
 ``mass_flow_rate_g_s``         mass flow rate
 ``humidity_pct``               relative humidity
 ``surface``                    grain surface state (e.g. rough, smooth)
 ``group``                      grouping for the fits (default: regime/surface)
-anything else                  kept as metadata in the campaign table
+anything else                  kept as metadata in the campaign table, unless its name is
+                               that of a column above misspelt (``mm_per_pix``): refused, as
+                               the run would be analysed without it
 ============================  =========================================================
 """
 
@@ -41,10 +48,39 @@ if TYPE_CHECKING:
     from ..calibration.background import Background
     from ..calibration.pattern import Calibration
 
+
+
+def yes_or_no(value: object) -> bool:
+    """``true``/``false`` (TOML), or ``true``, ``yes``, ``1``, ``false``, ``no``, ``0`` (CSV)."""
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in ("true", "yes", "1"):
+        return True
+    if text in ("false", "no", "0"):
+        return False
+    raise ValueError("is not true or false")
+
+
+def pixel_box(value: object) -> tuple[int, ...]:
+    """``x0,y0,x1,y1`` (CSV, quoted) or a list of four numbers (TOML)."""
+    parts = value if isinstance(value, list | tuple) else str(value).replace(";", ",").split(",")
+    try:
+        box = tuple(int(str(v).strip()) for v in parts)
+    except ValueError:
+        box = ()
+    if len(box) != 4:
+        raise ValueError("is not four pixel numbers x0,y0,x1,y1 (quote them in CSV: \"40,0,120,1024\")")
+    return box
+
+
 ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "tube_outer_diameter_mm": float,
                  "glass_index": float, "flow_direction": str, "glob": str, "min_plug_mm": float,
+                 "min_gap_mm": float, "sample_frames": int, "allow_truncated": yes_or_no, "roi": pixel_box,
                  "start_frame": int, "end_frame": int, "start_s": float, "end_s": float}
 KNOWN_META = {"mass_flow_rate_g_s": float, "humidity_pct": float, "surface": str, "group": str}
+#: the columns with a meaning (the others are metadata)
+KNOWN_COLUMNS = (*ANALYSIS_KEYS, *KNOWN_META, "run", "movie", "calibration", "background")
 
 
 @dataclass(frozen=True)
@@ -68,11 +104,28 @@ def _convert(key: str, value: object, kinds: dict[str, type], where: str) -> obj
     kind = kinds[key]
     try:
         return kind(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{where}, column {key}: {value!r} is not a {kind.__name__}") from None
+    except (TypeError, ValueError) as exc:
+        what = exc.args[0] if kind in (yes_or_no, pixel_box) else f"is not a {kind.__name__}"
+        raise ParameterError(f"{where}, column {key}: {value!r} {what}") from None
+
+
+def _misspelt(columns: object, where: str) -> None:
+    """Refuse a column whose name is a known column's misspelt (``mm_per_pix``): as metadata, the run would be
+    analysed without the setting it meant."""
+    import difflib
+
+    for column in columns:  # type: ignore[attr-defined]
+        if column is None or column in KNOWN_COLUMNS:
+            continue
+        name = str(column).strip().lower().replace("-", "_").replace(" ", "_")
+        close = [name] if name in KNOWN_COLUMNS else difflib.get_close_matches(name, KNOWN_COLUMNS, n=1, cutoff=0.8)
+        if close:
+            raise ParameterError(f"{where}: column {column!r} is not one grainplug knows — did you mean "
+                                 f"{close[0]!r}? (a column of your own notes needs a name of its own)")
 
 
 def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec:
+    _misspelt(row, where)
     if not row.get("movie"):
         raise ParameterError(f"{where}: no movie given — every run needs a 'movie' path")
     if None in row:
@@ -100,7 +153,7 @@ def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec
         raise ParameterError(f"{where}{column}: {exc.message}") from None
     meta: dict[str, object] = {}
     for k, v in row.items():
-        if k in ANALYSIS_KEYS or k in ("run", "movie", "calibration", "background"):
+        if k in KNOWN_COLUMNS and k not in KNOWN_META:
             continue
         meta[k] = _convert(k, v, KNOWN_META, where) if k in KNOWN_META else v
     return RunSpec(run, movie, params, meta)
