@@ -364,6 +364,23 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     click.echo(f"outputs in      {out}")
 
 
+#: the most run warnings ``batch`` prints; the rest are counted, and all are in campaign.csv and the report
+MAX_RUN_WARNINGS = 20
+
+
+def _print_run_warnings(table, out: Path) -> None:
+    """Each run's warnings, as ``analyze`` prints them (``warning: run X: ...``), at most
+    :data:`MAX_RUN_WARNINGS` lines."""
+    lines = [(str(row.run), w) for row in table.itertuples()
+             if isinstance(getattr(row, "warnings", None), str) for w in row.warnings.split(" | ") if w]
+    for run, w in lines[:MAX_RUN_WARNINGS]:
+        err_console.print(f"[yellow]warning:[/] run {escape(run)}: {escape(w)}", highlight=False, soft_wrap=True)
+    if len(lines) > MAX_RUN_WARNINGS:
+        err_console.print(f"[yellow]warning:[/] {len(lines) - MAX_RUN_WARNINGS} more run warnings: see the warnings "
+                          f"column of {escape(str(out / 'campaign.csv'))} and the report", highlight=False,
+                          soft_wrap=True)
+
+
 def _window_params(start: tuple[str, float] | None, end: tuple[str, float] | None) -> dict[str, float | int]:
     """``--start/--end`` as :class:`AnalysisParams` fields (``start_frame`` or ``start_s``...)."""
     out: dict[str, float | int] = {}
@@ -914,6 +931,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused)
         from ..campaigns.batch import ALL_RUNS, fit_selection
 
+        _print_run_warnings(t, out)
         for run, why in fit_selection(t)[1].items():
             if run == ALL_RUNS or not why.endswith("no plugs measured"):
                 err_console.print(f"[yellow]warning:[/] {escape(f'run {run}' if run else 'fits')}: {escape(why)}",
