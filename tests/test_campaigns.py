@@ -367,3 +367,14 @@ def test_a_line_through_two_runs_claims_no_fit_quality():
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert any("line through 2 runs" in s for s in labels)
     assert not any("R²" in s or ("band" in s and "no band" not in s) for s in labels)
+
+
+def test_one_run_has_no_spread_to_state():
+    """A group of one run states its length, not a spread: sd and interval are null (they read 0 and
+    [L, L], an exactness no single run has); two runs give finite ones."""
+    from grainplug.campaigns import summarize_lengths
+
+    one = summarize_lengths(np.array([0.5]), np.array([33.36]), diameter_mm=3.0).as_dict()
+    assert (one["mean_mm"], one["n"], one["sd_mm"], one["ci95_mm"]) == (33.36, 1, None, None)
+    two = summarize_lengths(np.array([0.5, 0.6]), np.array([30.0, 34.0]), diameter_mm=3.0).as_dict()
+    assert two["sd_mm"] > 0 and two["ci95_mm"][0] < 32.0 < two["ci95_mm"][1]

@@ -89,15 +89,16 @@ class LengthSummary:
     """Plug lengths of a group: mean, spread, lambda/D and the trend with mass flow rate."""
 
     mean_mm: float
-    sd_mm: float
+    sd_mm: float  # NaN for one run (null in fits.json)
     n: int
     mean_over_diameter: float
-    ci95_mm: tuple[float, float]
+    ci95_mm: tuple[float, float]  # NaN for one run (null in fits.json)
     trend: LinearFit | None
 
     def as_dict(self) -> dict[str, object]:
-        d = {"mean_mm": self.mean_mm, "sd_mm": self.sd_mm, "n": self.n,
-             "mean_over_diameter": self.mean_over_diameter, "ci95_mm": list(self.ci95_mm)}
+        spread = self.n > 1  # one run has no spread: null, not a zero-width interval
+        d = {"mean_mm": self.mean_mm, "sd_mm": self.sd_mm if spread else None, "n": self.n,
+             "mean_over_diameter": self.mean_over_diameter, "ci95_mm": list(self.ci95_mm) if spread else None}
         if self.trend is not None:
             d["trend_vs_mass_flow"] = self.trend.as_dict("g_s", "mm")
             d["trend_slope_p_value"] = slope_p_value(self.trend)
@@ -121,7 +122,7 @@ def summarize_lengths(mass_flow_g_s: np.ndarray, length_mm: np.ndarray, *,
     L = L[ok]
     n = len(L)
     m = float(L.mean())
-    sd = float(L.std(ddof=1)) if n > 1 else 0.0
-    half = float(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n)) if n > 1 else 0.0
+    sd = float(L.std(ddof=1)) if n > 1 else math.nan  # one run: no spread to state
+    half = float(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n)) if n > 1 else math.nan
     trend = fit_line(np.asarray(mass_flow_g_s, float)[ok], L)
     return LengthSummary(m, sd, n, m / diameter_mm, (m - half, m + half), trend)

@@ -217,7 +217,8 @@ def reproduction_text(rep: PaperReproduction) -> str:
                      f"{f.intercept_stderr:.4f} | {f.r2:.3f} | {f.n} |")
     lines += ["", "## Plug lengths", "", "| group | mean (mm) | sd (mm) | λ/D | n |", "| --- | --- | --- | --- | --- |"]
     for g, ld in rep.lengths.items():
-        lines.append(f"| {g} | {ld['mean_mm']:.2f} | {ld['sd_mm']:.2f} | {ld['mean_over_diameter']:.2f} | {ld['n']} |")
+        sd = "—" if ld["sd_mm"] is None else f"{ld['sd_mm']:.2f}"  # one run: no spread
+        lines.append(f"| {g} | {ld['mean_mm']:.2f} | {sd} | {ld['mean_over_diameter']:.2f} | {ld['n']} |")
     agree = [c for c in rep.checks if c.agrees]
     disagree = [c for c in rep.checks if not c.agrees]
     lines += ["", f"## Where the reproduction agrees ({len(agree)})", ""]
