@@ -163,3 +163,14 @@ def test_a_still_object_is_not_given_a_direction(tmp_path, capsys):
     assert lo <= 0 <= hi and summary["regime"] == "static"
     assert "regime          static  (the plugs did not move by a pixel" in stdout and "0.0000 m/s" not in stdout
     assert "Static: the plugs did not move by a pixel over the record" in (out / "report.html").read_text()
+
+
+def test_a_record_with_only_lower_edges_followed_says_why_it_has_no_celerity():
+    """cine_781 follows one plug by its lower edge alone: tracks.csv gives that track's celerity, and the
+    statement says the celerity needs upper edges (it said no edge could be followed at all)."""
+    import grainplug as gp
+
+    res = gp.analyze(SAMPLES / "pims/cine_781.cine")
+    assert res.celerity_m_s is None and "no upper edge was followed" in res.statement
+    tracks = res.tracks
+    assert len(tracks) and tracks.celerity_m_s.notna().any()

@@ -50,6 +50,7 @@ import numpy as np
 
 from .errors import ParameterError
 from .measures import measure_lengths, measure_motion
+from .measures.motion import NO_FOLLOWED_EDGE
 from .plugs import Runs, Tracks
 
 if TYPE_CHECKING:
@@ -494,7 +495,7 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
         motion = measure_motion(res.diagram.time_s, new_runs.top_mm, new_links.run_track, new_runs.frame,
                                 fps=res.info.fps, mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd)
         lengths = measure_lengths(new_runs, new_links, scale_rel_sd=res.scale_rel_sd)
-        statement = "" if motion is not None else "plugs were seen but no plug edge could be followed over time"
+        statement = "" if motion is not None else NO_FOLLOWED_EDGE
     elif detected_plugs:
         statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
     unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)

@@ -35,6 +35,7 @@ from .diagram.frames import repair_frames
 from .errors import ParameterError, non_finite_frames
 from .measures import Lengths, Motion, measure_lengths, measure_motion
 from .measures.grains import GrainMotion, falling_grains
+from .measures.motion import NO_FOLLOWED_EDGE
 from .params import AnalysisParams, opposite, runs_backwards, tube_orientation
 from .plugs import Runs, Tracks, find_runs, link, plug_mask
 from .readers import Movie, MovieInfo, as_movie
@@ -591,7 +592,7 @@ def _measures(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, bac
         motion = measure_motion(diagram.time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
                                 mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
         lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd)
-    statement = "" if motion is not None else "plugs were seen but no plug edge could be followed over time"
+    statement = "" if motion is not None else NO_FOLLOWED_EDGE
     return motion, lengths, statement
 
 

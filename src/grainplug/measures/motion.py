@@ -218,6 +218,12 @@ def _spectrum(x: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
     return np.fft.rfftfreq(nfft, 1 / fps), spec
 
 
+#: why a result with plugs has no celerity
+NO_FOLLOWED_EDGE = ("plugs were seen, but no upper edge was followed over 3 frames or more: the celerity is "
+                    "measured from the upper edges, so none is given (tracks.csv gives each track's own, from "
+                    "the edge it has)")
+
+
 def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, frame: np.ndarray,
                    *, fps: float, mm_per_px: float, scale_rel_sd: float = 0.0,
                    min_track_edges: int = 3) -> Motion | None:
