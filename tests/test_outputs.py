@@ -226,3 +226,19 @@ def test_figure_options_recorded_and_given_as_paths(tmp_path):
     sheet.write_text("font.size: 7\n")
     given = FigureOptions(style=Path(sheet))
     assert given.as_record()["style"] == str(sheet) and FigureOptions.recorded({"figures": given.as_record()}) == given
+
+
+def test_the_report_rounds_lambda_over_d_as_it_rounds_lambda(result, tmp_path):
+    """A plug length known to ±40 mm reads "30 (0 to 80)": its λ/D beside it is rounded alike, not 11.12."""
+    import dataclasses
+    import html
+    import re
+
+    L = result.lengths.plug_length_mm
+    wide = dataclasses.replace(result.lengths, plug_length_ci95_mm=(0.0, 2.3 * L))
+    write_outputs(dataclasses.replace(result, lengths=wide), tmp_path / "r", figures=False)
+    page = html.unescape((tmp_path / "r" / "report.html").read_text())
+    ratio = re.search(r"λ/D = ([^,]+),", page).group(1)
+    D = result.params.tube_diameter_mm
+    value = ratio.split(" (")[0]
+    assert " to " in ratio and value.isdigit() and abs(int(value) - L / D) <= 0.5, ratio

@@ -165,7 +165,9 @@ def _cards(res: AnalysisResult) -> str:
     if ln is not None and ln.plug_length_mm is not None:
         ci = ln.plug_length_ci95_mm or (None, None)
         cards.append(("plug length λ (mm)", with_uncertainty(ln.plug_length_mm, *ci),
-                      f"λ/D = {number(ln.plug_length_mm / D, 2)}, {ln.n_plugs_measured} plugs"))
+                      # rounded to its interval as λ is: "30 (0 to 80)" beside λ/D = 11.12 read as a contradiction
+                      f"λ/D = {with_uncertainty(ln.plug_length_mm, *ci, scale=1 / D)}, "
+                      f"{ln.n_plugs_measured} plugs"))
     if ln is not None and ln.bubble_length_mm is not None:
         ci = ln.bubble_length_ci95_mm or (None, None)
         cards.append(("bubble length (mm)", with_uncertainty(ln.bubble_length_mm, *ci),
