@@ -114,6 +114,12 @@ def test_seq_rate_is_the_time_stamps_with_a_warning_on_the_header():
     assert 29.0 < info.fps < 31.0 and info.fps_note.startswith("time stamps")
     assert info.details["suggested_fps"] == 10.0
     assert any("header suggests 10 fps" in w for w in info.warnings)
+    # given a rate, the file's stamps-or-header choice is not made: one warning (given against recorded), not
+    # a second one saying the stamps are used
+    with open_movie(SAMPLES / "pims/sample_norpix6.seq", fps=10) as movie:
+        info = movie.info
+    assert info.fps == 10 and [w for w in info.warnings if "fps" in w] == [
+        w for w in info.warnings if w.startswith("the frame rate given (10 fps)")]
 
 
 @pytest.mark.parametrize(("name", "fps", "note"), [

@@ -219,6 +219,8 @@ def _describe(path: Path, *, fps: float | None, allow_truncated: bool) -> tuple[
     real_bpp = int(setup.get("RealBPP", 0) or 0)
     depth = real_bpp if stored_bits == 16 and 8 < real_bpp <= 16 else stored_bits  # RealBPP: bits the sensor gave
     rate, rate_note, record, warnings_, stamp_facts = _frame_rate(setup, stamps, n)
+    if fps is not None:  # the user chose the rate: the stamps-or-header choice is not made (choose_fps says so)
+        warnings_ = [w for w in warnings_ if not w.endswith(STAMPS_OVER_HEADER)]
     if truncated:
         warnings_.insert(0, truncated)
     use_fps, source, fps_doubts = choose_fps(fps, rate)
@@ -304,8 +306,12 @@ def _frame_rate(setup: dict[str, object], stamps: np.ndarray | None,
         return nominal, note, record if decimation > 1 else None, warnings_, facts
     if nominal:
         warnings_.append(f"the frame time stamps say {stamp_fps:.6g} fps but the header says {nominal:g} fps — "
-                         "using the time stamps; pass --fps if the header is right")
+                         + STAMPS_OVER_HEADER)
     return stamp_fps, f"time stamps ({stamp_fps:.6g} fps)", record if decimation > 1 else None, warnings_, facts
+
+
+#: the end of a warning that the file's stamps were preferred to its header's rate
+STAMPS_OVER_HEADER = "using the time stamps; pass --fps if the header is right"
 
 
 def frames_named(indices: list[int]) -> str:

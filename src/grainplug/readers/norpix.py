@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import MovieError
 from .base import MovieInfo, choose_fps, map_file
-from .cine import frames_named, stamp_rate
+from .cine import STAMPS_OVER_HEADER, frames_named, stamp_rate
 from .raw import RawFramesMovie, RawLayout
 
 MAGIC = 0xFEED
@@ -92,9 +92,9 @@ class SeqMovie(RawFramesMovie):
         warnings_ = [truncated] if truncated else []
         rate, note = (stamp_fps, f"time stamps ({stamp_fps:.6g} fps)") if stamp_fps else (
             (suggested, "header's suggested rate") if suggested > 0 else (None, ""))
-        if stamp_fps and suggested > 0 and abs(stamp_fps / suggested - 1) > 0.01:
+        if fps is None and stamp_fps and suggested > 0 and abs(stamp_fps / suggested - 1) > 0.01:
             warnings_.append(f"the frame time stamps say {stamp_fps:.4g} fps but the header suggests {suggested:g} fps "
-                             "— using the time stamps; pass --fps if the header is right")
+                             "— " + STAMPS_OVER_HEADER)
         if bad:
             warnings_.append(f"{frames_named(bad)} out of step with the others — frames may have been dropped "
                              "while recording")
