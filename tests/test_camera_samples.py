@@ -155,6 +155,8 @@ def test_info_tells_the_truth_on_the_command_line(capsys):
     assert main(["info", "--json", str(SAMPLES / "pims/sample_norpix6.seq")]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["colour"] == "grey" and any("header suggests 10 fps" in w for w in d["warnings"])
+    # its stamps give the rate; the frames are timed index / fps (the key said "timestamps_in_file": false)
+    assert d["fps_note"].startswith("time stamps") and d["frame_times"] == "frame index / fps"
 
 
 def test_a_still_object_is_not_given_a_direction(tmp_path, capsys):

@@ -116,3 +116,11 @@ def test_ctrl_c_inside_compiled_code_is_an_interruption(monkeypatch, tmp_path, c
     monkeypatch.setattr(paper, "reproduce", interrupted)
     assert main(["paper", "--out", str(tmp_path / "p")]) == 130
     assert capsys.readouterr().err.strip() == "error: interrupted"
+
+
+def test_a_high_speed_clips_duration_keeps_its_digits():
+    """0.5 ms of a 30 000 fps clip read "0.001 s" (three fixed decimals): four significant digits now."""
+    from grainplug._format import duration
+
+    assert duration(15 / 30000) == "0.0005 s" and duration(15 / 9000) == "0.001667 s"
+    assert duration(2.35) == "2.35 s" and duration(123456.0) == "123456 s"

@@ -7,3 +7,9 @@ def signed(value: float, decimals: int) -> str:
     """``value`` with its sign and ``decimals`` decimals; one that rounds to zero has no sign (not ``-0.0000``)."""
     text = f"{value:+.{decimals}f}"
     return text[1:] if float(text) == 0.0 else text
+
+
+def duration(seconds: float) -> str:
+    """A record's duration to four significant digits: ``0.0005 s`` (a high-speed clip), ``2.35 s``, ``1235 s``
+    (fixed decimals read 0.5 ms as 0.001 s)."""
+    return f"{seconds:.4g} s" if abs(seconds) < 1e4 else f"{seconds:.0f} s"

@@ -129,13 +129,16 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
         # decode the last frame: a file that cannot deliver it is reported now
         last = m.read(m.info.n_frames - 1)
         d["last_frame_shape"] = list(last.shape)
-        d["timestamps_in_file"] = m.has_file_timestamps
+        # how an analysis times the frames (a camera file's stamps, when it has them, give its rate: fps_note)
+        d["frame_times"] = "the file's time stamps" if m.has_file_timestamps else "frame index / fps"
     if as_json:
         _echo_json(d)
         return
     how = f": {d['fps_note']}" if d.get("fps_note") else ""
     fps_txt = f"{d['fps']:.6g} fps ({d['fps_source']}{how})" if d["fps"] else "unknown (pass --fps)"
-    dur = f"{d['duration_s']:.3f} s" if d["duration_s"] is not None else "unknown"
+    from .._format import duration
+
+    dur = duration(d["duration_s"]) if d["duration_s"] is not None else "unknown"
     kind = "grey" if d["channels"] == 1 else "RGB"
     click.echo(f"movie      {d['path']}")
     click.echo(f"format     {d['format']}")

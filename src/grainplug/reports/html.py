@@ -9,6 +9,8 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .._format import duration
+
 if TYPE_CHECKING:
     from ..result import AnalysisResult
 
@@ -222,7 +224,7 @@ def _details(res: AnalysisResult, s: dict) -> str:
         ("scale", f"{number(res.mm_per_px, 5)} mm/px ± {number(100 * res.scale_rel_sd, 2)} %"),
         ("scale from", res.scale_source),
         ("frames", f"{s['n_frames']} at {number(res.info.fps, 6 if res.info.fps % 1 else 0)} fps "
-                   f"({number(s['duration_s'], 3)} s)" + _kept_note(res, s)),
+                   f"({'—' if s['duration_s'] is None else duration(s['duration_s'])})" + _kept_note(res, s)),
         ("tube", f"{number(D, 2)} mm bore = {number(s['tube_diameter_px'], 2)} px, "
                  f"{res.tube.orientation}, tilt {number(res.tube.tilt_deg, 2)}°"),
         ("flow", f"{res.flow_direction} in the image ({res.flow_direction_source})"),
