@@ -380,3 +380,26 @@ def test_jamming_pressure_switch():
     assert any("Johnson & Jackson" in c for c in on.caveats())
     with pytest.raises(ParameterError, match="c_max"):
         ModelParams(jamming=True, c0=0.66)
+
+
+def test_a_largest_growth_at_the_end_of_the_range_is_not_called_most_unstable(capsys):
+    """Growth still rising at k_max (Coulomb friction following the weight) or at k_min (frozen friction at
+    atmospheric pressure) was reported as "most unstable" with the range's end as its wavelength; it is flagged,
+    with a warning, and a wider range finds the interior maximum (k* = 0.00029, as docs/stability.md says)."""
+    from grainplug.cli import main
+
+    short = analyze_stability(ModelParams(friction_law="coulomb-weight")).most_unstable
+    assert short.at_range_edge == "k_max" and short.k == pytest.approx(3.0)
+    atm = ModelParams(variant="frozen-friction", base_pressure_pa=101_325.0)
+    res = analyze_stability(atm)
+    assert res.most_unstable.at_range_edge == "k_min" and "--k-min" in res.warnings[0]
+    wide = analyze_stability(atm, k_min=1e-5).most_unstable
+    assert wide.at_range_edge is None and wide.k == pytest.approx(2.9e-4, rel=0.02)
+    frozen = analyze_stability(ModelParams(variant="frozen-friction"))
+    assert frozen.most_unstable.at_range_edge is None and frozen.warnings == []
+    # the edge is judged on the refined maximum: an interior one between the first two grid points is the model's
+    coarse = analyze_stability(atm, k=np.linspace(1e-5, 3.0, 50)).most_unstable
+    assert coarse.at_range_edge is None
+    assert main(["stability", "--friction-law", "coulomb-weight"]) == 0
+    out, err = capsys.readouterr()
+    assert "largest in range" in out and "most unstable" not in out and "warning: the growth rate is largest" in err

@@ -506,6 +506,8 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
         _save_figure(fig, plot)
         plt.close(fig)
     if as_json:
+        for line in res.warnings:
+            err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
         _echo_json({"grainplug_version": __version__, **res.as_dict()})
         return
     m = res.most_unstable
@@ -527,13 +529,17 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
             click.echo("note               the printed model does not give the paper's long-wave instability "
                        "(k* ~ 0.2, cut-off ~ 0.6); --variant frozen-friction does — see docs/stability.md")
     else:
-        click.echo(f"most unstable      k* = {m.k:.5f}  growth rate {m.growth_rate:.5f}/t_c "
+        label = "most unstable     " if m.at_range_edge is None else "largest in range  "
+        click.echo(f"{label} k* = {m.k:.5f}  growth rate {m.growth_rate:.5f}/t_c "
                    f"({m.growth_rate / p.t_c_s:.3g}/s)  phase speed {m.phase_speed:+.4f} v_c "
-                   f"({m.phase_speed * p.v_c_m_s:+.3f} m/s)  lambda/D = {m.wavelength_over_diameter:.3f}")
+                   f"({m.phase_speed * p.v_c_m_s:+.3f} m/s)  lambda/D = {m.wavelength_over_diameter:.3f}"
+                   + ("" if m.at_range_edge is None else f"  (at {m.at_range_edge}: no maximum inside the range)"))
     for kc in res.cutoff_k:
         click.echo(f"cut-off            k* = {kc:.5f}  lambda/D = {2 * 3.141592653589793 / kc:.3f}")
     if plot is not None:
         click.echo(f"figure             {plot}")
+    for line in res.warnings:
+        err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
 
 
 @cli.command()
@@ -628,7 +634,9 @@ def simulation_lines(summary: dict) -> list[str]:
     if lin["most_unstable_lambda_D"] is None:
         out.append("linear theory      stable: no wavelength grows")
     else:
-        out.append(f"linear theory      most unstable lambda/D = {lin['most_unstable_lambda_D']:.1f}, growth "
+        edge = lin.get("most_unstable_at_range_edge")
+        what = "most unstable" if not edge else f"largest growth (at {edge} of k* in [0.001, 3]: no maximum inside),"
+        out.append(f"linear theory      {what} lambda/D = {lin['most_unstable_lambda_D']:.1f}, growth "
                    f"{lin['growth_rate_per_tc']:.4f}/t_c, phase speed {lin['phase_speed_m_s']:+.3f} m/s")
     if w["n_waves"]:
         out.append(f"waves at the end   {w['n_waves']} in the box, dense segment {w['dense_length_D']:.1f} D "

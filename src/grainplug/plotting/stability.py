@@ -27,8 +27,9 @@ def plot_growth_rates(res: StabilityResult, *, zoom_k_max: float = 0.8) -> Figur
         ax.axhline(0, color="0.6", lw=0.7)
         m = r.most_unstable
         if m is not None:
+            what = "most unstable" if m.at_range_edge is None else f"largest at {m.at_range_edge} (no maximum inside)"
             ax.plot([m.k], [m.growth_rate], "o", color="tab:red",
-                    label=f"most unstable k* = {m.k:.3f} (λ/D = {m.wavelength_over_diameter:.1f})")
+                    label=f"{what} k* = {m.k:.3f} (λ/D = {m.wavelength_over_diameter:.1f})")
         for kc in r.cutoff_k:
             ax.axvline(kc, color="tab:blue", ls=":", lw=1,
                        label=f"cut-off k* = {kc:.3f} (λ/D = {2 * np.pi / kc:.1f})")

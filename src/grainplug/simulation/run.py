@@ -374,6 +374,8 @@ def simulate_and_measure(model: ModelParams, params: SimulationParams | None = N
         "linear": {"most_unstable_lambda_D": None if mu is None else mu.wavelength_over_diameter,
                    "growth_rate_per_tc": None if mu is None else mu.growth_rate,
                    "phase_speed_m_s": None if mu is None else mu.phase_speed * p.v_c_m_s,
+                   # the growth still rising at that end of k* in [0.001, 3]: no maximum inside
+                   "most_unstable_at_range_edge": None if mu is None else mu.at_range_edge,
                    "cutoff_lambda_D": lin.cutoff_wavelength_over_diameter},
         "waves": waves.as_dict(D_mm=p.diameter_mm, v_c_m_s=p.v_c_m_s),
         "measured_as_movie": seen.as_dict(),

@@ -30,6 +30,10 @@ class Mode:
         ``lambda / D = 2 pi / k*``.
     root : int
         Which of the three tracked roots.
+    at_range_edge : {"k_min", "k_max"}, optional
+        Set when the growth rate is largest at that end of the range scanned: it still rises
+        beyond it, so this is the range's largest growth, not a maximum of the model (widen
+        the range; with ``"k_max"`` and no cut-off the growth may rise to the shortest waves).
     """
 
     k: float
@@ -37,6 +41,7 @@ class Mode:
     phase_speed: float
     wavelength_over_diameter: float
     root: int
+    at_range_edge: str | None = None
 
     def as_dict(self) -> dict[str, float]:
         return dataclasses.asdict(self)
@@ -78,6 +83,18 @@ class StabilityResult:
     def stable(self) -> bool:
         return self.most_unstable is None
 
+    @property
+    def warnings(self) -> list[str]:
+        """What the range scanned leaves unsure: a largest growth at one of its ends."""
+        m = self.most_unstable
+        if m is None or m.at_range_edge is None:
+            return []
+        flag = "--k-min" if m.at_range_edge == "k_min" else "--k-max"
+        way = "longer" if m.at_range_edge == "k_min" else "shorter"
+        return [f"the growth rate is largest at the edge of the range, {m.at_range_edge} = {m.k:g}: it still rises "
+                f"toward {way} waves, so no most unstable wavelength was found inside the range (the λ/D given is "
+                f"the range's end) — widen it ({flag})"]
+
     def as_dict(self) -> dict[str, object]:
         """JSON-ready: the CLI's ``--json`` (see docs/stability.md)."""
         p = self.params
@@ -98,6 +115,7 @@ class StabilityResult:
             "cutoff_wavelength_over_diameter": self.cutoff_wavelength_over_diameter,
             "unstable_bands": [list(b) for b in self.unstable_bands],
             "stable": self.stable,
+            "warnings": self.warnings,
         }
 
 
@@ -166,6 +184,11 @@ def analyze_stability(p: ModelParams, k: np.ndarray | None = None, *, k_min: flo
         else:
             kk = float(k[j])
         most = _mode(p, kk)
+        end = k[0] if j == 0 else k[-1] if j == len(k) - 1 else None
+        # the growth still rising beyond the range: the refined maximum sits on its end (between the end and the
+        # next grid point, it is the model's)
+        if end is not None and len(k) > 1 and abs(kk - end) <= 1e-6 * abs(k[1] - k[0]) + 1e-9:
+            most = dataclasses.replace(most, at_range_edge="k_min" if j == 0 else "k_max")
     return StabilityResult(p, k, w, most, cutoffs, bands)
 
 
@@ -202,6 +225,7 @@ def sweep(p: ModelParams, name: str, values: np.ndarray, **kwargs: float) -> lis
             "most_unstable_k": m.k if m else None,
             "most_unstable_growth_rate": m.growth_rate if m else None,
             "most_unstable_wavelength_over_diameter": m.wavelength_over_diameter if m else None,
+            "most_unstable_at_range_edge": m.at_range_edge if m else None,
             "cutoff_k": r.cutoff_k,
             "cutoff_wavelength_over_diameter": r.cutoff_wavelength_over_diameter,
         })
