@@ -120,6 +120,9 @@ class ModelParams:
         checks = [
             (self.diameter_mm > 0, "diameter must be positive"),
             (self.grain_diameter_um > 0, "grain diameter must be positive"),
+            (self.grain_diameter_um * 1e-3 < self.diameter_mm,
+             f"the grains (d = {self.grain_diameter_um:g} um) must be smaller than the pipe (D = "
+             f"{self.diameter_mm:g} mm)"),
             (self.grain_density_kg_m3 > 0, "grain density must be positive"),
             (self.air_viscosity_pa_s > 0, "air viscosity must be positive"),
             (self.gamma >= 1, "gamma must be >= 1"),
@@ -286,6 +289,12 @@ class ModelParams:
             out.append(f"the jamming pressure (Johnson & Jackson's form, Fr = {self.jamming_fr_pa:g} Pa, c_max = "
                        f"{self.jamming_c_max:g}) is not in the paper; its slope at c0, "
                        f"{self.jamming_slope:.3g} P_c, depends steeply on c_max")
+        ratio = self.diameter_mm * 1e3 / self.grain_diameter_um
+        if ratio < 6:
+            out.append(f"D/d = {ratio:.3g}, below the paper's 6 to 30: the model treats the grains as a continuum "
+                       "with Darcy's permeability, which needs many grains across the pipe")
+        if self.c0 > 0.64:
+            out.append(f"c0 = {self.c0:g} is above random close packing (0.64): spheres cannot pack that tight")
         if self.law == "v|v|":
             out.append("v|v| differs from the printed v^2 only for climbing grains; for this downward base flow "
                        "their linear analyses are the same")

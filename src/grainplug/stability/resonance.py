@@ -56,8 +56,9 @@ class ResonanceInputs:
     n_modes: int = 3
 
     def __post_init__(self) -> None:
-        if not 0 <= self.compactness < 1:
-            raise ParameterError("compactness must be in [0, 1)")
+        if not 0 < self.compactness < 1:
+            raise ParameterError("compactness must be between 0 and 1 (excluded): without grains there is no plug "
+                                 "on the air spring")
         for name in ("grain_density_kg_m3", "grain_sound_speed_m_s", "pressure_pa", "temperature_k",
                      "column_length_m", "plug_length_m", "air_column_m"):
             if not getattr(self, name) > 0:
@@ -86,7 +87,7 @@ def resonance(inp: ResonanceInputs) -> dict[str, object]:
     n = 1.0 if inp.isothermal else inp.gamma
     half = [k * a_m / (2 * L) for k in range(1, inp.n_modes + 1)]
     quarter = [(2 * k - 1) * a_m / (4 * L) for k in range(1, inp.n_modes + 1)]
-    m = inp.grain_density_kg_m3 * max(inp.compactness, 1e-12) * inp.plug_length_m
+    m = inp.grain_density_kg_m3 * inp.compactness * inp.plug_length_m
     k_spring = n * inp.pressure_pa / inp.air_column_m
     f_spring = math.sqrt(k_spring / m) / (2 * math.pi)
     return {
