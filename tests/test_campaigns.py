@@ -88,6 +88,9 @@ def test_paper_reproduction():
     assert checks["propagative celerity ranges between -0.0366 and -0.0963 m/s"]["agrees"] is True
     assert d["stability"]["printed"]["most_unstable"] is None
     assert d["stability"]["frozen-friction"]["most_unstable"]["k"] == pytest.approx(0.1476, abs=2e-3)
+    # no false disagreements: the co-author's two surnames, a run Table 2 (low amplitude) does not claim to hold
+    assert checks["'Franklin and Alvarez [Franklin_7]' cited for the Janssen closure and 3 < lambda/D < 11"]["agrees"]
+    assert not any("0.019 m/s" in claim for claim in checks)
 
 
 def test_paper_cli(tmp_path, capsys):
@@ -103,6 +106,8 @@ def test_paper_cli(tmp_path, capsys):
     # the model against Table 1, with the simulations: the direction disagrees, the length is set by the box
     panel = d["model_vs_experiment"]
     assert "the model does not predict the observed waves' direction" in panel["verdict"][0]
+    # Table 2's plugs move down, the model's way: said, with how much faster the model's waves are
+    assert any(v.startswith("Celerity, Table 2") and "times faster" in v for v in panel["verdict"])
     frozen = next(q for q in panel["predictions"] if q["label"] == "frozen friction")
     small, large = frozen["nonlinear"]
     assert small["n_waves"] == large["n_waves"] == 1
