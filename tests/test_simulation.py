@@ -534,3 +534,20 @@ def test_an_open_pipes_content_change_is_not_called_conservation(tmp_path, capsy
     assert code == 0, err
     assert "conservation       grain" not in out and "content change     grain" in out
     assert "not a conservation check" in out
+
+
+def test_the_balancing_force_is_recorded_and_switchable(tmp_path, capsys):
+    """The periodic box's uniform force S (+0.70 rho_s g, 127 % of the grains' weight) is in summary.json, its
+    caveats and the terminal (it read "balance": null); --no-balance leaves it out."""
+    from grainplug.cli import main
+
+    for flag, force in (([], 0.6998), (["--no-balance"], 0.0)):
+        out = tmp_path / f"o{len(flag)}"
+        assert main(["simulate", "--length-D", "30", "--cells", "60", "--duration-tc", "2", *flag, "--out",
+                     str(out)]) == 0
+        printed = capsys.readouterr().out
+        run = json.loads((out / "summary.json").read_text())["run"]
+        assert run["balance"] is (not flag) and run["balance_force_rho_s_g"] == pytest.approx(force, abs=1e-3)
+        assert ("balance force      S = +0.700 rho_s g" in printed) is (not flag)
+    caveats = json.loads((tmp_path / "o0" / "summary.json").read_text())["caveats"]
+    assert any("adds a uniform force S = +0.700" in c for c in caveats)

@@ -567,6 +567,9 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
               help="Open pipe: velocity of the fed grains in units of v_c [default: the base velocity].")
 @click.option("--feed-rate-g-s", type=Number(1e-6, 1e6, unit="g/s"), default=None,
               help="Open pipe: mass flow rate of the grains fed at the top (sets their velocity).")
+@click.option("--balance/--no-balance", "balance", default=None,
+              help="Add the uniform force S that makes the base state steady, as the linear analysis assumes "
+                   "[default: in a periodic box, not in an open pipe].")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Folder for fields.nc, summary.json and diagram.png (replaced as a whole).")
 @click.option("--publication", is_flag=True, help=PUBLICATION_HELP)
@@ -574,7 +577,8 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, output_interval_tc: float, cfl: float,
              noise: float, seed: int, feed_c: float | None, feed_v: float | None, feed_rate_g_s: float | None,
-             out_dir: Path, publication: bool, overwrite: bool, as_json: bool, **model: object) -> None:
+             balance: bool | None, out_dir: Path, publication: bool, overwrite: bool, as_json: bool,
+             **model: object) -> None:
     """Integrate the paper's 1D model in time (finite volumes) and measure what it forms.
 
     Conservative in grain and air mass (the air's mass balance replaces the printed
@@ -590,7 +594,7 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
     p = _model_params(**model)
     sim = SimulationParams(boundary=boundary, length_D=length_D, n_cells=n_cells, duration_tc=duration_tc,
                            output_interval_tc=output_interval_tc, cfl=cfl, noise=noise, feed_c=feed_c, feed_v=feed_v,
-                           feed_rate_g_s=feed_rate_g_s)
+                           feed_rate_g_s=feed_rate_g_s, balance=balance)
     from .._atomic import check_output_place
 
     check_output_place(out_dir)  # refuse a bad place before the run, not after
@@ -635,6 +639,9 @@ def simulation_lines(summary: dict) -> list[str]:
            # the ends let grains and air in and out: the content's change is no check of the scheme
            f"content change     grain {r['grain_drift']:.1e}, air {r['air_drift']:.1e} (relative; the pipe's ends "
            "let grains and air in and out, so this is not a conservation check)"]
+    if r.get("balance_force_rho_s_g"):
+        out.append(f"balance force      S = {r['balance_force_rho_s_g']:+.3f} rho_s g, uniform, so that the base state "
+                   "is steady (--no-balance leaves it out)")
     if lin["most_unstable_lambda_D"] is None:
         out.append("linear theory      stable: no wavelength grows")
     else:

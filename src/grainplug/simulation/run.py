@@ -267,6 +267,19 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
     return dataclasses.replace(res, warnings=tuple(_checks(res, closure, c_peak, m_low)))
 
 
+def _balance_caveats(p: ModelParams, params: SimulationParams) -> list[str]:
+    """What the run did with the base state's imbalance (the set-up's caveat says the linear analysis drops it)."""
+    S = p.base_state_residual
+    if abs(S) <= 1e-9:
+        return []
+    weight = p.c0 * math.cos(math.radians(p.theta_deg))
+    if params.balanced:
+        return [f"this run adds a uniform force S = {S:+.3f} rho_s g ({100 * abs(S) / weight:.0f} % of the grains' "
+                "weight) so that the base state is steady, as the linear analysis assumes; balance=False "
+                "(--no-balance) leaves it out"]
+    return [f"no balancing force in this run: the base flow is not steady (friction minus weight {S:+.3f} rho_s g)"]
+
+
 def _checks(res: SimulationResult, closure: Closure, c_peak: float, m_low: float) -> list[str]:
     out = []
     if m_low < -AIR_NEGATIVE:
@@ -365,9 +378,12 @@ def simulate_and_measure(model: ModelParams, params: SimulationParams | None = N
     summary: dict[str, object] = {
         "grainplug_version": __version__,
         "model": p.as_dict(),
-        "caveats": p.caveats(),
+        "caveats": [*p.caveats(), *_balance_caveats(p, res.params)],
         "run": {**dataclasses.asdict(res.params), "n_steps": res.n_steps, "wall_s": round(res.wall_s, 3),
                 "duration_s": res.params.duration_tc * p.t_c_s, "length_mm": res.params.length_D * p.diameter_mm,
+                # the uniform force added to make the base state steady (units of rho_s g), as resolved
+                "balance": res.params.balanced,
+                "balance_force_rho_s_g": p.base_state_residual if res.params.balanced else 0.0,
                 "grain_drift": res.grain_drift, "air_drift": res.air_drift,
                 "grain_total": [float(res.grain_total[0]), float(res.grain_total[-1])],
                 "air_total": [float(res.air_total[0]), float(res.air_total[-1])]},
