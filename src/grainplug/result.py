@@ -331,11 +331,13 @@ class AnalysisResult:
         Writes ``summary.json``, ``plug_edges.csv``, ``tracks.csv``, ``diagram.npz``,
         ``result.npz`` (everything :func:`~grainplug.load_result` needs) and, unless
         switched off, the figures and ``report.html``. Returns the paths written.
+        An earlier result in ``out_dir`` is replaced as a whole (a folder holding files
+        grainplug did not write is refused, naming them).
         ``figure_worker`` (:class:`grainplug.plotting.worker.FigureWorker`, started
         before the analysis) draws the figures in another process meanwhile.
-        ``figure_options`` (:class:`grainplug.outputs.FigureOptions`): resolution, formats
+        ``figure_options`` (:class:`grainplug.FigureOptions`): resolution, formats
         (PNG, SVG, PDF) and a matplotlib style sheet; by default PNG at 200 dpi,
-        ``grainplug.outputs.PUBLICATION`` adds SVG and PDF.
+        ``grainplug.PUBLICATION`` adds SVG and PDF.
         """
         from .outputs import write_outputs
 
