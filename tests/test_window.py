@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -93,6 +94,34 @@ def test_window_options_and_their_errors(movies, tmp_path, capsys):
         assert not (tmp_path / "bad").exists()
     with pytest.raises(gp.ParameterError, match="not both"):
         gp.AnalysisParams(start_frame=3, start_s=0.1)
+
+
+def test_an_end_past_the_movie_is_said_and_frames_keep_the_movies_numbers(movies):
+    """An end past the last frame was clamped without a word (an end in the wrong unit went unnoticed); a doubtful
+    frame of a window is named by its number in the movie, as the tables and the reader's warnings name it."""
+    from grainplug.diagram.frames import FrameRepair
+
+    res = gp.analyze(movies["tiff"], start_frame=START, end_frame=400, mm_per_px=0.185)
+    [said] = [w for w in res.warnings if "past the movie" in w]
+    assert "frame 400" in said and "300 frames" in said and res.info.n_frames == 300 - START
+    whole = gp.analyze(movies["tiff"], end_frame=400, mm_per_px=0.185)  # a window that is the whole movie
+    assert any("past the movie" in w for w in whole.warnings) and whole.info.n_frames == 300
+    repair = FrameRepair(bright=np.array([34]))
+    assert "(frame 134)" in repair.describe(150, first=100) and "(frame 34)" in repair.describe(150)
+
+
+def test_a_bad_time_stamp_outside_the_window_is_not_the_windows():
+    """The reader's warning about frame 234's stamp stays with a window holding that frame, not with one that
+    does not (it was repeated for frames 10 to 200 of a 235-frame record)."""
+    from grainplug.readers.array import ArrayMovie
+    from grainplug.readers.cine import frames_named
+
+    movie = ArrayMovie(np.zeros((50, 16, 16), np.uint8), fps=100.0)
+    bad = f"{frames_named([40])} out of step with the others"
+    info = dataclasses.replace(movie.info, warnings=(bad,), details={"frames_with_bad_timestamp": [40]})
+    movie.info = info
+    assert bad not in FrameWindow(movie, 0, 30).info.warnings
+    assert bad in FrameWindow(movie, 30, 50).info.warnings
 
 
 def test_manifest_window_columns(movies, tmp_path):

@@ -39,6 +39,7 @@ from .measures.motion import NO_FOLLOWED_EDGE
 from .params import AnalysisParams, opposite, runs_backwards, tube_orientation
 from .plugs import Runs, Tracks, find_runs, link, plug_mask
 from .readers import Movie, MovieInfo, as_movie
+from .readers.window import first_movie_frame
 from .result import AnalysisResult
 
 log = logging.getLogger(__name__)
@@ -136,7 +137,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *scale_warnings,
                   *_given_scale_doubts(tube, params, has_plugs=has_plugs), *light_warnings,
-                  *filter(None, [repair.describe(diagram.n_frames)]), *time_warnings,
+                  *filter(None, [repair.describe(diagram.n_frames, first=first_movie_frame(info))]), *time_warnings,
                   *flow.warnings, *other_tubes,
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
     )
@@ -192,12 +193,16 @@ def _window(movie: Movie, params: AnalysisParams) -> Movie:
     start = window_start(movie, params)
     stop = params.end_frame if params.end_frame is not None else (
         math.ceil(params.end_s * fps - 1e-6) if params.end_s is not None else n)
-    stop = min(stop, n)
+    notes = ()
+    if stop > n:  # said, not clamped silently: an end in the wrong unit would go unnoticed
+        notes = (f"the window's end, frame {stop}, is past the movie's {n} frames: it was analysed to the movie's "
+                 "end — check the end and its unit (frames or seconds)",)
+        stop = n
     if stop - start < 8:
         raise ParameterError(f"the window holds {max(stop - start, 0)} of the movie's {n} frames (frames {start} to "
                              f"{stop}); at least 8 are needed — move its start or its end",
                              param="start_frame" if params.end_frame is None and params.end_s is None else "end_frame")
-    return movie if (start, stop) == (0, n) else FrameWindow(movie, start, stop)
+    return movie if (start, stop) == (0, n) and not notes else FrameWindow(movie, start, stop, notes=notes)
 
 
 #: another region whose frame-to-frame variation reaches this share of the tube's is reported

@@ -160,8 +160,9 @@ class AnalysisResult:
     @property
     def first_movie_frame(self) -> int:
         """The movie's number of the first analysed frame (the start of a ``--start`` window, else 0)."""
-        window = (self.info.details or {}).get("window_frames")
-        return int(window[0]) if window else 0
+        from .readers.window import first_movie_frame
+
+        return first_movie_frame(self.info)
 
     # -- tables -----------------------------------------------------------------
     @cached_property

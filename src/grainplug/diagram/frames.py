@@ -47,8 +47,9 @@ class FrameRepair:
     def n_bad(self) -> int:
         return int(len(self.dark) + len(self.bright) + len(self.repeated))
 
-    def describe(self, n_frames: int) -> str | None:
-        """One warning line, or None when every frame was good."""
+    def describe(self, n_frames: int, *, first: int = 0) -> str | None:
+        """One warning line, or None when every frame was good; frames are named ``first`` + their index (the
+        movie's numbering in a window that starts at frame ``first``)."""
         still = (f"{self.n_still} of {n_frames} frames repeat the one before exactly: the camera froze, or "
                  "nothing moves in the tube — check the movie; any motion measured comes from the frames "
                  "that change") if self.n_still else None
@@ -57,7 +58,7 @@ class FrameRepair:
         parts = []
         for name, idx in (("dark", self.dark), ("over-exposed", self.bright), ("repeated", self.repeated)):
             if len(idx):
-                shown = ", ".join(str(int(i)) for i in idx[:8]) + (", ..." if len(idx) > 8 else "")
+                shown = ", ".join(str(first + int(i)) for i in idx[:8]) + (", ..." if len(idx) > 8 else "")
                 parts.append(f"{len(idx)} {name} (frame{'s' if len(idx) > 1 else ''} {shown})")
         share = 100 * self.n_bad / max(n_frames, 1)
         bad = (f"{self.n_bad} of {n_frames} frames ({share:.1f} %) were not usable — {'; '.join(parts)} — and were "

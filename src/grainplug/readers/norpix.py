@@ -106,6 +106,7 @@ class SeqMovie(RawFramesMovie):
             dtype="uint16" if bits == 16 else "uint8", fps_source=source, fps_note="" if fps else note,
             colour="rgb" if channels == 3 else "grey", camera="NorPix StreamPix", warnings=tuple(warnings_),
             details={"version": version, "suggested_fps": suggested, "timestamp_jitter": round(jitter, 6),
+                     **({"frames_with_bad_timestamp": [int(k) for k in bad]} if bad else {}),
                      "first_timestamp_s": _first_stamp(path, header + image_bytes)},
         )
         super().__init__(path, info, layout)

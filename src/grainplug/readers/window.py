@@ -15,20 +15,33 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from .base import Movie
+from .base import Movie, MovieInfo
+
+
+def first_movie_frame(info: MovieInfo) -> int:
+    """The movie's number of ``info``'s first frame: a window's start, else 0 (frames are named by it)."""
+    window = (info.details or {}).get("window_frames")
+    return int(window[0]) if window else 0
 
 
 class FrameWindow(Movie):
     """Frames ``[start, stop)`` of ``movie`` (which stays open; closing the window does not close it)."""
 
-    def __init__(self, movie: Movie, start: int, stop: int) -> None:
+    def __init__(self, movie: Movie, start: int, stop: int, *, notes: tuple[str, ...] = ()) -> None:
+        from .cine import frames_named
+
         n = movie.info.n_frames
         if not 0 <= start < stop <= n:
             raise ValueError(f"the window {start}..{stop} is not within the movie's {n} frames")
         self.inner, self.start, self.stop = movie, int(start), int(stop)
         details = {**movie.info.details, "window_frames": [self.start, self.stop],
                    "movie_n_frames": movie.info.n_frames}
-        info = dataclasses.replace(movie.info, n_frames=self.stop - self.start, details=details)
+        warnings = list(movie.info.warnings)
+        bad = [int(k) for k in details.get("frames_with_bad_timestamp") or []]
+        if bad and not any(self.start <= k < self.stop for k in bad):  # a bad stamp outside the window: not its own
+            warnings = [w for w in warnings if not w.startswith(frames_named(bad))]
+        info = dataclasses.replace(movie.info, n_frames=self.stop - self.start, details=details,
+                                   warnings=(*warnings, *notes))
         super().__init__(movie.path, info)
 
     @property
