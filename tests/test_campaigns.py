@@ -215,7 +215,7 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
     code, _, err = run(capsys, "batch", campaign_dir / "manifest2.csv", "--out", out, "--no-simulations")
     lines = [ln for ln in err.strip().splitlines() if ln.strip()]  # one line per failed run, then the error
     assert code == 3 and len(lines) == 2 and "Traceback" not in err
-    assert lines[0].startswith("failed: run z: ") and "missing.avi" in lines[0]
+    assert lines[0].startswith("failed: run z: ") and "missing.avi" in lines[0] and "check the movie column" in lines[0]
     assert lines[1].startswith("error: 1 of 6 runs failed, each named above")
     t3 = pd.read_csv(out / "campaign.csv")
     assert list(t3.status) == ["ok", "ok", "ok", "ok", "ok", "failed"]
@@ -383,3 +383,11 @@ def test_one_run_has_no_spread_to_state():
     assert (one["mean_mm"], one["n"], one["sd_mm"], one["ci95_mm"]) == (33.36, 1, None, None)
     two = summarize_lengths(np.array([0.5, 0.6]), np.array([30.0, 34.0]), diameter_mm=3.0).as_dict()
     assert two["sd_mm"] > 0 and two["ci95_mm"][0] < 32.0 < two["ci95_mm"][1]
+
+
+def test_a_batch_whose_every_run_failed_does_not_say_the_others_are_done(tmp_path, capsys):
+    (tmp_path / "m.csv").write_text("run,movie\na,nope.tif\n")
+    code, _, err = run(capsys, "batch", tmp_path / "m.csv", "--out", tmp_path / "o", "--no-figures",
+                       "--no-simulations")
+    assert code == 3 and "1 of 1 runs failed, each named above (none is done;" in err
+    assert "no such file or folder — check the movie column" in err

@@ -79,7 +79,9 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
         ident = fingerprint(spec.movie, full=verify)
         key = run_key(spec, identity=ident)
     except OSError as exc:
-        return {**record, "status": "failed", "error": f"cannot read {spec.movie}: {exc.strerror or exc}"}
+        fix = ("no such file or folder — check the movie column (relative to the manifest's folder)"
+               if isinstance(exc, FileNotFoundError) else f"{exc.strerror or exc} — check that it can be read")
+        return {**record, "status": "failed", "error": f"cannot read {spec.movie}: {fix}"}
     except GrainplugError as exc:
         return {**record, "status": "failed", "error": str(exc)}
     record["run_key"] = key

@@ -971,7 +971,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         for row in t[t.status == "failed"].itertuples():
             err_console.print(f"[red]failed:[/] run {escape(str(row.run))}: {escape(str(row.error))}",
                               highlight=False, soft_wrap=True)
+        others = "the others are done" if camp.n_failed < len(t) else "none is done"
         raise PartialCampaignError(
-            f"{camp.n_failed} of {len(t)} runs failed, each named above (the others are done; see "
-            f"{out / 'campaign.csv'})"
+            f"{camp.n_failed} of {len(t)} runs failed, each named above ({others}; see {out / 'campaign.csv'})"
         )
