@@ -67,6 +67,9 @@ def test_targets_are_one_analysis_or_a_campaigns_runs(analysis, tmp_path):
     shutil.copytree(analysis, camp / "runs" / "a")
     shutil.copytree(analysis, camp / "runs" / "b")
     assert list(review_targets(camp)) == ["a", "b"]
+    # a run taken out of the manifest keeps its folder but is not the campaign's any more (campaign.csv)
+    (camp / "campaign.csv").write_text("run,movie,status\nb,b.tif,ok\n")
+    assert list(review_targets(camp)) == ["b"]
     with pytest.raises(ParameterError, match="holds no analysis"):
         review_targets(tmp_path / "nothing")
 

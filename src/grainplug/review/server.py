@@ -59,10 +59,26 @@ def review_targets(folder: str | Path) -> dict[str, Path]:
         return {p.resolve().name or "analysis": p}
     runs = p / "runs"
     found = {q.name: q for q in sorted(runs.iterdir()) if (q / RESULT_FILE).is_file()} if runs.is_dir() else {}
+    listed = _campaign_runs(p)
+    if listed is not None:  # a run taken out of the manifest keeps its folder, but is no longer the campaign's
+        found = {name: q for name, q in found.items() if name in listed}
     if not found:
         raise ParameterError(f"{p} holds no analysis (no {RESULT_FILE}, no runs/*/{RESULT_FILE}) — give the --out "
                              "folder of grainplug analyze or grainplug batch")
     return found
+
+
+def _campaign_runs(folder: Path) -> set[str] | None:
+    """The run folders of the campaign's last batch (``campaign.csv``), or None where there is no table."""
+    import csv
+
+    from ..campaigns.manifest import run_folder_name
+
+    table = folder / "campaign.csv"
+    if not table.is_file():
+        return None
+    with open(table, newline="", encoding="utf-8") as fh:
+        return {run_folder_name(str(row.get("run", ""))) for row in csv.DictReader(fh)}
 
 
 @dataclass
