@@ -391,3 +391,22 @@ def test_a_batch_whose_every_run_failed_does_not_say_the_others_are_done(tmp_pat
                        "--no-simulations")
     assert code == 3 and "1 of 1 runs failed, each named above (none is done;" in err
     assert "no such file or folder — check the movie column" in err
+
+
+def test_ctrl_c_after_the_runs_says_what_is_kept(campaign_dir, tmp_path, monkeypatch):
+    """Ctrl-C while the fits and the report are written said only "interrupted": it says the runs are kept and
+    that the same command writes the rest."""
+    from grainplug.campaigns import batch
+    from grainplug.errors import CampaignInterrupted
+
+    (campaign_dir / "one.csv").write_text("run,movie,mm_per_px\na,a/movie.avi,0.185\n")
+
+    def stop(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch, "campaign_fits", stop)
+    with pytest.raises(CampaignInterrupted, match=r"1 of 1 runs have a complete result, kept.*run the same command"):
+        run_campaign(campaign_dir / "one.csv", tmp_path / "o", figures=False, simulate=False)
+    monkeypatch.undo()
+    again = run_campaign(campaign_dir / "one.csv", tmp_path / "o", figures=False, simulate=False)
+    assert again.n_reused == 1 and (tmp_path / "o" / "campaign.csv").is_file()
