@@ -182,3 +182,13 @@ def test_a_record_with_only_lower_edges_followed_says_why_it_has_no_celerity():
     assert res.celerity_m_s is None and "no upper edge was followed" in res.statement
     tracks = res.tracks
     assert len(tracks) and tracks.celerity_m_s.notna().any()
+
+
+def test_a_narrow_tube_warning_says_how_uncertain_the_scale_is():
+    """A 3 px "tube" made the scale uncertain by 17 % (the report's figure) while the warning said "several per
+    cent": it gives the number, the report says what kind of uncertainty it is."""
+    import grainplug as gp
+
+    res = gp.analyze(SAMPLES / "pyidi/data_small_cine.cine")
+    [said] = [w for w in res.warnings if "px wide: a scale from its width" in w]
+    assert f"uncertain by {100 * res.scale_rel_sd:.2g} % (one standard deviation)" in said

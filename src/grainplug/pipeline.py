@@ -388,7 +388,8 @@ def _tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, params: AnalysisP
                    "check --tube-diameter-mm, --tube-outer-diameter-mm and --glass-index — or " + fix)
     if bore.diameter_px < NARROW_TUBE_PX:
         out.append(f"the tube is only {bore.diameter_px:.1f} px wide: a scale from its width is uncertain by "
-                   f"several per cent — {fix}")
+                   f"{100 * bore.rel_sd:.2g} % (one standard deviation), and every length and celerity with it — "
+                   f"{fix}")
     if bore.diameter_px > WIDE_TUBE_SHARE * across:
         out.append(f"the tube fills {100 * bore.diameter_px / across:.0f} % of the frame's width: its walls may "
                    f"be out of view and the scale from its width wrong — {fix}")

@@ -221,7 +221,8 @@ def _kept_note(res: AnalysisResult, s: dict) -> str:
 def _details(res: AnalysisResult, s: dict) -> str:
     D = res.params.tube_diameter_mm
     rows = [
-        ("scale", f"{number(res.mm_per_px, 5)} mm/px ± {number(100 * res.scale_rel_sd, 2)} %"),
+        ("scale", f"{number(res.mm_per_px, 5)} mm/px ± {number(100 * res.scale_rel_sd, 2)} % (one standard "
+                  "deviation)"),
         ("scale from", res.scale_source),
         ("frames", f"{s['n_frames']} at {number(res.info.fps, 6 if res.info.fps % 1 else 0)} fps "
                    f"({'—' if s['duration_s'] is None else duration(s['duration_s'])})" + _kept_note(res, s)),
