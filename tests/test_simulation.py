@@ -551,3 +551,20 @@ def test_the_balancing_force_is_recorded_and_switchable(tmp_path, capsys):
         assert ("balance force      S = +0.700 rho_s g" in printed) is (not flag)
     caveats = json.loads((tmp_path / "o0" / "summary.json").read_text())["caveats"]
     assert any("adds a uniform force S = +0.700" in c for c in caveats)
+
+
+def test_ripples_and_an_open_pipes_inlet_cell_are_no_waves():
+    """A train of 0.002 compactness (a grown 1e-7 noise, still linear) was reported as 23 D dense segments; an
+    open pipe whose only dense cell is the fed one at the inlet as a 0.7 D wave. Neither is; a train of 0.01 is."""
+    import dataclasses
+
+    train = _moving_train(0.8)
+    for amplitude, waves in ((0.002, 0), (0.012, 4)):
+        c = 0.55 + amplitude * (train.c - 0.05) / 0.5
+        assert wave_state(dataclasses.replace(train, c=c)).n_waves == waves, amplitude
+    flat = np.full_like(train.c, 0.324)
+    flat[:, 0] = 0.427
+    open_pipe = dataclasses.replace(train, c=flat, params=dataclasses.replace(train.params, boundary="open"))
+    assert wave_state(open_pipe).n_waves == 0
+    flat[:, :8] = 0.427  # eight cells (2 D) dense at the inlet: a wave
+    assert wave_state(dataclasses.replace(open_pipe, c=flat)).n_waves == 1

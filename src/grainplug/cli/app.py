@@ -650,11 +650,16 @@ def simulation_lines(summary: dict) -> list[str]:
         out.append(f"linear theory      {what} lambda/D = {lin['most_unstable_lambda_D']:.1f}, growth "
                    f"{lin['growth_rate_per_tc']:.4f}/t_c, phase speed {lin['phase_speed_m_s']:+.3f} m/s")
     if w["n_waves"]:
+        fronts = w["front_speed_m_s"]
+        fronts = "not followed" if fronts is None or fronts != fronts else f"{fronts:+.3f} m/s"  # NaN: not followed
         out.append(f"waves at the end   {w['n_waves']} in the box, dense segment {w['dense_length_D']:.1f} D "
-                   f"({w['dense_fraction']:.2f} of the box), fronts {w['front_speed_m_s']:+.3f} m/s, "
+                   f"({w['dense_fraction']:.2f} of the box), fronts {fronts}, "
                    f"c {w['c_min']:.3f}..{w['c_max']:.3f}")
     else:
-        out.append("waves at the end   none: the flow stayed uniform")
+        from ..simulation.waves import MIN_WAVE_RANGE_C
+
+        out.append(f"waves at the end   none: c stays within {w['c_min']:.4f}..{w['c_max']:.4f} (a range under "
+                   f"{MIN_WAVE_RANGE_C:g}: the base flow, with small ripples at most)")
     if m["regime"] == "none":
         out.append(f"as a movie         {m['statement']}")
         if w["n_waves"]:
