@@ -88,6 +88,8 @@ def convergence(out: Path) -> None:
     fig, ax = plt.subplots(figsize=(5, 4), constrained_layout=True)
     ax.loglog(ns, errs, "o-", color="k", label="L1 error of c at t = 8 t_c")
     ax.loglog(ns, errs[0] * (ns / ns[0]) ** -2.0, "--", color="0.5", label="second order")
+    ax.set_xticks(ns, [str(n) for n in ns])  # the cell counts themselves (log ticks overlapped)
+    ax.minorticks_off()
     ax.set_xlabel("cells over 50 D")
     ax.set_ylabel("error against 4096 cells")
     ax.legend(fontsize=8)

@@ -761,6 +761,16 @@ def overlay(folder: Path, out: Path | None, slowdown: float | None, every: int) 
 _SWEEP_NAMES = {"B1_star": "B1_star_override", "B1-star": "B1_star_override"}
 
 
+#: axis labels of the inputs a sweep varies
+SWEEP_LABELS = {"diameter_mm": "pipe diameter D (mm)", "grain_diameter_um": "grain diameter d (µm)",
+                "grain_density_kg_m3": "grain density ρs (kg/m³)", "air_viscosity_pa_s": "air viscosity (Pa s)",
+                "gamma": "ratio of specific heats γ", "g_m_s2": "gravity g (m/s²)", "c0": "compactness c0",
+                "kappa": "Janssen coefficient κ", "mu_s": "friction coefficient μs", "theta_deg": "inclination θ (°)",
+                "b": "capillary factor b", "B1_star_override": "B1*", "base_pressure_pa": "base pressure P0 (Pa)",
+                "jamming_fr_pa": "jamming constant Fr (Pa)", "jamming_c_min": "jamming c_min",
+                "jamming_c_max": "jamming c_max"}
+
+
 def _stability_sweep(p, spec: str, *, k_min: float, k_max: float, n_k: int, as_json: bool,
                      plot: Path | None) -> None:
     """``--sweep NAME=START:STOP:N``: lambda/D of the most unstable mode and of the cut-offs."""
@@ -790,7 +800,7 @@ def _stability_sweep(p, spec: str, *, k_min: float, k_max: float, n_k: int, as_j
                 label="most unstable λ/D")
         ax.plot(x, [(r["cutoff_wavelength_over_diameter"] or [np.nan])[0] for r in rows], "s--",
                 label="cut-off λ/D")
-        ax.set_xlabel(name)
+        ax.set_xlabel(SWEEP_LABELS.get(name, name))
         ax.set_ylabel("λ/D")
         ax.set_title(f"variant '{p.variant}'", fontsize=9)
         ax.legend(fontsize=8)
@@ -810,6 +820,11 @@ def _stability_sweep(p, spec: str, *, k_min: float, k_max: float, n_k: int, as_j
             return f"{v:.{nd}f}" if v is not None else "stable"
 
         click.echo(f"{r[name]:18.5g} {r['B1_star']:8.4f} {f(km):>8s} {f(lm, 2):>8s} {f(kc):>10s} {f(lc, 2):>8s}")
+    edge = [f"{r[name]:g}" for r in rows if r.get("most_unstable_at_range_edge")]
+    if edge:
+        err_console.print(f"[yellow]warning:[/] for {name} = {', '.join(edge)} the growth rate is largest at an end of "
+                          f"the k* range: its k* max is that end, not a maximum — widen --k-min/--k-max",
+                          highlight=False, soft_wrap=True)
 
 
 def _save_figure(fig, path: Path) -> None:

@@ -72,7 +72,7 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
             ax.plot(t, y0[k] + c_mm_s * (t - t0[k]), "--", color=palette.FIT, lw=1.4,
                     label=f"mean celerity {signed(m.celerity_m_s, 4)} m s⁻¹".replace("-", "−"))
         L = res.lengths.plug_length_mm if res.lengths else None
-        title = f"{m.regime}: c = {signed(m.celerity_m_s, 4)} m s⁻¹"
+        title = f"{m.regime}: v_p = {signed(m.celerity_m_s, 4)} m s⁻¹"  # the paper's symbol (c is compactness)
         # in someone else's axes (a panel of their figure), on two lines: the full one is 9 inches wide
         sep = ", " if own_figure else "\n"
         if L:

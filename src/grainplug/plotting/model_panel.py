@@ -73,7 +73,7 @@ def plot_model_panel(measured: Measured, preds: list[Prediction], *, diameter_mm
     lo = min([measured.celerity_min_m_s, -0.1, *tops])
     ax.set_ylim(lo * (3 if lo < 0 else 0.5), hi * 3)
     ax.axhline(0, color="0.5", lw=0.7)
-    ax.set_ylabel("celerity c (m s⁻¹), positive downstream")
+    ax.set_ylabel("celerity v_p (m s⁻¹), positive downstream")
     ax.set_title("(a) wave speed", loc="left", fontsize=pt(10))
     bx.set_yscale("log")
     bx.set_ylabel("length λ/D")

@@ -17,6 +17,7 @@ if TYPE_CHECKING:
 def plot_simulation(res: SimulationResult, *, max_rows: int = 1500) -> Figure:
     """(a) compactness over position and time (flow downward), (b) dense segments and peak compactness."""
     from ..simulation import RANDOM_CLOSE_PACKING, segment_counts
+    from ..simulation.run import MIN_WAVE_RANGE_C
 
     p = res.model
     fig, axes = new_figure(1, 2, figsize=(9, 5.5), constrained_layout=True,
@@ -25,18 +26,26 @@ def plot_simulation(res: SimulationResult, *, max_rows: int = 1500) -> Figure:
     step = max(1, len(res.time) // max_rows)
     t_s = res.time[::step] * p.t_c_s
     z_mm = res.z * p.diameter_mm
-    im = ax.pcolormesh(t_s, z_mm, res.c[::step].T, shading="nearest", cmap="cividis_r", rasterized=True)
+    lo, hi = float(res.c.min()), float(res.c.max())
+    if hi - lo < MIN_WAVE_RANGE_C:  # a uniform flow: its round-off ripples are not stretched over the colour scale
+        mid = 0.5 * (lo + hi)
+        lo, hi = mid - 0.5 * MIN_WAVE_RANGE_C, mid + 0.5 * MIN_WAVE_RANGE_C
+    im = ax.pcolormesh(t_s, z_mm, res.c[::step].T, shading="nearest", cmap="cividis_r", rasterized=True,
+                       vmin=lo, vmax=hi)
     ax.set_ylim(z_mm[-1], z_mm[0])  # positions from the top, increasing with the flow (downward)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("position from the top (mm)")
     ax.set_title("(a) compactness c", loc="left", fontsize=pt(10))
-    fig.colorbar(im, ax=ax, label="compactness c", shrink=0.85)
+    cbar = fig.colorbar(im, ax=ax, label="compactness c", shrink=0.85)
+    cbar.formatter.set_useOffset(False)  # compactness read as it is, not as an offset plus 1e-9s
     ax2 = axes[1]
     t_all = res.time * p.t_c_s
     ax2.plot(t_all, segment_counts(res), color="k", lw=1.2, label="dense segments")
     ax2.set_xlabel("time (s)")
     ax2.set_ylabel("number of dense segments")
     ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
+    counts = segment_counts(res)
+    ax2.set_ylim(-0.5, max(1.5, float(counts.max()) + 0.5))  # whole numbers of segments, 0 and 1 at least
     ax3 = ax2.twinx()
     ax3.plot(t_all, res.c.max(axis=1), color="#d55e00", lw=1.0, label="max c")
     ax3.axhline(RANDOM_CLOSE_PACKING, color="#d55e00", ls=":", lw=0.8)

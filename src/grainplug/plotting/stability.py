@@ -43,7 +43,13 @@ def plot_growth_rates(res: StabilityResult, *, zoom_k_max: float = 0.8) -> Figur
     axes[1].set_ylim(lo - 0.05 * (hi - lo), hi + 0.1 * (hi - lo))
     axes[1].set_xlim(0, zoom_k_max)
     p = res.params
-    verdict = "no unstable mode" if res.stable else "long-wave instability"
-    fig.suptitle(f"variant '{p.variant}': B1* = {p.B1_star:.3f}, c0 = {p.c0}, κ = {p.kappa}, "
-                 f"μs = {p.mu_s:.4f}, θ = {p.theta_deg}° — {verdict}", fontsize=pt(9))
+    m = res.most_unstable
+    verdict = ("no unstable mode" if m is None else
+               f"growth largest at {m.at_range_edge} (no maximum inside)" if m.at_range_edge else
+               f"most unstable λ/D = {m.wavelength_over_diameter:.1f}")
+    P0 = p.base_pressure_abs_pa
+    pressure = f"{P0:.0f}" if P0 >= 1000 else f"{P0:.3g}"
+    fig.suptitle(f"friction {p.law}, air at P0 = {pressure} Pa (B* = B1* P0* = {p.B_star:.4g}) — {verdict}\n"
+                 f"B1* = {p.B1_star:.3f}, c0 = {p.c0}, κ = {p.kappa}, μs = {p.mu_s:.4f}, θ = {p.theta_deg}°",
+                 fontsize=pt(9))
     return fig

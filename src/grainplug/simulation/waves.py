@@ -18,7 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .run import SimulationResult
+from .run import MIN_WAVE_RANGE_C, SimulationResult
+
+__all__ = ["MIN_WAVE_RANGE_C", "WaveState", "wave_state"]
 
 
 @dataclass(frozen=True)
@@ -89,9 +91,6 @@ def _fronts(c: np.ndarray, thr: float, dx: float, periodic: bool) -> np.ndarray:
     return (i + 0.5 + frac) * dx
 
 
-#: the least range of compactness (max - min at the end) called waves: below it the field is the base flow
-#: with small, still linear ripples (a 0.002 ripple of a 1e-7 noise was reported as 23 D dense segments)
-MIN_WAVE_RANGE_C = 0.01
 #: an open pipe's dense run this many cells long at the inlet is the feed's first cell, not a wave
 INLET_CELLS = 2
 
