@@ -192,3 +192,19 @@ def test_a_narrow_tube_warning_says_how_uncertain_the_scale_is():
     res = gp.analyze(SAMPLES / "pyidi/data_small_cine.cine")
     [said] = [w for w in res.warnings if "px wide: a scale from its width" in w]
     assert f"uncertain by {100 * res.scale_rel_sd:.2g} % (one standard deviation)" in said
+
+
+def test_a_short_bands_overlay_keeps_its_time_stamp_clear_of_the_scale_bar():
+    """In a band 32 px high (data_small_cine) the time stamp's box covered the scale bar's "10 mm": it moves to
+    the top right."""
+    import grainplug as gp
+    from grainplug.overlay import draw_frame
+
+    res = gp.analyze(SAMPLES / "pyidi/data_small_cine.cine")
+    with gp.open_movie(SAMPLES / "pyidi/data_small_cine.cine") as m:
+        img = draw_frame(res, m.read(5), 5, top_value=1023.0)
+    rows, cols = img.shape[:2]
+    assert rows < 44 and cols > 200
+    dark = img.max(axis=2) < 30
+    assert dark[0:16, cols - 110:].mean() > 0.6  # the time stamp, top right
+    assert dark[rows - 24:, 0:45].mean() > 0.5  # the scale bar, bottom left, not written over

@@ -119,8 +119,10 @@ def draw_frame(res: AnalysisResult, frame: np.ndarray, k: int, *, top_value: flo
         cv2.line(img, (6, rows - 6), (6 + bar_px, rows - 6), WHITE, 2)
         cv2.putText(img, f"{bar_mm:g} mm", (6, rows - 12), font, 0.35, WHITE, 1, cv2.LINE_AA)
     t = float(res.diagram.time_s[k])
-    cv2.rectangle(img, (0, 0), (min(cols - 1, 110), 16), (0, 0, 0), -1)
-    cv2.putText(img, f"t = {t:.4f} s", (3, 12), font, small, WHITE, 1, cv2.LINE_AA)
+    # top left; in a band too short for both boxes above each other, top right, clear of the scale bar's
+    x0 = max(cols - 111, 0) if rows < 44 and not vertical else 0
+    cv2.rectangle(img, (x0, 0), (min(cols - 1, x0 + 110), 16), (0, 0, 0), -1)
+    cv2.putText(img, f"t = {t:.4f} s", (x0 + 3, 12), font, small, WHITE, 1, cv2.LINE_AA)
     return img
 
 
