@@ -168,7 +168,8 @@ def test_every_analysis_setting_is_a_manifest_column(tmp_path):
     (tmp_path / "m.csv").write_text('movie,roi,allow_truncated,min_gap_mm,sample_frames,operator\n'
                                     'a.tif,"0,0,64,640",yes,0.8,16,lab-3\n')
     (tmp_path / "m.toml").write_text('[defaults]\nallow_truncated = true\n[[run]]\nmovie = "a.tif"\n'
-                                     'roi = [0, 0, 64, 640]\nmin_gap_mm = 0.8\nsample_frames = 16\noperator = "lab-3"\n')
+                                     'roi = [0, 0, 64, 640]\nmin_gap_mm = 0.8\nsample_frames = 16\n'
+                                     'operator = "lab-3"\n')
     for name in ("m.csv", "m.toml"):
         [spec] = read_manifest(tmp_path / name)
         p = spec.params
