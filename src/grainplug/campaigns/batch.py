@@ -343,6 +343,10 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         raise CampaignInterrupted(
             f"interrupted: {n_done} of {total} runs have a complete result, kept; the others were not started "
             "or were stopped — run the same command again to finish (complete, current runs are reused)") from None
+    for s in specs:  # the manifest's own doubts about a row come first among the run's warnings
+        if s.warnings:
+            rec = records[s.run]
+            rec["warnings"] = " | ".join([*s.warnings, *filter(None, [rec.get("warnings")])])
     n_reused = sum(bool(records[s.run].get("reused")) for s in specs)
     n_remeasured = sum(bool(records[s.run].get("remeasured")) for s in specs)
     table = typed(pd.DataFrame([{k: v for k, v in records[s.run].items() if k not in ("reused", "remeasured")}

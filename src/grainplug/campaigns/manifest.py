@@ -27,9 +27,9 @@ Columns (CSV header, or keys of each ``[[run]]`` table in TOML; a TOML
 ``humidity_pct``               relative humidity
 ``surface``                    grain surface state (e.g. rough, smooth)
 ``group``                      grouping for the fits (default: regime/surface)
-anything else                  kept as metadata in the campaign table, unless its name is
-                               that of a column above misspelt (``mm_per_pix``): refused, as
-                               the run would be analysed without it
+anything else                  kept as metadata in the campaign table; one whose name looks
+                               like a column above misspelt (``mm_per_pix``) is warned about,
+                               as the run is analysed without it
 ============================  =========================================================
 """
 
@@ -91,6 +91,8 @@ class RunSpec:
     movie: Path
     params: AnalysisParams
     meta: dict[str, object] = field(default_factory=dict)
+    #: what the manifest's row leaves unsure (a column that looks like a known one misspelt)
+    warnings: tuple[str, ...] = ()
 
 
 def run_folder_name(run: str) -> str:
@@ -109,23 +111,36 @@ def _convert(key: str, value: object, kinds: dict[str, type], where: str) -> obj
         raise ParameterError(f"{where}, column {key}: {value!r} {what}") from None
 
 
-def _misspelt(columns: object, where: str) -> None:
-    """Refuse a column whose name is a known column's misspelt (``mm_per_pix``): as metadata, the run would be
-    analysed without the setting it meant."""
+#: names people give the analysis settings, and the column meant
+ALIASES = {"start": "start_frame or start_s", "end": "end_frame or end_s", "scale": "mm_per_px",
+           "frame_rate": "fps", "path": "movie", "file": "movie"}
+
+
+def _misspelt(columns: object) -> list[str]:
+    """Warnings for columns whose name looks like a known column's misspelt (``mm_per_pix``): kept as metadata, the
+    run is analysed without the setting they may mean. A name that extends a known one (``group2``,
+    ``calibration_date``) is a column of its own and passes unsaid."""
     import difflib
 
+    out = []
     for column in columns:  # type: ignore[attr-defined]
         if column is None or column in KNOWN_COLUMNS:
             continue
         name = str(column).strip().lower().replace("-", "_").replace(" ", "_")
-        close = [name] if name in KNOWN_COLUMNS else difflib.get_close_matches(name, KNOWN_COLUMNS, n=1, cutoff=0.8)
-        if close:
-            raise ParameterError(f"{where}: column {column!r} is not one grainplug knows — did you mean "
-                                 f"{close[0]!r}? (a column of your own notes needs a name of its own)")
+        if name in ALIASES:
+            meant = ALIASES[name]
+        elif name in KNOWN_COLUMNS:
+            meant = name
+        else:
+            close = difflib.get_close_matches(name, KNOWN_COLUMNS, n=1, cutoff=0.8)
+            meant = close[0] if close and close[0] not in name and name not in close[0] else None
+        if meant:
+            out.append(f"column {column!r} is not one grainplug knows: it was kept as metadata and the run analysed "
+                       f"without it — if it means {meant!r}, name it so")
+    return out
 
 
 def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec:
-    _misspelt(row, where)
     if not row.get("movie"):
         raise ParameterError(f"{where}: no movie given — every run needs a 'movie' path")
     if None in row:
@@ -156,7 +171,7 @@ def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec
         if k in KNOWN_COLUMNS and k not in KNOWN_META:
             continue
         meta[k] = _convert(k, v, KNOWN_META, where) if k in KNOWN_META else v
-    return RunSpec(run, movie, params, meta)
+    return RunSpec(run, movie, params, meta, tuple(_misspelt(row)))
 
 
 def _background(value: str, base: Path, where: str) -> Background:
