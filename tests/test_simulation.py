@@ -565,6 +565,15 @@ def test_ripples_and_an_open_pipes_inlet_cell_are_no_waves():
     flat = np.full_like(train.c, 0.324)
     flat[:, 0] = 0.427
     open_pipe = dataclasses.replace(train, c=flat, params=dataclasses.replace(train.params, boundary="open"))
-    assert wave_state(open_pipe).n_waves == 0
+    none = wave_state(open_pipe)
+    assert none.n_waves == 0 and "only the fed cells at the inlet" in none.why_none
+    assert segment_counts(open_pipe)[-1] == 0  # the figure counts as the summary does
     flat[:, :8] = 0.427  # eight cells (2 D) dense at the inlet: a wave
     assert wave_state(dataclasses.replace(open_pipe, c=flat)).n_waves == 1
+    assert segment_counts(dataclasses.replace(open_pipe, c=flat))[-1] == 1
+    # a moving train in an open pipe with a dense fed cell: the inlet's still edge does not set the front speed
+    moving = train.c.copy()
+    moving[:, 1], moving[:, 0] = 0.05, 0.55
+    w = wave_state(dataclasses.replace(open_pipe, c=moving))
+    assert w.n_waves == 4 and w.front_speed == pytest.approx(0.8, abs=1e-3)
+    assert "a range under 0.01" in wave_state(dataclasses.replace(train, c=np.full_like(train.c, 0.55))).why_none

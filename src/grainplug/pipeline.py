@@ -481,6 +481,20 @@ EVEN_TIMES_PERIODS = 0.25
 EVEN_TIMES_S = 0.0006
 
 
+def uneven(stamps: np.ndarray) -> bool:
+    """Whether a file's frame times stray from a constant rate by more than their rounding (then they time the
+    frames; else ``index / fps`` does)."""
+    stamps = np.asarray(stamps, float)
+    n = len(stamps)
+    if n < 3:
+        return False
+    k = np.arange(n)
+    slope, intercept = np.polyfit(k, stamps, 1)
+    stray = float(np.max(np.abs(stamps - (intercept + slope * k))))
+    period = float(np.median(np.diff(stamps)))
+    return stray > max(EVEN_TIMES_PERIODS * period, EVEN_TIMES_S)
+
+
 def _frame_times(movie: Movie, info: MovieInfo, n: int) -> tuple[np.ndarray, list[str]]:
     """Time of each frame, and a warning when the file's own times are unevenly spaced.
 
@@ -492,13 +506,7 @@ def _frame_times(movie: Movie, info: MovieInfo, n: int) -> tuple[np.ndarray, lis
     if not (movie.has_file_timestamps and info.fps_source == "file"):
         return by_rate, []
     stamps = np.asarray(movie.timestamps_s(), float)  # recorded while streaming, for video
-    if len(stamps) != n or n < 3:
-        return by_rate, []
-    k = np.arange(n)
-    slope, intercept = np.polyfit(k, stamps, 1)
-    stray = float(np.max(np.abs(stamps - (intercept + slope * k))))
-    period = float(np.median(np.diff(stamps)))
-    if stray <= max(EVEN_TIMES_PERIODS * period, EVEN_TIMES_S):
+    if len(stamps) != n or not uneven(stamps):
         return by_rate, []
     dt = np.diff(stamps)
     return stamps, [f"the frames are not evenly spaced in time ({1000 * dt.min():.3g} to {1000 * dt.max():.3g} ms "

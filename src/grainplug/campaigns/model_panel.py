@@ -144,10 +144,6 @@ def predict(*, diameter_mm: float = 3.0, simulate: bool = True) -> list[Predicti
         speed = None if m is None else m.phase_speed * p.v_c_m_s
         if m is None:
             note = "stable: no wavelength grows"
-        elif m.at_range_edge == "k_min":
-            note = ("the growth rises to the longest waves (k* < 0.001, longer than 6000 D): no most unstable "
-                    "wavelength in a lab pipe")
-            lam, speed = None, None
         elif not cut or max(cut) <= 2 * np.pi / 3.0 * 1.001 or m.at_range_edge == "k_max":
             note = ("no short-wave cut-off: growth increases to the shortest waves, so there is no most unstable "
                     "wavelength and a simulation would pick the grid scale")

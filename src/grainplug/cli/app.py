@@ -129,8 +129,12 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
         # decode the last frame: a file that cannot deliver it is reported now
         last = m.read(m.info.n_frames - 1)
         d["last_frame_shape"] = list(last.shape)
-        # how an analysis times the frames (a camera file's stamps, when it has them, give its rate: fps_note)
-        d["frame_times"] = "the file's time stamps" if m.has_file_timestamps else "frame index / fps"
+        # how an analysis times the frames, as the pipeline decides (a camera file's stamps, when they keep to a
+        # constant rate, give that rate: fps_note)
+        from ..pipeline import uneven
+
+        by_stamps = m.has_file_timestamps and m.info.fps_source == "file" and uneven(m.timestamps_s())
+        d["frame_times"] = "the file's time stamps (unevenly spaced)" if by_stamps else "frame index / fps"
     if as_json:
         _echo_json(d)
         return
@@ -656,10 +660,7 @@ def simulation_lines(summary: dict) -> list[str]:
                    f"({w['dense_fraction']:.2f} of the box), fronts {fronts}, "
                    f"c {w['c_min']:.3f}..{w['c_max']:.3f}")
     else:
-        from ..simulation.waves import MIN_WAVE_RANGE_C
-
-        out.append(f"waves at the end   none: c stays within {w['c_min']:.4f}..{w['c_max']:.4f} (a range under "
-                   f"{MIN_WAVE_RANGE_C:g}: the base flow, with small ripples at most)")
+        out.append(f"waves at the end   none: {w.get('why_none') or 'the flow stayed uniform'}")
     if m["regime"] == "none":
         out.append(f"as a movie         {m['statement']}")
         if w["n_waves"]:

@@ -40,11 +40,11 @@ def plot_simulation(res: SimulationResult, *, max_rows: int = 1500) -> Figure:
     cbar.formatter.set_useOffset(False)  # compactness read as it is, not as an offset plus 1e-9s
     ax2 = axes[1]
     t_all = res.time * p.t_c_s
-    ax2.plot(t_all, segment_counts(res), color="k", lw=1.2, label="dense segments")
+    counts = segment_counts(res)
+    ax2.plot(t_all, counts, color="k", lw=1.2, label="dense segments")
     ax2.set_xlabel("time (s)")
     ax2.set_ylabel("number of dense segments")
     ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
-    counts = segment_counts(res)
     ax2.set_ylim(-0.5, max(1.5, float(counts.max()) + 0.5))  # whole numbers of segments, 0 and 1 at least
     ax3 = ax2.twinx()
     ax3.plot(t_all, res.c.max(axis=1), color="#d55e00", lw=1.0, label="max c")

@@ -323,11 +323,14 @@ def _checks(res: SimulationResult, closure: Closure, c_peak: float, m_low: float
 #: the least range of compactness (max - min at the end) called waves: below it the field is the base flow
 #: with small, still linear ripples (a 0.002 ripple of a 1e-7 noise was reported as 23 D dense segments)
 MIN_WAVE_RANGE_C = 0.01
+#: an open pipe's dense run of at most this many cells at the inlet is the fed cell, not a wave
+INLET_CELLS = 2
 
 
 def segment_counts(res: SimulationResult, *, threshold: float | None = None) -> np.ndarray:
     """Number of dense segments (``c`` above ``threshold``, default halfway between min and max) at each output;
-    none while the final range is under :data:`MIN_WAVE_RANGE_C`."""
+    none while the final range is under :data:`MIN_WAVE_RANGE_C`, and not an open pipe's fed inlet cells alone
+    (:data:`INLET_CELLS`), as :func:`~grainplug.simulation.waves.wave_state` counts them."""
     c = res.c
     lo, hi = float(c[-1].min()), float(c[-1].max())
     if hi - lo < MIN_WAVE_RANGE_C:
@@ -338,6 +341,7 @@ def segment_counts(res: SimulationResult, *, threshold: float | None = None) -> 
         starts = dense & ~np.roll(dense, 1, axis=1)
     else:
         starts = dense & ~np.concatenate([np.zeros((len(c), 1), bool), dense[:, :-1]], axis=1)
+        starts[:, 0] &= dense[:, : INLET_CELLS + 1].all(axis=1)  # the fed cells alone are no segment
     return starts.sum(axis=1)
 
 

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .run import MIN_WAVE_RANGE_C, SimulationResult
+from .run import INLET_CELLS, MIN_WAVE_RANGE_C, SimulationResult
 
-__all__ = ["MIN_WAVE_RANGE_C", "WaveState", "wave_state"]
+__all__ = ["INLET_CELLS", "MIN_WAVE_RANGE_C", "WaveState", "wave_state"]
 
 
 @dataclass(frozen=True)
@@ -35,13 +35,15 @@ class WaveState:
     threshold_c: float
     c_min: float
     c_max: float
+    #: why there are no waves (empty when there are)
+    why_none: str = ""
 
-    def as_dict(self, *, D_mm: float, v_c_m_s: float) -> dict[str, float | int]:
+    def as_dict(self, *, D_mm: float, v_c_m_s: float) -> dict[str, float | int | str]:
         return {"n_waves": self.n_waves, "dense_length_D": self.dense_length_D, "dense_fraction": self.dense_fraction,
                 "wavelength_D": self.wavelength_D, "front_speed_v_c": self.front_speed,
                 "dense_length_mm": self.dense_length_D * D_mm, "wavelength_mm": self.wavelength_D * D_mm,
                 "front_speed_m_s": self.front_speed * v_c_m_s, "threshold_c": self.threshold_c,
-                "c_min": self.c_min, "c_max": self.c_max}
+                "c_min": self.c_min, "c_max": self.c_max, "why_none": self.why_none}
 
 
 def _segments(dense: np.ndarray, periodic: bool) -> list[tuple[int, int]]:
@@ -83,16 +85,23 @@ def _length(c: np.ndarray, start: int, end: int, thr: float, periodic: bool) -> 
     return hi - lo
 
 
+def _waves(segs: list[tuple[int, int]], periodic: bool) -> list[tuple[int, int]]:
+    """The dense runs that are waves: in an open pipe, not a run of the first :data:`INLET_CELLS` cells alone (the
+    fed cell)."""
+    return segs if periodic else [(s, e) for s, e in segs if not (s == 0 and e <= INLET_CELLS)]
+
+
 def _fronts(c: np.ndarray, thr: float, dx: float, periodic: bool) -> np.ndarray:
-    """Positions (units of D) where ``c`` falls through ``thr`` going downstream."""
+    """Positions (units of D) where ``c`` falls through ``thr`` going downstream (in an open pipe, not the fed
+    cells' own edge at the inlet)."""
     nxt = np.roll(c, -1) if periodic else np.concatenate([c[1:], c[-1:]])
     i = np.flatnonzero((c > thr) & (nxt <= thr))
+    if not periodic:
+        i = i[i >= INLET_CELLS]
     frac = (c[i] - thr) / np.maximum(c[i] - nxt[i], 1e-300)
     return (i + 0.5 + frac) * dx
 
 
-#: an open pipe's dense run this many cells long at the inlet is the feed's first cell, not a wave
-INLET_CELLS = 2
 
 
 def wave_state(res: SimulationResult) -> WaveState:
@@ -104,12 +113,13 @@ def wave_state(res: SimulationResult) -> WaveState:
     thr = 0.5 * (lo + hi)
     dx, L = res.params.dx, res.params.length_D
     if hi - lo < MIN_WAVE_RANGE_C:
-        return WaveState(0, 0.0, 0.0, float("nan"), float("nan"), thr, lo, hi)
-    segs = _segments(c_end > thr, periodic)
-    if not periodic:
-        segs = [(s, e) for s, e in segs if not (s == 0 and e <= INLET_CELLS)]
+        return WaveState(0, 0.0, 0.0, float("nan"), float("nan"), thr, lo, hi,
+                         f"c stays within {lo:.4f}..{hi:.4f}, a range under {MIN_WAVE_RANGE_C:g}: the base flow, "
+                         "with small ripples at most")
+    segs = _waves(_segments(c_end > thr, periodic), periodic)
     if not segs:
-        return WaveState(0, 0.0, 0.0, float("nan"), float("nan"), thr, lo, hi)
+        return WaveState(0, 0.0, 0.0, float("nan"), float("nan"), thr, lo, hi,
+                         f"only the fed cells at the inlet are dense (c {lo:.3f}..{hi:.3f})")
     lengths = np.array([_length(c_end, s, e, thr, periodic) for s, e in segs]) * dx
     n = len(segs)
     # fronts: the downstream end of each dense segment, where c falls through the threshold
