@@ -321,3 +321,15 @@ def test_a_failed_read_leaves_the_reader_usable(tmp_path, monkeypatch):
                 m.read(119)
             for k in (0, 10, 3):
                 np.testing.assert_array_equal(m.read(k), every[k], err_msg=f"frame {k} after the error")
+
+
+def test_info_says_how_the_analysis_will_time_the_frames(uneven, capsys):
+    """info --json's frame_times follows the analysis: the stamps of an uneven file, index / fps with a given
+    rate (it said the file's stamps whenever a video had them)."""
+    import json
+
+    from grainplug.cli import main
+
+    for extra, said in (([], "the file's time stamps (unevenly spaced)"), (["--fps", "250"], "frame index / fps")):
+        assert main(["info", "--json", str(uneven), *extra]) == 0
+        assert json.loads(capsys.readouterr().out)["frame_times"] == said
