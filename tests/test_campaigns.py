@@ -265,6 +265,9 @@ def test_batch_prints_each_runs_warnings(campaign_dir, tmp_path, capsys, monkeyp
                        "--no-simulations")
     lines = [ln for ln in err.splitlines() if ln.startswith("warning:")]
     assert lines[0].startswith("warning: run a: ") and f"{len(said) - 1} more run warnings" in lines[1]
+    code, out, err = run(capsys, "batch", campaign_dir / "fast.csv", "--out", tmp_path / "o", "--no-figures",
+                         "--no-simulations", "--json")  # on stderr too, the JSON alone on stdout
+    assert code == 0 and err.startswith("warning: run a: ") and json.loads(out)["n_reused"] == 2
 
 
 def test_batch_workers_match_serial(campaign_dir, tmp_path):

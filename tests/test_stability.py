@@ -392,7 +392,7 @@ def test_a_largest_growth_at_the_end_of_the_range_is_not_called_most_unstable(ca
     assert short.at_range_edge == "k_max" and short.k == pytest.approx(3.0)
     atm = ModelParams(variant="frozen-friction", base_pressure_pa=101_325.0)
     res = analyze_stability(atm)
-    assert res.most_unstable.at_range_edge == "k_min" and "--k-min" in res.warnings[0]
+    assert res.most_unstable.at_range_edge == "k_min" and res.warnings[0].endswith("move its lower end (k_min)")
     wide = analyze_stability(atm, k_min=1e-5).most_unstable
     assert wide.at_range_edge is None and wide.k == pytest.approx(2.9e-4, rel=0.02)
     frozen = analyze_stability(ModelParams(variant="frozen-friction"))
@@ -403,6 +403,10 @@ def test_a_largest_growth_at_the_end_of_the_range_is_not_called_most_unstable(ca
     assert main(["stability", "--friction-law", "coulomb-weight"]) == 0
     out, err = capsys.readouterr()
     assert "largest in range" in out and "most unstable" not in out and "warning: the growth rate is largest" in err
+    assert err.rstrip().endswith("(--k-max)")  # the library's keyword, named as the command's flag
+    assert main(["stability", "--friction-law", "coulomb-weight", "--sweep", "c0=0.5:0.6:3", "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["rows"][0]["most_unstable_at_range_edge"] == "k_max" and "largest at an end" in err
 
 
 def test_absurd_model_inputs_are_refused_or_said():

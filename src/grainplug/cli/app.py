@@ -6,6 +6,7 @@ import contextlib
 import json
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 from click.core import ParameterSource
@@ -17,6 +18,9 @@ from ..errors import ParameterError
 from ..params import FLOW_DIRECTIONS
 from .config import ConfigCommand
 from .types import FINITE, FRAME_OR_TIME, Number, param_number
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 err_console = Console(stderr=True)
 
@@ -375,7 +379,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
 MAX_RUN_WARNINGS = 20
 
 
-def _print_run_warnings(table, out: Path) -> None:
+def _print_run_warnings(table: pd.DataFrame, out: Path) -> None:
     """Each run's warnings, as ``analyze`` prints them (``warning: run X: ...``), at most
     :data:`MAX_RUN_WARNINGS` lines."""
     lines = [(str(row.run), w) for row in table.itertuples()
@@ -510,8 +514,7 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
         _save_figure(fig, plot)
         plt.close(fig)
     if as_json:
-        for line in res.warnings:
-            err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
+        _print_stability_warnings(res.warnings)
         _echo_json({"grainplug_version": __version__, **res.as_dict()})
         return
     m = res.most_unstable
@@ -542,7 +545,13 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
         click.echo(f"cut-off            k* = {kc:.5f}  lambda/D = {2 * 3.141592653589793 / kc:.3f}")
     if plot is not None:
         click.echo(f"figure             {plot}")
-    for line in res.warnings:
+    _print_stability_warnings(res.warnings)
+
+
+def _print_stability_warnings(lines: list[str]) -> None:
+    """The analysis' warnings, its keywords named as this command's flags (k_min: --k-min)."""
+    for line in lines:
+        line = line.replace("(k_min)", "(--k-min)").replace("(k_max)", "(--k-max)")
         err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
 
 
@@ -807,6 +816,11 @@ def _stability_sweep(p, spec: str, *, k_min: float, k_max: float, n_k: int, as_j
         ax.legend(fontsize=8)
         _save_figure(fig, plot)
         plt.close(fig)
+    edge = [f"{r[name]:g}" for r in rows if r.get("most_unstable_at_range_edge")]
+    if edge:
+        err_console.print(f"[yellow]warning:[/] for {name} = {', '.join(edge)} the growth rate is largest at an end of "
+                          f"the k* range: its k* max is that end, not a maximum — widen --k-min/--k-max",
+                          highlight=False, soft_wrap=True)
     if as_json:
         _echo_json({"grainplug_version": __version__, "variant": p.variant, "input": name, "rows": rows,
                     "inputs": p.as_dict()})
@@ -821,11 +835,6 @@ def _stability_sweep(p, spec: str, *, k_min: float, k_max: float, n_k: int, as_j
             return f"{v:.{nd}f}" if v is not None else "stable"
 
         click.echo(f"{r[name]:18.5g} {r['B1_star']:8.4f} {f(km):>8s} {f(lm, 2):>8s} {f(kc):>10s} {f(lc, 2):>8s}")
-    edge = [f"{r[name]:g}" for r in rows if r.get("most_unstable_at_range_edge")]
-    if edge:
-        err_console.print(f"[yellow]warning:[/] for {name} = {', '.join(edge)} the growth rate is largest at an end of "
-                          f"the k* range: its k* max is that end, not a maximum — widen --k-min/--k-max",
-                          highlight=False, soft_wrap=True)
 
 
 def _save_figure(fig, path: Path) -> None:
@@ -964,6 +973,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
     if as_json:
         from ..campaigns.batch import fit_selection
 
+        _print_run_warnings(t, out)  # on stderr, as analyze --json prints its warnings
         _echo_json({"grainplug_version": __version__, "fits": camp.fits,
                     "runs": t[["run", "status"]].to_dict(orient="records"), "n_reused": camp.n_reused,
                     "n_remeasured": camp.n_remeasured, "left_out_of_fits": fit_selection(t)[1]})

@@ -275,8 +275,8 @@ def _balance_caveats(p: ModelParams, params: SimulationParams) -> list[str]:
     weight = p.c0 * math.cos(math.radians(p.theta_deg))
     if params.balanced:
         return [f"this run adds a uniform force S = {S:+.3f} rho_s g ({100 * abs(S) / weight:.0f} % of the grains' "
-                "weight) so that the base state is steady, as the linear analysis assumes; balance=False "
-                "(--no-balance) leaves it out"]
+                "weight) so that the base state is steady, as the linear analysis assumes; without it (balance "
+                "off) the base flow is not steady"]
     return [f"no balancing force in this run: the base flow is not steady (friction minus weight {S:+.3f} rho_s g)"]
 
 

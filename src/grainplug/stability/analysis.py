@@ -43,7 +43,7 @@ class Mode:
     root: int
     at_range_edge: str | None = None
 
-    def as_dict(self) -> dict[str, float]:
+    def as_dict(self) -> dict[str, float | int | str | None]:
         return dataclasses.asdict(self)
 
 
@@ -89,11 +89,11 @@ class StabilityResult:
         m = self.most_unstable
         if m is None or m.at_range_edge is None:
             return []
-        flag = "--k-min" if m.at_range_edge == "k_min" else "--k-max"
         way = "longer" if m.at_range_edge == "k_min" else "shorter"
+        end = "lower" if m.at_range_edge == "k_min" else "upper"
         return [f"the growth rate is largest at the edge of the range, {m.at_range_edge} = {m.k:g}: it still rises "
                 f"toward {way} waves, so no most unstable wavelength was found inside the range (the λ/D given is "
-                f"the range's end) — widen it ({flag})"]
+                f"the range's end) — move its {end} end ({m.at_range_edge})"]
 
     def as_dict(self) -> dict[str, object]:
         """JSON-ready: the CLI's ``--json`` (see docs/stability.md)."""
