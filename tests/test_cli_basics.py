@@ -118,9 +118,11 @@ def test_ctrl_c_inside_compiled_code_is_an_interruption(monkeypatch, tmp_path, c
     assert capsys.readouterr().err.strip() == "error: interrupted"
 
 
-def test_a_high_speed_clips_duration_keeps_its_digits():
-    """0.5 ms of a 30 000 fps clip read "0.001 s" (three fixed decimals): four significant digits now."""
-    from grainplug._format import duration
-
-    assert duration(15 / 30000) == "0.0005 s" and duration(15 / 9000) == "0.001667 s"
-    assert duration(2.35) == "2.35 s" and duration(123456.0) == "123456 s"
+def test_a_high_speed_clips_duration_keeps_its_digits(tmp_path, capsys):
+    """15 frames at 30 000 fps (0.5 ms) read "0.001 s" (three fixed decimals): four significant digits now."""
+    code, out, err = run(capsys, "synth", "--out", tmp_path, "--format", "tiff", "--frames", 15, "--seed", 2)
+    assert code == 0, err
+    code, out, err = run(capsys, "info", tmp_path / "movie.tif", "--fps", 30000)
+    assert code == 0 and "duration   0.0005 s" in out, out
+    code, out, err = run(capsys, "info", tmp_path / "movie.tif", "--fps", 9000)
+    assert "duration   0.001667 s" in out

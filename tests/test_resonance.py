@@ -12,9 +12,10 @@ from grainplug.stability.resonance import ResonanceInputs, mixture_sound_speed, 
 
 
 def test_pure_air_limit():
-    # the limit of no grains (c = 0 itself is refused: no plug on the air spring)
-    m = mixture_sound_speed(ResonanceInputs(compactness=1e-12))
-    assert m["mixture_sound_speed_m_s"] == pytest.approx(m["air_sound_speed_m_s"], rel=1e-6)
+    m = mixture_sound_speed(ResonanceInputs(compactness=0.0))
+    assert m["mixture_sound_speed_m_s"] == pytest.approx(m["air_sound_speed_m_s"])
+    # no grains, no plug on the air spring (a 1e-12 kg stand-in gave 6.9 MHz)
+    assert resonance(ResonanceInputs(compactness=0.0))["plug_on_air_spring_hz"] is None
     assert m["air_sound_speed_m_s"] == pytest.approx(math.sqrt(1.4 * 287.05 * 293.15), rel=1e-9)
 
 

@@ -411,13 +411,9 @@ def test_a_largest_growth_at_the_end_of_the_range_is_not_called_most_unstable(ca
 
 def test_absurd_model_inputs_are_refused_or_said():
     """Grains wider than the pipe are refused (B1* = 1034 was given); a c0 above random close packing and
-    fewer than 6 grains across the pipe are caveats; a resonance without grains is refused (it gave 6.9 MHz)."""
-    from grainplug.stability.resonance import ResonanceInputs
-
+    fewer than 6 grains across the pipe are caveats."""
     with pytest.raises(ParameterError, match="smaller than the pipe"):
         ModelParams(grain_diameter_um=5000)
     assert any("random close packing" in c for c in ModelParams(c0=0.99).caveats())
     assert any("D/d = 3" in c for c in ModelParams(grain_diameter_um=1000).caveats())
     assert not any("D/d" in c or "close packing" in c for c in PAPER.caveats())
-    with pytest.raises(ParameterError, match="no plug"):
-        ResonanceInputs(compactness=0.0)

@@ -106,6 +106,12 @@ def test_an_end_past_the_movie_is_said_and_frames_keep_the_movies_numbers(movies
     assert "frame 400" in said and "300 frames" in said and res.info.n_frames == 300 - START
     whole = gp.analyze(movies["tiff"], end_frame=400, mm_per_px=0.185)  # a window that is the whole movie
     assert any("past the movie" in w for w in whole.warnings) and whole.info.n_frames == 300
+    # in seconds: the movie's duration as info prints it (rounded up by a frame at most) is its end, not past it
+    duration = 300 / whole.info.fps
+    exact = gp.analyze(movies["tiff"], start_frame=START, end_s=duration * 1.001, mm_per_px=0.185)
+    assert not any("past the movie" in w for w in exact.warnings)
+    late = gp.analyze(movies["tiff"], start_frame=START, end_s=2 * duration, mm_per_px=0.185)
+    assert any(f"the window's end, {2 * duration:g} s, is past the movie's" in w for w in late.warnings)
     repair = FrameRepair(bright=np.array([34]))
     assert "(frame 134)" in repair.describe(150, first=100) and "(frame 34)" in repair.describe(150)
 

@@ -194,10 +194,15 @@ def _window(movie: Movie, params: AnalysisParams) -> Movie:
     stop = params.end_frame if params.end_frame is not None else (
         math.ceil(params.end_s * fps - 1e-6) if params.end_s is not None else n)
     notes = ()
-    if stop > n:  # said, not clamped silently: an end in the wrong unit would go unnoticed
+    # an end past the movie is said, not clamped silently (an end in the wrong unit would go unnoticed); in
+    # seconds, up to one frame past it is the movie's own duration rounded
+    if params.end_frame is not None and stop > n:
         notes = (f"the window's end, frame {stop}, is past the movie's {n} frames: it was analysed to the movie's "
                  "end — check the end and its unit (frames or seconds)",)
-        stop = n
+    elif params.end_s is not None and stop > n + 1:
+        notes = (f"the window's end, {params.end_s:g} s, is past the movie's {n / fps:.4g} s: it was analysed to "
+                 "the movie's end — check the end and its unit (frames or seconds)",)
+    stop = min(stop, n)
     if stop - start < 8:
         raise ParameterError(f"the window holds {max(stop - start, 0)} of the movie's {n} frames (frames {start} to "
                              f"{stop}); at least 8 are needed — move its start or its end",

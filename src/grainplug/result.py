@@ -371,7 +371,7 @@ TRACK_SCHEMA: dict[str, tuple[str, str]] = {
     "last_time_s": ("float64", "time of its last frame, s"),
     "n_frames": ("int64", "frames it is seen in"),
     "n_frames_whole": ("int64", "frames where both its edges are in view"),
-    "celerity_m_s": ("float64", "slope of its upstream edge (downstream edge if fewer seen), m/s, positive "
+    "celerity_m_s": ("float64", "slope of its upstream edge (downstream edge if fewer than two seen), m/s, positive "
                                 "downstream; empty with fewer than two edges"),
     "mean_length_mm": ("float64", "mean length over the frames where it is whole, mm; empty if never whole"),
     "median_length_mm": ("float64", "median of the same, mm"),

@@ -355,12 +355,12 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         fits = campaign_fits(table)
         _write_campaign(table, fits, out, manifest=Path(manifest), figures=figures, simulate=simulate,
                         figure_options=figure_options)
-    except KeyboardInterrupt:  # the campaign's files are replaced together: the earlier ones stay as they were
+    except KeyboardInterrupt:  # the campaign's files are renamed into place one by one: some may be new
         n_done = sum(is_complete(out / "runs" / run_folder_name(s.run)) for s in specs)
         raise CampaignInterrupted(
             f"interrupted while writing the campaign's tables and report: {n_done} of {total} runs have a complete "
-            "result, kept; the campaign's files are as they were before this batch — run the same command again "
-            "to write them (complete, current runs are reused)") from None
+            "result, kept; the campaign's own files may be part of this batch and part of the one before — run the "
+            "same command again to write them all (complete, current runs are reused)") from None
     return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused, n_remeasured, deaths)
 
 

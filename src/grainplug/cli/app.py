@@ -873,7 +873,8 @@ def resonance(as_json: bool, **kwargs: object) -> None:
                f"density {r['mixture_density_kg_m3']:.1f} kg/m3")
     click.echo("half-wave       " + ", ".join(f"{f:.2f}" for f in r["half_wave_hz"]) + " Hz")
     click.echo("quarter-wave    " + ", ".join(f"{f:.2f}" for f in r["quarter_wave_hz"]) + " Hz")
-    click.echo(f"plug on spring  {r['plug_on_air_spring_hz']:.2f} Hz")
+    spring = r["plug_on_air_spring_hz"]
+    click.echo(f"plug on spring  {'none (no grains)' if spring is None else f'{spring:.2f} Hz'}")
 
 
 # ---------------------------------------------------------------------------

@@ -45,11 +45,11 @@ def plot_growth_rates(res: StabilityResult, *, zoom_k_max: float = 0.8) -> Figur
     p = res.params
     m = res.most_unstable
     verdict = ("no unstable mode" if m is None else
-               f"growth largest at {m.at_range_edge} (no maximum inside)" if m.at_range_edge else
+               f"growth largest at {m.at_range_edge}" if m.at_range_edge else
                f"most unstable λ/D = {m.wavelength_over_diameter:.1f}")
     P0 = p.base_pressure_abs_pa
     pressure = f"{P0:.0f}" if P0 >= 1000 else f"{P0:.3g}"
-    fig.suptitle(f"friction {p.law}, air at P0 = {pressure} Pa (B* = B1* P0* = {p.B_star:.4g}) — {verdict}\n"
+    fig.suptitle(f"friction {p.law}, air at {pressure} Pa (B* = {p.B_star:.4g}): {verdict}\n"
                  f"B1* = {p.B1_star:.3f}, c0 = {p.c0}, κ = {p.kappa}, μs = {p.mu_s:.4f}, θ = {p.theta_deg}°",
                  fontsize=pt(9))
     return fig

@@ -308,7 +308,7 @@ def run_report(res: AnalysisResult, folder: Path, *, summary: dict | None = None
 <h2>Figures</h2>{"".join(figs) or "<p>No figures were drawn (--no-figures).</p>"}
 <h2>Plugs</h2>
 <p>One row per plug followed over time; click a column to sort. Celerity: the slope of its upper edge (of its lower
-edge where fewer upper edges are seen); length: the median over the frames where both edges are in view.</p>
+edge where fewer than two upper edges are seen); length: the median over the frames where both edges are in view.</p>
 {_plug_table(res)}
 <h2>How it was measured</h2>{_details(res, s)}
 <p>Positions in mm along the tube from the upstream end of the view, increasing with the flow;

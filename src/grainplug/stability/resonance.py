@@ -56,9 +56,8 @@ class ResonanceInputs:
     n_modes: int = 3
 
     def __post_init__(self) -> None:
-        if not 0 < self.compactness < 1:
-            raise ParameterError("compactness must be between 0 and 1 (excluded): without grains there is no plug "
-                                 "on the air spring")
+        if not 0 <= self.compactness < 1:
+            raise ParameterError("compactness must be in [0, 1)")
         for name in ("grain_density_kg_m3", "grain_sound_speed_m_s", "pressure_pa", "temperature_k",
                      "column_length_m", "plug_length_m", "air_column_m"):
             if not getattr(self, name) > 0:
@@ -89,7 +88,8 @@ def resonance(inp: ResonanceInputs) -> dict[str, object]:
     quarter = [(2 * k - 1) * a_m / (4 * L) for k in range(1, inp.n_modes + 1)]
     m = inp.grain_density_kg_m3 * inp.compactness * inp.plug_length_m
     k_spring = n * inp.pressure_pa / inp.air_column_m
-    f_spring = math.sqrt(k_spring / m) / (2 * math.pi)
+    # without grains (c = 0) the column's modes are the air's own, and there is no plug on the spring
+    f_spring = math.sqrt(k_spring / m) / (2 * math.pi) if m > 0 else None
     return {
         "inputs": asdict(inp),
         "process": "isothermal" if inp.isothermal else "adiabatic",
