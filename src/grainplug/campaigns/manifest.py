@@ -49,7 +49,6 @@ if TYPE_CHECKING:
     from ..calibration.pattern import Calibration
 
 
-
 def yes_or_no(value: object) -> bool:
     """``true``/``false`` (TOML), or ``true``, ``yes``, ``1``, ``false``, ``no``, ``0`` (CSV)."""
     if isinstance(value, bool):
