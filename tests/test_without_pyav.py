@@ -333,3 +333,37 @@ def test_info_says_how_the_analysis_will_time_the_frames(uneven, capsys):
     for extra, said in (([], "the file's time stamps (unevenly spaced)"), (["--fps", "250"], "frame index / fps")):
         assert main(["info", "--json", str(uneven), *extra]) == 0
         assert json.loads(capsys.readouterr().out)["frame_times"] == said
+
+
+def test_a_seek_in_a_variable_rate_mp4_before_its_stamps_are_known_gives_the_frame_asked(tmp_path):
+    """Before a pass has read the stamps, the OpenCV reader checked a seek by the rate alone: in a variable-rate
+    MP4, OpenCV lands on the frame at index / fps, whose stamp passes, and frame 33 came back as frame 32. The
+    frame before the one sought must now be one period earlier, else frames are decoded in order."""
+    from fractions import Fraction
+
+    import av
+    import numpy as np
+
+    from grainplug.readers.cvvideo import OpenCVVideoMovie
+
+    gaps = np.random.default_rng(1).choice([5, 10, 30], size=60)[:-1]
+    stamps = np.concatenate([[0], np.cumsum(gaps)]).astype(int)
+    path = tmp_path / "vfr.mp4"
+    with av.open(str(path), "w") as out:
+        stream = out.add_stream("libx264", rate=1000)
+        stream.width = stream.height = 64
+        stream.pix_fmt = "yuv420p"
+        stream.time_base = stream.codec_context.time_base = Fraction(1, 1000)
+        stream.options = {"crf": "0", "g": "10", "bf": "0"}
+        for k, t in enumerate(stamps):  # frame k is uniformly 4 k grey: its level names it
+            vf = av.VideoFrame.from_ndarray(np.full((64, 64, 3), 4 * k, np.uint8), format="rgb24")
+            vf.pts, vf.time_base = int(t), Fraction(1, 1000)
+            out.mux(stream.encode(vf))
+        out.mux(stream.encode())
+    wrong = []
+    with OpenCVVideoMovie(path) as movie:  # no stamps known: frames reached forward and back by seeking
+        for k in (50, 20, 59, 5, 40, 33, 10, 45, 12, 38, 27):
+            level = round(float(movie.read(k).mean()) / 4)
+            if level != k:
+                wrong.append((k, level))
+    assert wrong == []

@@ -172,6 +172,8 @@ class OpenCVVideoMovie(Movie):
         self._head_stamps_ms: list[float] = []
         self._stamps_cache: tuple[int, np.ndarray | None] = (0, None)
         self._file_fps = file_fps
+        # frames seen unevenly spaced: a seek to a frame whose stamp is not known yet cannot be checked by the rate
+        self._irregular = False
 
     def _open(self):
         cap = self._cv2.VideoCapture(str(self.path), self._cv2.CAP_FFMPEG)
@@ -219,7 +221,7 @@ class OpenCVVideoMovie(Movie):
             gaps = [raw[index] - raw[index - 1] if index > 0 else np.inf,
                     raw[index + 1] - raw[index] if index + 1 < len(raw) else np.inf]
             return float(raw[index]), 0.25 * float(min(gaps))
-        if self._file_fps:
+        if self._file_fps and not self._irregular:
             return 1000.0 * index / self._file_fps, 250.0 / self._file_fps
         return None
 
@@ -230,10 +232,30 @@ class OpenCVVideoMovie(Movie):
         check = self._stamp_check(index) if self._seekable else None
         if check is None:
             return False, None
-        cap.set(self._cv2.CAP_PROP_POS_FRAMES, index)
-        ok, frame = cap.read()
         expected, tolerance = check
-        if ok and abs(cap.get(self._cv2.CAP_PROP_POS_MSEC) - expected) <= tolerance:
+        raw = self._raw_stamps_ms
+        if raw is not None and index < len(raw):  # the frame's own stamp is known: it tells the frame
+            cap.set(self._cv2.CAP_PROP_POS_FRAMES, index)
+            ok, frame = cap.read()
+            if ok and abs(cap.get(self._cv2.CAP_PROP_POS_MSEC) - expected) <= tolerance:
+                return True, frame
+            return False, None
+        # checked by the rate alone: in a variable-rate file a seek lands on the frame at index / fps, another
+        # frame, whose stamp passes. The frame before must also be one period earlier; where it is not, the file's
+        # frames are not evenly spaced, and frames not yet read in order are reached by decoding from then on.
+        if index == 0:
+            return False, None
+        cap.set(self._cv2.CAP_PROP_POS_FRAMES, index - 1)
+        ok_a, _ = cap.read()
+        before = cap.get(self._cv2.CAP_PROP_POS_MSEC)
+        ok, frame = cap.read()
+        at = cap.get(self._cv2.CAP_PROP_POS_MSEC)
+        if not (ok_a and ok):
+            return False, None
+        if abs(at - before - 1000.0 / self._file_fps) > tolerance:
+            self._irregular = True
+            return False, None
+        if abs(at - expected) <= tolerance:
             return True, frame
         return False, None
 
