@@ -267,6 +267,24 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
     return dataclasses.replace(res, warnings=tuple(_checks(res, closure, c_peak, m_low)))
 
 
+#: an open pipe whose grain content changes by more than this share over the measured part is still filling or
+#: emptying: the start-up has not left it
+SETTLED_SHARE = 0.02
+
+
+def _start_up_left(res: SimulationResult, t_from_tc: float) -> list[str]:
+    """A warning when an open pipe's grain content still changes over the part of the run measured as a movie:
+    the column it started with, draining or filling to the feed, is then what the fronts measured may be."""
+    j = int(np.searchsorted(res.time, t_from_tc))
+    start, end = float(res.grain_total[min(j, len(res.time) - 1)]), float(res.grain_total[-1])
+    change = abs(end - start) / max(abs(start), 1e-300)
+    if change <= SETTLED_SHARE:
+        return []
+    return [f"the pipe's grain content still changes by {100 * change:.0f} % over the part of the run measured "
+            f"(from {t_from_tc:g} t_c): the start-up, the column it began with draining or filling to the feed, "
+            "has not left the pipe, and the fronts and celerity measured may be that transient — run longer"]
+
+
 def _balance_caveats(p: ModelParams, params: SimulationParams) -> list[str]:
     """What the run did with the base state's imbalance (the set-up's caveat says the linear analysis drops it)."""
     S = p.base_state_residual
@@ -381,6 +399,8 @@ def simulate_and_measure(model: ModelParams, params: SimulationParams | None = N
     warnings = list(res.warnings)
     if mu is not None and mu.growth_rate > 0 and not waves.n_waves and res.params.boundary == "periodic":
         warnings.append(_not_grown(mu.growth_rate, res.params.duration_tc, res.params.noise))
+    if res.params.boundary == "open":
+        warnings.extend(_start_up_left(res, seen.t_from_tc))
     if waves.n_waves and res.params.boundary == "periodic" and waves.n_waves == 1:
         warnings.append(f"one wave fills the box ({res.params.length_D:g} D): the dense-segment length "
                         f"({waves.dense_length_D:.0f} D) is set by the box, not selected by the flow; "
