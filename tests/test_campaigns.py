@@ -428,3 +428,14 @@ def test_ctrl_c_after_the_runs_says_what_is_kept(campaign_dir, tmp_path, monkeyp
     monkeypatch.undo()
     again = run_campaign(campaign_dir / "one.csv", tmp_path / "o", figures=False, simulate=False)
     assert again.n_reused == 1 and (tmp_path / "o" / "campaign.csv").is_file()
+
+
+def test_run_folders_left_by_removed_rows_are_pointed_out(campaign_dir, tmp_path, capsys):
+    """A row taken out of the manifest leaves its run's folder: kept (it is the user's data), said once."""
+    (campaign_dir / "two.csv").write_text("run,movie,mm_per_px\na,a/movie.avi,0.185\nb,b/movie.avi,0.185\n")
+    (campaign_dir / "one_a.csv").write_text("run,movie,mm_per_px\na,a/movie.avi,0.185\n")
+    out = tmp_path / "o"
+    assert run_campaign(campaign_dir / "two.csv", out, figures=False, simulate=False).stale_runs == ()
+    code, _, err = run(capsys, "batch", campaign_dir / "one_a.csv", "--out", out, "--no-figures", "--no-simulations")
+    assert code == 0 and "1 run folder(s) under" in err and "(b): kept, but left out of the campaign" in err
+    assert (out / "runs" / "b" / "summary.json").is_file()

@@ -155,6 +155,8 @@ class Campaign:
     n_remeasured: int = 0
     #: worker processes of this machine's pool that died (their runs were started again)
     worker_deaths: int = 0
+    #: folders under ``runs/`` of runs the manifest no longer lists (kept, not in the campaign)
+    stale_runs: tuple[str, ...] = ()
 
 
 def _group(row: pd.Series) -> str | None:
@@ -361,7 +363,13 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
             f"interrupted while writing the campaign's tables and report: {n_done} of {total} runs have a complete "
             "result, kept; the campaign's own files may be part of this batch and part of the one before — run the "
             "same command again to write them all (complete, current runs are reused)") from None
-    return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused, n_remeasured, deaths)
+    listed = {run_folder_name(s.run) for s in specs}
+    runs_dir = out / "runs"
+    stale = tuple(sorted(q.name for q in runs_dir.iterdir()
+                         if q.is_dir() and not q.name.startswith(".") and q.name not in listed)
+                  if runs_dir.is_dir() else ())
+    return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused, n_remeasured, deaths,
+                    stale)
 
 
 #: how long to wait for a Dask scheduler before saying it cannot be reached

@@ -967,6 +967,11 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         except CampaignInterrupted as exc:  # before click's own handler, which prints a blank line
             raise Interrupted(str(exc)) from None
     t = camp.table
+    if camp.stale_runs:
+        names = ", ".join(camp.stale_runs[:5]) + (", ..." if len(camp.stale_runs) > 5 else "")
+        err_console.print(f"[yellow]warning:[/] {len(camp.stale_runs)} run folder(s) under {escape(str(out / 'runs'))} "
+                          f"are no longer in the manifest ({escape(names)}): kept, but left out of the campaign — "
+                          "delete them if they are not needed", highlight=False, soft_wrap=True)
     if camp.worker_deaths:
         err_console.print(f"[yellow]warning:[/] {camp.worker_deaths} worker process(es) died during the batch "
                           "(killed, or out of memory); their runs were started again — if it repeats, use fewer "
