@@ -500,6 +500,15 @@ def uneven(stamps: np.ndarray) -> bool:
     return stray > max(EVEN_TIMES_PERIODS * period, EVEN_TIMES_S)
 
 
+def timing_stamps(movie: Movie, info: MovieInfo) -> np.ndarray | None:
+    """The file's own frame times (s) where they time the frames: recorded, the rate the file's own, and uneven
+    (:func:`uneven`); else None, and ``index / fps`` times them."""
+    if not (movie.has_file_timestamps and info.fps_source == "file"):
+        return None
+    stamps = np.asarray(movie.timestamps_s(), float)  # recorded while streaming, for video
+    return stamps if uneven(stamps) else None
+
+
 def _frame_times(movie: Movie, info: MovieInfo, n: int) -> tuple[np.ndarray, list[str]]:
     """Time of each frame, and a warning when the file's own times are unevenly spaced.
 
@@ -507,12 +516,9 @@ def _frame_times(movie: Movie, info: MovieInfo, n: int) -> tuple[np.ndarray, lis
     the rate's times (``index / fps``: exact, where whole-millisecond stamps of a 2000 fps movie are not);
     where they stray from it (a variable frame rate, dropped frames), the file's times, with a warning.
     """
-    by_rate = (np.arange(n) + movie.first_frame_index) / info.fps
-    if not (movie.has_file_timestamps and info.fps_source == "file"):
-        return by_rate, []
-    stamps = np.asarray(movie.timestamps_s(), float)  # recorded while streaming, for video
-    if len(stamps) != n or not uneven(stamps):
-        return by_rate, []
+    stamps = timing_stamps(movie, info)
+    if stamps is None or len(stamps) != n:
+        return (np.arange(n) + movie.first_frame_index) / info.fps, []
     dt = np.diff(stamps)
     return stamps, [f"the frames are not evenly spaced in time ({1000 * dt.min():.3g} to {1000 * dt.max():.3g} ms "
                     "apart): the file's own time stamps are used, but a high-speed camera records at a constant "

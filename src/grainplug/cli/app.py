@@ -135,9 +135,9 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
         d["last_frame_shape"] = list(last.shape)
         # how an analysis times the frames, as the pipeline decides (a camera file's stamps, when they keep to a
         # constant rate, give that rate: fps_note)
-        from ..pipeline import uneven
+        from ..pipeline import timing_stamps
 
-        by_stamps = m.has_file_timestamps and m.info.fps_source == "file" and uneven(m.timestamps_s())
+        by_stamps = timing_stamps(m, m.info) is not None
         d["frame_times"] = "the file's time stamps (unevenly spaced)" if by_stamps else "frame index / fps"
     if as_json:
         _echo_json(d)

@@ -233,31 +233,27 @@ class OpenCVVideoMovie(Movie):
         if check is None:
             return False, None
         expected, tolerance = check
+        # checked by the rate alone (the frame's own stamp not known yet): in a variable-rate file a seek lands on
+        # the frame at index / fps, another frame, whose stamp passes. The frame before must also be one period
+        # earlier; where it is not, the frames are not evenly spaced, and frames not yet read in order are reached
+        # by decoding from then on.
         raw = self._raw_stamps_ms
-        if raw is not None and index < len(raw):  # the frame's own stamp is known: it tells the frame
-            cap.set(self._cv2.CAP_PROP_POS_FRAMES, index)
-            ok, frame = cap.read()
-            if ok and abs(cap.get(self._cv2.CAP_PROP_POS_MSEC) - expected) <= tolerance:
-                return True, frame
+        by_rate = raw is None or index >= len(raw)
+        if by_rate and index == 0:
             return False, None
-        # checked by the rate alone: in a variable-rate file a seek lands on the frame at index / fps, another
-        # frame, whose stamp passes. The frame before must also be one period earlier; where it is not, the file's
-        # frames are not evenly spaced, and frames not yet read in order are reached by decoding from then on.
-        if index == 0:
-            return False, None
-        cap.set(self._cv2.CAP_PROP_POS_FRAMES, index - 1)
-        ok_a, _ = cap.read()
-        before = cap.get(self._cv2.CAP_PROP_POS_MSEC)
+        cap.set(self._cv2.CAP_PROP_POS_FRAMES, index - 1 if by_rate else index)
+        before = None
+        if by_rate:
+            ok, _ = cap.read()
+            before = cap.get(self._cv2.CAP_PROP_POS_MSEC) if ok else None
         ok, frame = cap.read()
-        at = cap.get(self._cv2.CAP_PROP_POS_MSEC)
-        if not (ok_a and ok):
+        if not ok or (by_rate and before is None):
             return False, None
-        if abs(at - before - 1000.0 / self._file_fps) > tolerance:
+        at = cap.get(self._cv2.CAP_PROP_POS_MSEC)
+        if by_rate and abs(at - before - 1000.0 / self._file_fps) > tolerance:
             self._irregular = True
             return False, None
-        if abs(at - expected) <= tolerance:
-            return True, frame
-        return False, None
+        return (True, frame) if abs(at - expected) <= tolerance else (False, None)
 
     def _seekable_to(self, index: int) -> bool:
         """Whether :meth:`_seek` tries a seek to frame ``index`` (and so may move the capture)."""
