@@ -115,8 +115,9 @@ def _state(c, v, P, r, kap, gam, jam, fr, cmin, cmax):
 
 
 @njit(cache=True, error_model="numpy")
-def _rate(U, k, Upad, W, out):
-    """The flux divergence ``-(H[f+1] - H[f]) / dx`` of every cell into ``out``."""
+def _rate(U, k, Upad, W, out, acc, w):
+    """The flux divergence ``-(H[f+1] - H[f]) / dx`` of every cell into ``out``; ``w`` times the grain flux
+    through the first and the last face added to ``acc[0]`` and ``acc[1]`` (not periodic)."""
     n = U.shape[1]
     _pad(U, k, Upad)
     _prim(Upad, k, W)
@@ -149,27 +150,30 @@ def _rate(U, k, Upad, W, out):
         H[2, f] = (ap * fl2 - am * fr2 + ap * am * (ur2 - ul2)) / span
     if int(k[K_BC]) == 1:  # the feed: exactly the fed grains enter
         H[0, 0] = k[K_IN_Q]
+    if int(k[K_BC]) != 0:
+        acc[0] += w * H[0, 0]
+        acc[1] += w * H[0, n]
     for j in range(3):
         for i in range(n):
             out[j, i] = -(H[j, i + 1] - H[j, i]) / dx
 
 
 @njit(cache=True, error_model="numpy")
-def _hyperbolic(U, dt, k, Upad, W):
-    """SSPRK(s,2), as :meth:`Integrator.hyperbolic`."""
+def _hyperbolic(U, dt, k, Upad, W, acc):
+    """SSPRK(s,2), as :meth:`Integrator.hyperbolic` (the grain through the ends added to ``acc``)."""
     n = U.shape[1]
     s = int(k[K_STAGES])
     h = dt / (s - 1)
     R = np.empty((3, n))
     V = U.copy()
     for _ in range(s - 1):
-        _rate(V, k, Upad, W, R)
+        _rate(V, k, Upad, W, R, acc, dt / s)
         for j in range(3):
             for i in range(n):
                 V[j, i] = V[j, i] + h * R[j, i]
         for i in range(n):
             V[0, i] = min(max(V[0, i], 0.0), 1.0 - 1e-9)
-    _rate(V, k, Upad, W, R)
+    _rate(V, k, Upad, W, R, acc, dt / s)
     out = np.empty_like(U)
     for j in range(3):
         for i in range(n):
@@ -373,11 +377,11 @@ def _max_speed(U, P_cells, k):
 
 
 @njit(cache=True, error_model="numpy")
-def _core(U, dt, k, Upad, W):
+def _core(U, dt, k, Upad, W, acc):
     """Sources, fluxes, sources, as :meth:`Integrator._core`."""
     V = U.copy()
     _sources(V, 0.5 * dt, k)
-    V = _hyperbolic(V, dt, k, Upad, W)
+    V = _hyperbolic(V, dt, k, Upad, W, acc)
     _sources(V, 0.5 * dt, k)
     return V
 
@@ -392,17 +396,18 @@ def step(U, dt, k):
     V = U.copy()
     _pressure(V, k, P)
     _diffusion(V, 0.5 * dt, k, P)
-    V = _core(V, dt, k, Upad, W)
+    V = _core(V, dt, k, Upad, W, np.zeros(2))
     _pressure(V, k, P)
     _diffusion(V, 0.5 * dt, k, P)
     return V
 
 
 @njit(cache=True, error_model="numpy")
-def advance(U, t, t_end, cfl, k):
+def advance(U, t, t_end, cfl, k, acc):
     """Steps of CFL-limited length from ``t`` to exactly ``t_end``, consecutive diffusion half-steps merged, as
     :meth:`Integrator.advance`; returns the state, the time reached and the number of steps (stops early, with
-    a non-finite speed, if the state blows up)."""
+    a non-finite speed, if the state blows up). The grain that enters and leaves an open pipe meanwhile is
+    added to ``acc[0]`` and ``acc[1]``."""
     n = U.shape[1]
     Upad = np.empty((3, n + 4))
     W = np.empty((4, n + 4))
@@ -418,7 +423,7 @@ def advance(U, t, t_end, cfl, k):
             return U, t, -1 - steps
         dt = min((k[K_STAGES] - 1) * cfl * dx / s, t_end - t)
         _diffusion(U, owed + 0.5 * dt, k, P)
-        U = _core(U, dt, k, Upad, W)
+        U = _core(U, dt, k, Upad, W, acc)
         owed = 0.5 * dt
         t += dt
         steps += 1

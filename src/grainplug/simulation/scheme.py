@@ -164,19 +164,29 @@ class Integrator:
             H[0, 0] = self.inlet[1]
         return H
 
-    def hyperbolic_rate(self, U: np.ndarray) -> np.ndarray:
+    def hyperbolic_rate(self, U: np.ndarray, budget: np.ndarray | None = None, weight: float = 0.0) -> np.ndarray:
+        """The flux divergence ``-(H[f+1] - H[f]) / dx`` of every cell; adds ``weight`` times the grain flux
+        through the first and the last face to ``budget[0]`` and ``budget[1]`` (an open pipe's inflow and
+        outflow)."""
         H = self.face_fluxes(U)
+        if budget is not None and not self.periodic:
+            budget[0] += weight * H[0, 0]
+            budget[1] += weight * H[0, -1]
         return -(H[:, 1:] - H[:, :-1]) / self.dx
 
-    def hyperbolic(self, U: np.ndarray, dt: float) -> np.ndarray:
-        """The SSPRK(s,2) step of the fluxes (``s`` = :data:`SSP_STAGES`)."""
+    def hyperbolic(self, U: np.ndarray, dt: float, budget: np.ndarray | None = None) -> np.ndarray:
+        """The SSPRK(s,2) step of the fluxes (``s`` = :data:`SSP_STAGES`).
+
+        With ``budget``, the grain that crossed the ends over the step is added to it: the step changes
+        ``sum(c) dx`` by ``dt / s`` times the sum over its ``s`` stages of the inflow minus the outflow,
+        exactly, as long as no compactness is clipped to ``[0, 1)``."""
         s = SSP_STAGES
         h = dt / (s - 1)
         V = U
         for _ in range(s - 1):
-            V = V + h * self.hyperbolic_rate(V)
+            V = V + h * self.hyperbolic_rate(V, budget, dt / s)
             V[0] = np.clip(V[0], 0.0, 1.0 - 1e-9)
-        out = U / s + (s - 1) / s * (V + h * self.hyperbolic_rate(V))
+        out = U / s + (s - 1) / s * (V + h * self.hyperbolic_rate(V, budget, dt / s))
         out[0] = np.clip(out[0], 0.0, 1.0 - 1e-9)
         return out
 
@@ -270,10 +280,12 @@ class Integrator:
         return out
 
     # -- steps --------------------------------------------------------------------
-    def advance(self, U: np.ndarray, t: float, t_end: float, cfl: float) -> tuple[np.ndarray, float, int]:
+    def advance(self, U: np.ndarray, t: float, t_end: float, cfl: float,
+                budget: np.ndarray | None = None) -> tuple[np.ndarray, float, int]:
         """Steps of CFL-limited length from ``t`` to exactly ``t_end``: the state, the time reached and the
         number of steps (negative, with the time it stopped, when the state blew up), as
-        :func:`grainplug.simulation._kernel.advance`.
+        :func:`grainplug.simulation._kernel.advance`. The grain that enters and leaves an open pipe
+        meanwhile is added to ``budget[0]`` and ``budget[1]`` (see :meth:`hyperbolic`).
 
         The steps are :meth:`step`, with the closing air-diffusion half-step of one step and the opening
         one of the next merged into one ``D_{(dt_n + dt_{n+1})/2}`` (the diffusion is the costliest part
@@ -286,7 +298,7 @@ class Integrator:
                 return U, t, -1 - steps
             dt = min((SSP_STAGES - 1) * cfl * self.dx / speed, t_end - t)
             U = self.diffusion(U, owed + 0.5 * dt)
-            U = self._core(U, dt)
+            U = self._core(U, dt, budget)
             owed = 0.5 * dt
             t += dt
             steps += 1
@@ -294,10 +306,10 @@ class Integrator:
             U = self.diffusion(U, owed)
         return U, t, steps
 
-    def _core(self, U: np.ndarray, dt: float) -> np.ndarray:
+    def _core(self, U: np.ndarray, dt: float, budget: np.ndarray | None = None) -> np.ndarray:
         """Sources, fluxes, sources: the middle of :meth:`step`."""
         U = self.sources(U, 0.5 * dt)
-        U = self.hyperbolic(U, dt)
+        U = self.hyperbolic(U, dt, budget)
         return self.sources(U, 0.5 * dt)
 
     def step(self, U: np.ndarray, dt: float) -> np.ndarray:
