@@ -257,7 +257,7 @@ def test_truncated_cine_is_refused_or_read_in_part(tmp_path, capsys):
     frames = random_frames(10, 16, 16, 16)
     path = write_cine(tmp_path / "m.cine", frames)
     cut(path, path.stat().st_size - 300)  # the last frame loses its end
-    with pytest.raises(MovieError, match=r"is truncated: it holds 9 of the 10 frames .* --allow-truncated"):
+    with pytest.raises(MovieError, match=r"is truncated: it holds 9 of the 10 frames .* allow_truncated=True"):
         open_movie(path)
     with open_movie(path, allow_truncated=True) as movie:
         assert movie.info.n_frames == 9 and "truncated" in movie.info.warnings[0]

@@ -24,14 +24,14 @@ def test_a_sound_movie_has_no_plausibility_warning(frames):
 def test_a_wrong_frame_rate_makes_speeds_absurd_and_is_said(frames):
     res = gp.analyze(frames, fps=500_000.0)  # a thousand times too fast
     text = " ".join(res.warnings)
-    assert "faster than grains can fall in a pipe: check the frame rate (--fps)" in text, res.warnings
+    assert "faster than grains can fall in a pipe: check the frame rate (fps=)" in text, res.warnings
 
 
 def test_a_scale_from_the_tube_is_flagged_and_its_doubts_named(frames):
     res = gp.analyze(frames, fps=500.0)
     # the synthetic tube's walls are not a real tube's optics: the model's estimate is not cross-checked
-    assert any("the scale comes from the tube model alone" in w and "--tube-outer-diameter-mm" in w
-               and "--mm-per-px" in w for w in res.warnings), res.warnings
+    assert any("the scale comes from the tube model alone" in w and "tube_outer_diameter_mm=" in w
+               and "mm_per_px=" in w for w in res.warnings), res.warnings
     assert not any("the scale comes from" in w for w in gp.analyze(frames, fps=500.0, mm_per_px=0.185).warnings)
 
 
@@ -62,7 +62,39 @@ def test_a_given_scale_far_from_the_tube_seen_is_said(frames, mm_per_px, doubted
     res = gp.analyze(frames, fps=500.0, mm_per_px=mm_per_px)
     said = [w for w in res.warnings if "the given scale makes its 3 mm bore" in w]
     assert bool(said) == doubted, res.warnings
-    assert all("--mm-per-px" in w for w in said)
+    assert all("mm_per_px=" in w for w in said)
+
+
+@pytest.mark.parametrize("mm_per_px", [0.0185, 0.000185])
+def test_a_scale_so_fine_that_no_plug_is_left_is_doubted(frames, mm_per_px):
+    """A scale 10 (or 1000, metres for mm) times too fine makes every plug shorter than min_plug_mm: "no plugs",
+    which used to come without a warning because the check of the given scale was off whenever no plug was found."""
+    res = gp.analyze(frames, fps=500.0, mm_per_px=mm_per_px)
+    assert not res.has_plugs
+    said = [w for w in res.warnings if "the given scale makes its 3 mm bore" in w]
+    assert len(said) == 1 and "check mm_per_px=" in said[0], res.warnings
+    assert "check the scale" in res.statement
+
+
+def test_the_command_line_names_its_flags_and_the_library_its_keywords(frames, tmp_path, capsys):
+    """One warning, two audiences: a Python user reads ``fps=`` and ``mm_per_px=``, the command line's user reads
+    ``--fps`` and ``--mm-per-px``; the saved summary keeps the library's words."""
+    import json
+
+    import tifffile
+
+    from grainplug.cli import main
+
+    res = gp.analyze(frames, fps=500_000.0)
+    assert any("(fps=)" in w for w in res.warnings) and not any("--" in w for w in res.warnings)
+    path = tmp_path / "m.tif"
+    tifffile.imwrite(path, frames)
+    assert main(["analyze", str(path), "--fps", "500000", "--out", str(tmp_path / "o"), "--no-figures"]) == 0
+    err = capsys.readouterr().err
+    assert "check the frame rate (--fps)" in err and "give --tube-outer-diameter-mm" in err
+    assert "fps=" not in err and "mm_per_px=" not in err
+    saved = json.loads((tmp_path / "o" / "summary.json").read_text())["warnings"]
+    assert any("check the frame rate (fps=)" in w for w in saved)
 
 
 def test_a_tube_without_plugs_does_not_doubt_a_right_scale():

@@ -518,7 +518,7 @@ def test_a_run_too_short_for_its_unstable_waves_says_so():
     sim = SimulationParams(length_D=60.0, n_cells=64, duration_tc=20.0, output_interval_tc=5.0, noise=1e-9)
     _, summary = simulate_and_measure(FROZEN, sim, rng=np.random.default_rng(0))
     [note] = [w for w in summary["warnings"] if "not had time to grow" in w]
-    assert summary["waves"]["n_waves"] == 0 and "--duration-tc" in note and "--noise" in note
+    assert summary["waves"]["n_waves"] == 0 and "duration_tc=" in note and "noise=" in note
     _, stable = simulate_and_measure(ModelParams(), sim, rng=np.random.default_rng(0))  # the printed model: stable
     assert not [w for w in stable["warnings"] if "not had time to grow" in w]
 

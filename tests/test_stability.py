@@ -392,7 +392,7 @@ def test_a_largest_growth_at_the_end_of_the_range_is_not_called_most_unstable(ca
     assert short.at_range_edge == "k_max" and short.k == pytest.approx(3.0)
     atm = ModelParams(variant="frozen-friction", base_pressure_pa=101_325.0)
     res = analyze_stability(atm)
-    assert res.most_unstable.at_range_edge == "k_min" and res.warnings[0].endswith("move its lower end (k_min)")
+    assert res.most_unstable.at_range_edge == "k_min" and res.warnings[0].endswith("move its lower end (k_min=)")
     wide = analyze_stability(atm, k_min=1e-5).most_unstable
     assert wide.at_range_edge is None and wide.k == pytest.approx(2.9e-4, rel=0.02)
     frozen = analyze_stability(ModelParams(variant="frozen-friction"))

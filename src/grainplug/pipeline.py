@@ -248,7 +248,7 @@ def _other_moving_regions(frames: list[np.ndarray], tube: TubeGeometry) -> list[
     name = "x" if tube.orientation == "vertical" else "y"
     return [f"the frames change as much around {name} = {int(where.min())}-{int(where.max())} px as in the tube "
             f"analysed (at {name} = {float(axis.mean()):.0f} px): a second tube? Only this one is analysed — "
-            "give --roi X0,Y0,X1,Y1 to choose"]
+            "give roi=(x0, y0, x1, y1) to choose"]
 
 
 def window_start(movie: Movie, params: AnalysisParams) -> int:
@@ -303,6 +303,10 @@ def _scale(tube: TubeGeometry, params: AnalysisParams,
 #: the width over which a tube's contents are seen, against its bore: a back-lit tube looks up to 35 % narrower
 #: (by the lamp's size), never much wider
 SEEN_OVER_BORE = (0.6, 1.15)
+#: without plugs the tube is seen where falling grains or the mean image's edges show it, inside the bore (0.69-0.99
+#: of it in the synthetic empty and compact tubes): narrower than this share, the given scale is the doubt (a
+#: scale 10 times too fine makes every plug "shorter than min_plug_mm")
+SEEN_OVER_BORE_NO_PLUGS = 0.3
 
 
 def _given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs: bool) -> list[str]:
@@ -312,14 +316,12 @@ def _given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs
         return []
     expected_px = params.tube_diameter_mm / float(params.mm_per_px)
     ratio = tube.inner_diameter_px / expected_px
-    # without plugs the tube is seen where falling grains or the mean image's edges show it, often far inside
-    # the bore: only a tube seen wider than its bore says anything then
-    low = SEEN_OVER_BORE[0] if has_plugs else 0.0
+    low = SEEN_OVER_BORE[0] if has_plugs else SEEN_OVER_BORE_NO_PLUGS
     if low <= ratio <= SEEN_OVER_BORE[1]:
         return []
     return [f"the tube's contents are seen over {tube.inner_diameter_px:.1f} px, but the given scale makes its "
-            f"{params.tube_diameter_mm:g} mm bore {expected_px:.1f} px ({ratio:.2f} times): check --mm-per-px and "
-            "--tube-diameter-mm, and that what was found is the tube"]
+            f"{params.tube_diameter_mm:g} mm bore {expected_px:.1f} px ({ratio:.2g} times): check mm_per_px= "
+            "and tube_diameter_mm=, and that what was found is the tube"]
 
 
 def _bore(tube: TubeGeometry, params: AnalysisParams) -> BoreEstimate:
@@ -366,7 +368,7 @@ def _tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, params: AnalysisP
     Silent only when two independent estimates of the bore (the outer silhouette and the
     refraction stripes) agree within 3 %.
     """
-    fix = "take a calibration image (grainplug calibrate) or give --mm-per-px"
+    fix = "take a calibration image (grainplug calibrate) or give mm_per_px="
     across = tube.canonical_shape[1]
     out = list(bore.warnings)
     est = bore.estimates_px
@@ -382,15 +384,15 @@ def _tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, params: AnalysisP
     elif bore.method == "contents":
         out.append(f"the scale comes from the tube's inner width seen through its contents ({bore.diameter_px:.1f} px)"
                    ", not cross-checked (in front light it usually reads within 2 %) — give "
-                   f"--tube-outer-diameter-mm to check it against the tube's outer silhouette, or {fix}")
+                   f"tube_outer_diameter_mm= to check it against the tube's outer silhouette, or {fix}")
     elif not math.isfinite(bore.agreement):
         out.append(f"the scale comes from the tube model alone ({bore.method}: bore {bore.diameter_px:.1f} px, "
                    f"about ±{100 * bore.rel_sd:.2g} %, glass index {params.glass_index:g} assumed), not cross-checked "
-                   "— give --tube-outer-diameter-mm to check it against the outer silhouette, or " + fix)
+                   "— give tube_outer_diameter_mm= to check it against the outer silhouette, or " + fix)
     elif bore.agreement > AGREEMENT:
         parts = ", ".join(f"{m} {v:.1f} px" for m, v in est.items() if m != "contents")
         out.append(f"the tube model's estimates of the bore disagree by {100 * bore.agreement:.0f} % ({parts}): "
-                   "check --tube-diameter-mm, --tube-outer-diameter-mm and --glass-index — or " + fix)
+                   "check tube_diameter_mm=, tube_outer_diameter_mm= and glass_index= — or " + fix)
     if bore.diameter_px < NARROW_TUBE_PX:
         out.append(f"the tube is only {bore.diameter_px:.1f} px wide: a scale from its width is uncertain by "
                    f"{100 * bore.rel_sd:.2g} % (one standard deviation), and every length and celerity with it — "
@@ -425,7 +427,7 @@ def _calibrated_scale(cal: Calibration, tube: TubeGeometry, info: MovieInfo, fro
         warnings.append(f"the tube's bore reads {bore.diameter_px:.1f} px ({bore.method}), {diameter_mm:g} mm by the "
                         f"calibration being {diameter_mm / mm_per_px:.1f} px ({100 * disagree:+.0f} % in scale): "
                         "back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
-                        "the tube's plane, else check --tube-diameter-mm (and --tube-outer-diameter-mm)")
+                        "the tube's plane, else check tube_diameter_mm= (and tube_outer_diameter_mm=)")
     return mm_per_px, source, rel_sd, warnings
 
 
@@ -470,10 +472,10 @@ def _implausible(motion: Motion | None, grains: GrainMotion | None, saturation: 
     out = []
     if motion is not None and motion.celerity_m_s is not None and abs(motion.celerity_m_s) > IMPLAUSIBLE_SPEED_M_S:
         out.append(f"the plugs move at {motion.celerity_m_s:.3g} m/s, faster than grains can fall in a pipe: check "
-                   "the frame rate (--fps) and the scale (--calibration or --mm-per-px)")
+                   "the frame rate (fps=) and the scale (calibration= or mm_per_px=)")
     if grains is not None and grains.speed_m_s is not None and abs(grains.speed_m_s) > IMPLAUSIBLE_SPEED_M_S:
         out.append(f"the grains fall through the bubbles at {grains.speed_m_s:.3g} m/s, faster than free fall "
-                   "allows: check the frame rate (--fps) and the scale")
+                   "allows: check the frame rate (fps=) and the scale")
     if saturation > SATURATION_WARN:
         out.append(f"{100 * saturation:.1f} % of the tube's pixels are at the camera's top value (saturated): plug "
                    "and bubble contrast is lost there — lower the exposure or the light")
@@ -522,7 +524,7 @@ def _frame_times(movie: Movie, info: MovieInfo, n: int) -> tuple[np.ndarray, lis
     dt = np.diff(stamps)
     return stamps, [f"the frames are not evenly spaced in time ({1000 * dt.min():.3g} to {1000 * dt.max():.3g} ms "
                     "apart): the file's own time stamps are used, but a high-speed camera records at a constant "
-                    "rate — check how the file was made (re-encoded, frames dropped?), or give --fps to time the "
+                    "rate — check how the file was made (re-encoded, frames dropped?), or give fps= to time the "
                     "frames by their number"]
 
 
@@ -554,7 +556,7 @@ def _resolve_flow(given: str | None, tube: TubeGeometry, grains: GrainMotion | N
         if speed is not None and (speed < 0) != runs_backwards(given):
             warnings = (f"the grains falling through the bubbles move against the given flow direction ({given}; "
                         f"{abs(speed):.2f} m/s the other way): check the flow direction "
-                        "(--flow-direction, or flow_direction= in Python)",)
+                        "(flow_direction=)",)
             log.warning(warnings[0])
         return _Flow(given, "user", warnings)
     if speed is not None:
@@ -564,7 +566,7 @@ def _resolve_flow(given: str | None, tube: TubeGeometry, grains: GrainMotion | N
         return _Flow(forward, "assumed (gravity down)")
     return _Flow(forward, "assumed", (f"no grains seen falling through the bubbles: the flow is assumed to run "
                                       f"{forward}; if it does not, give the flow direction "
-                                      "(--flow-direction, or flow_direction= in Python)",))
+                                      "(flow_direction=)",))
 
 
 def _orient(diagram: Diagram, norm: Normalized, grains: GrainMotion | None, tube: TubeGeometry,
@@ -610,8 +612,8 @@ def _measures(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, bac
         view = float(diagram.position_mm[-1] - diagram.position_mm[0]) if len(diagram.position_mm) > 1 else 0.0
         longer = f", longer than the {view:.0f} mm in view" if params.min_plug_mm >= view else ""
         return None, None, (f"no plugs: grains and air are both seen, but no run of grains is at least "
-                            f"min_plug_mm = {params.min_plug_mm:g} mm long{longer} — lower --min-plug-mm "
-                            "(or --min-gap-mm); no celerity, length or frequency is measured")
+                            f"{params.min_plug_mm:g} mm long{longer} — lower min_plug_mm= "
+                            "(or min_gap_mm=), or check the scale; no celerity, length or frequency is measured")
     # small least-squares problems: a BLAS thread pool would only add wake-up latency
     with threadpool_limits(limits=1, user_api="blas"):
         motion = measure_motion(diagram.time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,

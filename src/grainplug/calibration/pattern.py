@@ -206,7 +206,7 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
             f"a {'dot grid' if cal.pattern == 'dots' else cal.pattern} was found but its {cal.n_points} points "
             f"do not fit a flat square pattern ({cal.rms_residual_px:.1f} px off, x:y scales "
             f"{cal.mm_per_px_x / cal.mm_per_px_y:.3f}) — check that the pattern is flat and square and the "
-            "pitch is right, or give --mm-per-px")
+            "pitch is right, or give mm_per_px= to the analysis")
     if not fits and pattern in ("auto", "graph", "ruler"):
         grating = _grating(grey, pitch_mm=pitch_mm, kind=pattern, identity=identity or {})
         if grating is not None:

@@ -29,7 +29,7 @@ import pandas as pd
 from .._atomic import atomic_directory, is_complete
 from .._version import __version__
 from ..corrections import Corrections, apply_corrections
-from ..errors import CampaignInterrupted, GrainplugError
+from ..errors import CampaignInterrupted, GrainplugError, ParameterError
 from ..jsonio import dumps
 from ..outputs import FigureOptions, save_figure, write_outputs
 from ..pipeline import analyze, fingerprint
@@ -307,14 +307,14 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     specs = read_manifest(manifest)
     out = check_output_place(out_dir, inputs=[manifest, *(s.movie for s in specs)], replace=False)
     if workers < 1:
-        raise GrainplugError("--workers must be at least 1")
+        raise ParameterError("must be at least 1", param="workers")
     client = _dask_client(scheduler) if scheduler else None  # refuse an unreachable scheduler before writing
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         if client is not None:
             client.close()
-        raise OutputPlaceError(f"cannot create {out}: {exc.strerror or exc} — choose another --out") from None
+        raise OutputPlaceError(f"cannot create {out}: {exc.strerror or exc} — choose another output folder") from None
     records: dict[str, dict] = {}
     total = len(specs)
 
@@ -380,7 +380,7 @@ def _dask_client(address: str):
     try:
         from dask.distributed import Client
     except ImportError:
-        raise GrainplugError("--scheduler needs Dask: pip install 'grainplug[dask]'") from None
+        raise GrainplugError("scheduler= needs Dask: pip install 'grainplug[dask]'") from None
     import socket
     from urllib.parse import urlsplit
 

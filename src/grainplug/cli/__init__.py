@@ -16,10 +16,6 @@ import warnings
 log = logging.getLogger("grainplug")
 
 
-#: library parameters whose command-line flag has another name
-_FLAGS = {"start_frame": "start", "start_s": "start", "end_frame": "end", "end_s": "end"}
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit status."""
     return _main(list(sys.argv[1:] if argv is None else argv))
@@ -30,6 +26,7 @@ def _main(args: list[str]) -> int:
 
     from ..errors import GrainplugError, ParameterError
     from .app import cli
+    from .words import ALIASES, as_flags, option_flags
 
     debug = "--debug" in args
     quiet = not ({"--debug", "--verbose", "-v"} & set(args))
@@ -54,14 +51,16 @@ def _main(args: list[str]) -> int:
         if debug:
             raise
         # the library names its own parameters; say which flag that is
-        flag = _FLAGS.get(exc.param or "", exc.param)
-        where = f"--{flag.replace('_', '-')}: " if flag and flag != "source" else ""
-        click.echo(f"error: {where}{exc.message}", err=True)
+        flags = option_flags(cli)
+        name = ALIASES.get(exc.param or "", exc.param)
+        flag = flags[name][0] if name in flags else f"--{name.replace('_', '-')}" if name else None
+        where = f"{flag}: " if flag and name != "source" else ""
+        click.echo(f"error: {where}{as_flags(exc.message, flags)}", err=True)
         return 2
     except GrainplugError as exc:
         if debug:
             raise
-        click.echo(f"error: {exc}", err=True)
+        click.echo(f"error: {as_flags(str(exc), option_flags(cli))}", err=True)
         return exc.exit_code
     except KeyboardInterrupt:
         click.echo("error: interrupted", err=True)

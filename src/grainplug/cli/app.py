@@ -25,6 +25,18 @@ if TYPE_CHECKING:
 err_console = Console(stderr=True)
 
 
+def in_flags(text: str) -> str:
+    """A library message in this command line's words: each keyword it names (``mm_per_px=``) as the option."""
+    from .words import as_flags, option_flags
+
+    return as_flags(text, option_flags(cli))
+
+
+def say_warning(line: str, prefix: str = "") -> None:
+    """``warning: <prefix><line>`` on stderr, the library's keywords named as this command line's options."""
+    err_console.print(f"[yellow]warning:[/] {escape(prefix + in_flags(line))}", highlight=False, soft_wrap=True)
+
+
 class LazyGroup(click.Group):
     """Commands whose options need heavy imports are loaded when named (click's lazy-loading
     pattern), so that every other command starts without them."""
@@ -168,7 +180,7 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
     if details.get("timestamp_jitter"):
         click.echo(f"time stamp jitter {100 * float(details['timestamp_jitter']):.2g} %")
     for line in d.get("warnings") or []:
-        err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
+        say_warning(line)
 
 
 # ---------------------------------------------------------------------------
@@ -216,7 +228,7 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
         click.echo(f"variation   {100 * cal.scale_variation:.2g} % over the pattern")
         click.echo(f"written     {out} and {figure}")
     for line in cal.warnings:
-        err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
+        say_warning(line)
 
 
 # ---------------------------------------------------------------------------
@@ -243,6 +255,8 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
                    "warning].")
 @click.option("--min-plug-mm", type=param_number("min_plug_mm"), default=3.0, show_default=True,
               help="Shortest grain region counted as a plug.")
+@click.option("--min-gap-mm", type=param_number("min_gap_mm"), default=0.6, show_default=True,
+              help="Shortest gap between grains counted as a bubble.")
 @click.option("--glob", "glob_", default=None, help="For image folders: only files matching this pattern.")
 @click.option("--threads", type=Number(1, 1024, integer=True), default=None,
               help="Threads reading uncompressed frames (TIFF stacks, raw video) [default: one per core].")
@@ -272,7 +286,8 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_per_px: float | None,
             tube_diameter_mm: float | None, tube_outer_diameter_mm: float | None, glass_index: float,
-            flow_direction: str | None, min_plug_mm: float, glob_: str | None, threads: int | None,
+            flow_direction: str | None, min_plug_mm: float, min_gap_mm: float, glob_: str | None,
+            threads: int | None,
             calibration: Path | None, background: Path | None, allow_truncated: bool,
             start: tuple[str, float] | None, end: tuple[str, float] | None, roi: str | None, no_figures: bool,
             dpi: int | None,
@@ -313,7 +328,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, tube_diameter_mm=diameter,
                             tube_outer_diameter_mm=tube_outer_diameter_mm, glass_index=glass_index,
-                            flow_direction=flow_direction, min_plug_mm=min_plug_mm, glob=glob_,
+                            flow_direction=flow_direction, min_plug_mm=min_plug_mm, min_gap_mm=min_gap_mm, glob=glob_,
                             allow_truncated=allow_truncated, calibration=cal, background=light, roi=roi_px,
                             **_window_params(start, end))
     # the figures' worker starts now, before the analysis' own imports (numpy among them): it imports
@@ -339,12 +354,12 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     if settings is not None:  # said once the run is done: a refusal stays one line
         err_console.print(f"settings from {escape(str(settings))}", highlight=False, soft_wrap=True)
     for line in result.warnings:
-        err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
+        say_warning(line)
     if as_json:
         _echo_json(s)
         return
     if not result.has_plugs or s.get("celerity_m_s") is None:
-        err_console.print(escape(result.statement), highlight=False, soft_wrap=True)
+        err_console.print(escape(in_flags(result.statement)), highlight=False, soft_wrap=True)
     if result.has_plugs:
         def fmt(v: object, unit: str = "", nd: int = 4) -> str:
             return "—" if v is None else f"{v:.{nd}f}{unit}" if isinstance(v, float) else f"{v}{unit}"
@@ -385,7 +400,7 @@ def _print_run_warnings(table: pd.DataFrame, out: Path) -> None:
     lines = [(str(row.run), w) for row in table.itertuples()
              if isinstance(getattr(row, "warnings", None), str) for w in row.warnings.split(" | ") if w]
     for run, w in lines[:MAX_RUN_WARNINGS]:
-        err_console.print(f"[yellow]warning:[/] run {escape(run)}: {escape(w)}", highlight=False, soft_wrap=True)
+        say_warning(w, f"run {run}: ")
     if len(lines) > MAX_RUN_WARNINGS:
         err_console.print(f"[yellow]warning:[/] {len(lines) - MAX_RUN_WARNINGS} more run warnings: see the warnings "
                           f"column of {escape(str(out / 'campaign.csv'))} and the report", highlight=False,
@@ -529,7 +544,7 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
     click.echo(f"base-state balance -c0 cos(theta) + F(c0, v0) = {p.base_state_residual:+.4f} "
                "(0 if the base state were steady)")
     for line in p.caveats():
-        click.echo(f"caveat             {line}")
+        click.echo(f"caveat             {in_flags(line)}")
     if m is None:
         click.echo(f"most unstable      none: every k* in [{k_min:g}, {k_max:g}] is stable")
         if p.is_printed:
@@ -549,10 +564,9 @@ def stability(k_min: float, k_max: float, n_k: int, as_json: bool, plot: Path | 
 
 
 def _print_stability_warnings(lines: list[str]) -> None:
-    """The analysis' warnings, its keywords named as this command's flags (k_min: --k-min)."""
+    """The analysis' warnings, its keywords named as this command's flags (k_min=: --k-min)."""
     for line in lines:
-        line = line.replace("(k_min)", "(--k-min)").replace("(k_max)", "(--k-max)")
-        err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
+        say_warning(line)
 
 
 @cli.command()
@@ -676,7 +690,7 @@ def simulation_lines(summary: dict) -> list[str]:
     else:
         out.append(f"waves at the end   none: {w.get('why_none') or 'the flow stayed uniform'}")
     if m["regime"] == "none":
-        out.append(f"as a movie         {m['statement']}")
+        out.append(f"as a movie         {in_flags(m['statement'])}")
         if w["n_waves"]:
             out.append(f"                   (c stays within {w['c_min']:.2f}..{w['c_max']:.2f}: no air bubble forms, "
                        "so a camera would see a compact flow)")
@@ -686,7 +700,7 @@ def simulation_lines(summary: dict) -> list[str]:
         bub = "-" if m["bubble_length_mm"] is None else f"{m['bubble_length_mm']:.1f} mm"
         out.append(f"as a movie         {m['regime']}: celerity {cel}, plugs {plug}, bubbles {bub}")
     for warning in summary["warnings"]:
-        out.append(f"warning            {warning}")
+        out.append(f"warning            {in_flags(warning)}")
     return out
 
 
@@ -715,7 +729,7 @@ def remeasure(folder: Path, no_figures: bool, as_json: bool) -> None:
     plug = "-" if s["plug_length_mm"] is None else f"{s['plug_length_mm']:.2f} mm"
     click.echo(f"regime             {s['regime']}; celerity {cel}; plug length {plug}")
     if res.statement:
-        click.echo(f"note               {res.statement}")
+        click.echo(f"note               {in_flags(res.statement)}")
     click.echo(f"outputs            {folder}/")
 
 
@@ -998,8 +1012,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         _print_run_warnings(t, out)
         for run, why in fit_selection(t)[1].items():
             if run == ALL_RUNS or not why.endswith("no plugs measured"):
-                err_console.print(f"[yellow]warning:[/] {escape(f'run {run}' if run else 'fits')}: {escape(why)}",
-                                  highlight=False, soft_wrap=True)
+                say_warning(why, f"run {run}: " if run else "fits: ")
         fits = {g: f["celerity"] for g, f in camp.fits.items() if f.get("celerity")}
         if fits:
             click.echo("plug celerity against the mass flow rate ṁ (g/s), fitted as v_p = a + b ṁ:")

@@ -36,7 +36,7 @@ def choose_fps(given: float | None, in_file: float | None) -> tuple[float | None
         return float(given), "user", [
             f"the frame rate given ({given:g} fps) is not the one the file records ({in_file:.6g} fps): the given "
             "one is used, and every time and speed scales with it — right for a video saved at a playback rate, "
-            "but check --fps"]
+            "but check fps="]
     return float(given), "user", []
 
 

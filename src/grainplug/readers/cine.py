@@ -311,7 +311,7 @@ def _frame_rate(setup: dict[str, object], stamps: np.ndarray | None,
 
 
 #: the end of a warning that the file's stamps were preferred to its header's rate
-STAMPS_OVER_HEADER = "using the time stamps; pass --fps if the header is right"
+STAMPS_OVER_HEADER = "using the time stamps; give fps= if the header is right"
 
 
 def frames_named(indices: list[int]) -> str:

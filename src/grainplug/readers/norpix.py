@@ -83,7 +83,7 @@ class SeqMovie(RawFramesMovie):
         if n < n_listed:
             if not allow_truncated or n == 0:
                 raise MovieError(f"{path} is truncated: it holds {n} of the {n_listed} frames its header describes — "
-                                 "copy the file again" + (f", or pass --allow-truncated (allow_truncated=True) to read "
+                                 "copy the file again" + (f", or give allow_truncated=True to read "
                                                           f"the {n} complete frames" if n else ""))
             truncated = f"the file is truncated: reading the first {n} of the {n_listed} frames its header describes"
         stamps = _stamps(path, header, true_size, image_bytes, n, micro=version >= 5)

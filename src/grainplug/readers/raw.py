@@ -267,7 +267,7 @@ def complete_frames(path: Path, layout: RawLayout, *, allow_truncated: bool, wha
                          "— copy the file again")
     if not allow_truncated:
         raise MovieError(f"{path} is truncated: it holds {whole} of the {n} frames its header describes — copy the "
-                         f"file again, or pass --allow-truncated (allow_truncated=True) to read the {whole} "
+                         f"file again, or give allow_truncated=True to read the {whole} "
                          "complete frames")
     return whole, f"the file is truncated: reading the first {whole} of the {n} frames its header describes"
 

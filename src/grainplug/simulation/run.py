@@ -106,7 +106,7 @@ class SimulationParams:
              "the feed rate must be positive (g/s)"),
             (self.feed_rate_g_s is None or self.feed_v is None, "give the feed velocity or the feed rate, not both"),
             (self.boundary == "open" or (self.feed_c is None and self.feed_v is None and self.feed_rate_g_s is None),
-             "the feed (compactness, velocity, rate) applies to the open pipe only (--boundary open)"),
+             "the feed (compactness, velocity, rate) applies to the open pipe only (boundary=\"open\")"),
         ]
         for ok, msg in checks:
             if not ok:
@@ -269,7 +269,7 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
         U, t, n = advance(U, t, float(times[j]))
         if n < 0 or not np.isfinite(U).all():
             raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (a non-finite state): "
-                                 "try more cells or a smaller --cfl")
+                                 "try more cells or a smaller cfl=")
         steps += n
         fields[j] = np.stack(closure.primitive(U))
         totals[j] = U[0].sum() * params.dx, U[2].sum() * params.dx
@@ -322,7 +322,7 @@ def _checks(res: SimulationResult, closure: Closure, c_peak: float, m_low: float
     out = []
     if m_low < -AIR_NEGATIVE:
         out.append(f"the air mass went negative ({m_low:.3g}) in a saved state: the state left the model "
-                   "(emptied cells, or a step too long); use more cells or a smaller --cfl")
+                   "(emptied cells, or a step too long); use more cells or a smaller cfl=")
     p = res.params
     if p.boundary == "periodic":
         for name, drift in (("grain", res.grain_drift), ("air", res.air_drift)):
@@ -334,7 +334,7 @@ def _checks(res: SimulationResult, closure: Closure, c_peak: float, m_low: float
                    "crossed the ends: the scheme should conserve it to round-off (a compactness clipped to [0, 1)?); "
                    "report this with the parameters")
     if c_peak > RANDOM_CLOSE_PACKING:
-        fix = ("add --jamming to cap it" if not res.model.jamming else
+        fix = ("add jamming=True to cap it" if not res.model.jamming else
                "the jamming pressure did not hold it: use more cells")
         out.append(f"the compactness reached {c_peak:.3f}, above random close packing ({RANDOM_CLOSE_PACKING}): "
                    f"the model lets grains pack tighter than spheres can; {fix}")
@@ -399,9 +399,9 @@ def _not_grown(rate: float, duration_tc: float, noise: float) -> str:
     if noise > 0:
         need = math.log(GROWN_AMPLITUDE / noise) / rate
         return (f"{head}, from noise {noise:g} to about {noise * gain:.2g} in compactness: the flow only looks "
-                f"uniform; run longer (about --duration-tc {math.ceil(need)} to reach {GROWN_AMPLITUDE:g}) or start "
-                "from more noise (--noise)")
-    return f"{head}, and the run started without noise: give --noise (and a long enough --duration-tc)"
+                f"uniform; run longer (about duration_tc={math.ceil(need)} to reach {GROWN_AMPLITUDE:g}) or start "
+                "from more noise (noise=)")
+    return f"{head}, and the run started without noise: give noise= (and a long enough duration_tc=)"
 
 
 def simulate_and_measure(model: ModelParams, params: SimulationParams | None = None, *,

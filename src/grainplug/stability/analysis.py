@@ -93,7 +93,7 @@ class StabilityResult:
         end = "lower" if m.at_range_edge == "k_min" else "upper"
         return [f"the growth rate is largest at the edge of the range, {m.at_range_edge} = {m.k:g}: it still rises "
                 f"toward {way} waves, so no most unstable wavelength was found inside the range (the λ/D given is "
-                f"the range's end) — move its {end} end ({m.at_range_edge})"]
+                f"the range's end) — move its {end} end ({m.at_range_edge}=)"]
 
     def as_dict(self) -> dict[str, object]:
         """JSON-ready: the CLI's ``--json`` (see docs/stability.md)."""

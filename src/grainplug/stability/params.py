@@ -278,7 +278,7 @@ class ModelParams:
                        "(in units of rho_s g); the linear analysis drops this imbalance, as the paper does")
         if self.base_pressure_pa is None:
             out.append(f"P* = 1 means an absolute air pressure of {self.P_c_pa:.0f} Pa, 1/{P_ATM_PA / self.P_c_pa:.0f} "
-                       "of the atmosphere (as printed; --base-pressure atmospheric for the real one)")
+                       "of the atmosphere (as printed; base_pressure_pa=101325 for the real one)")
         if self.law == "coulomb-frozen":
             out.append("frozen friction is a change of wall-friction law (a Coulomb stress held at its base value, "
                        "not the paper's closure rho_s mu_s v^2 / 2, which it contradicts); its long-wave "
