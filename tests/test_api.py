@@ -61,6 +61,9 @@ def test_import_is_light_and_exposes_the_api():
     assert callable(gp.analyze) and callable(gp.load_result) and callable(gp.open_movie)
     with pytest.raises(AttributeError):
         gp.no_such_thing  # noqa: B018
+    # the subpackages the docs point to, without importing them first; dir() lists the API, not the module's imports
+    assert gp.campaigns.manifest.read_manifest and gp.calibration and gp.errors.GrainplugError is gp.GrainplugError
+    assert {"analyze", "campaigns", "calibration"} <= set(dir(gp)) and not {"importlib", "TYPE_CHECKING"} & set(dir(gp))
 
 
 def test_analyze_takes_a_path_an_open_movie_or_frames_in_memory(movie, result):
@@ -102,6 +105,46 @@ def test_missing_frame_rate_and_bad_parameters_name_the_parameter(movie):
     assert "min_plug_mm" in str(err.value)
     with pytest.raises(gp.MovieError):
         gp.analyze(np.zeros((20, 64), np.uint8), fps=100)
+
+
+def test_a_students_slips_are_refused_in_one_line_or_taken_as_meant(movie, result):
+    """What a notebook user types by mistake: one clear error naming the parameter (never a deep numpy or
+    attribute error), or the value taken as meant where it can only mean one thing."""
+    from decimal import Decimal
+
+    with gp.open_movie(movie.movie) as m:
+        frames = np.stack(list(m.frames(0, 30)))
+    refused = [
+        (lambda: gp.analyze(frames, fps="250"), "fps: must be a number"),
+        (lambda: gp.analyze(frames[0], fps=250), "one colour frame, not a movie"),
+        (lambda: gp.analyze([frames[0], frames[1][:-1], *frames[2:]], fps=250), "not all the same size"),
+        (lambda: gp.analyze((frames.mean(-1) - 128).astype(np.int8), fps=250), "signed integers"),
+        (lambda: gp.analyze(["a.png", "b.png"]), "give the folder"),
+        (lambda: gp.analyze(frames, fps=250, threads="4"), "threads: give a whole number"),
+        (lambda: gp.analyze(movie.movie, [1]), "must be an AnalysisParams"),
+        (lambda: gp.AnalysisParams(calibration="cal.json"), "must be a Calibration"),
+        (lambda: gp.AnalysisParams(roi=(0, 0, 128)), "four whole pixel numbers"),
+        (lambda: gp.AnalysisParams(start_frame=True), "must be a frame number"),
+    ]
+    for call, needle in refused:
+        with pytest.raises(gp.GrainplugError, match=needle):
+            call()
+    # numbers in another dress, and parameters as a dict, are what they say
+    p = gp.AnalysisParams(fps=np.array(250.0), mm_per_px=Decimal("0.185"), sample_frames=32.0,
+                          roi=np.array([0, 0, 128, 640]))
+    assert (p.fps, p.mm_per_px, p.sample_frames, p.roi) == (250.0, 0.185, 32, (0, 0, 128, 640))
+    assert type(p.sample_frames) is int and type(p.fps) is float
+    assert gp.analyze(movie.movie, {"fps": 250.0}).summary["celerity_m_s"] == result.summary["celerity_m_s"]
+
+
+def test_an_empty_track_table_keeps_the_columns_types(tmp_path, result):
+    """A run without plugs has no tracks; its empty table has the columns' types, so that concatenating runs'
+    tables keeps float celerities (it was object in every column)."""
+    none = synthesize(SynthConfig(n_frames=40, seed=1, regime="none"), tmp_path, fmt="tiff")
+    empty = gp.analyze(none.movie).tracks
+    assert len(empty) == 0
+    assert dict(empty.dtypes) == dict(result.tracks.dtypes)
+    assert empty.celerity_m_s.dtype == np.float64
 
 
 def test_result_tables(result):

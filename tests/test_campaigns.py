@@ -174,6 +174,12 @@ def test_a_column_that_looks_misspelt_is_warned_about(campaign_dir, tmp_path, ca
                        "--no-simulations")
     assert code == 0 and "warning: run a: column 'mm_per_pix' is not one grainplug knows" in err
     assert "if it means 'mm_per_px'" in pd.read_csv(tmp_path / "o" / "campaign.csv").warnings[0]
+    # from Python the campaign says it too, with the runs that failed
+    (campaign_dir / "gone.csv").write_text("run,movie,mm_per_pix\na,a/movie.avi,0.185\nb,nowhere.avi,0.185\n")
+    camp = run_campaign(campaign_dir / "gone.csv", tmp_path / "p", figures=False, simulate=False)
+    assert camp.n_failed == 1
+    assert any(w.startswith("run a: column 'mm_per_pix' is not one grainplug knows") for w in camp.warnings)
+    assert any(w.startswith("run b failed: ") and "nowhere.avi" in w for w in camp.warnings), camp.warnings
 
 
 def test_every_analysis_setting_is_a_manifest_column(tmp_path):

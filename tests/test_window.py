@@ -170,6 +170,20 @@ def test_a_region_of_interest_chooses_one_of_two_tubes(two_tubes):
     assert err.value.param == "roi"
 
 
+@pytest.mark.parametrize("roi", [(0, 0, 60, 640), (62, 0, 128, 640), (56, 0, 72, 640)])
+def test_a_region_that_cuts_the_tube_is_said(two_tubes, roi):
+    """A region drawn through the tube (its bore spans x = 56-72) gave a climbing celerity twice the truth, or an
+    "oscillating" regime, with only a warning that the contents were not seen to change; regions around the whole
+    tube and its walls are measured as before, without the warning."""
+    frames, _ = two_tubes
+    res = gp.analyze(frames, fps=250, roi=roi)
+    assert any("the tube is cut by the frame's edge" in w and "widen roi=" in w for w in res.warnings), res.warnings
+    assert not any("contents were not seen to change" in w for w in res.warnings)
+    for whole in [(40, 0, 90, 640), (50, 0, 78, 640), (0, 0, 128, 640)]:
+        res = gp.analyze(frames, fps=250, roi=whole)
+        assert not any("cut by the frame" in w for w in res.warnings), (whole, res.warnings)
+
+
 def test_no_second_tube_is_seen_in_a_record_too_short_for_the_plugs_to_move(tmp_path):
     """12 frames at 5000 fps (the plugs move 0.1 mm): the tube changes no more than the background's noise,
     which is no reason to suspect another tube."""

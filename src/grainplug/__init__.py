@@ -69,7 +69,8 @@ _EXPORTS = {
     "MovieError": "grainplug.errors",
     "ParameterError": "grainplug.errors",
 }
-_SUBMODULES = ("datasets", "stability", "simulation", "synthetic", "readers", "plotting")
+_SUBMODULES = ("datasets", "stability", "simulation", "synthetic", "readers", "plotting", "calibration",
+               "campaigns", "errors", "pipeline", "result", "outputs", "corrections", "reports", "measures")
 
 __all__ = [
     "FLOW_DIRECTIONS", "PUBLICATION", "AnalysisParams", "AnalysisResult", "Background", "Calibration",
@@ -93,7 +94,8 @@ def __getattr__(name: str) -> object:
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+    """The public names and subpackages (not this module's own imports)."""
+    return sorted(set(__all__) | set(_SUBMODULES))
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the names as if imported eagerly

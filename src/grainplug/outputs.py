@@ -126,18 +126,21 @@ def draw_figures(res: AnalysisResult, folder: str | Path, options: FigureOptions
     """Draw the figures of ``res`` into ``folder`` (in this process, no pyplot), in each format of ``options``."""
     import contextlib
 
+    from .errors import ParameterError
     from .plotting import plot_annotated_frame, plot_diagram, plot_spectrum
 
     options = options or FigureOptions()
     plots = {"fig_diagram": plot_diagram, "fig_frame": plot_annotated_frame, "fig_spectrum": plot_spectrum}
     paths = []
-    if options.style:
-        import matplotlib.style
+    with contextlib.ExitStack() as stack:
+        if options.style:
+            import matplotlib.style
 
-        ctx = matplotlib.style.context(options.style)
-    else:
-        ctx = contextlib.nullcontext()
-    with ctx:
+            try:
+                stack.enter_context(matplotlib.style.context(options.style))
+            except OSError:
+                raise ParameterError(f"{options.style!r} is neither the name of a matplotlib style "
+                                     "(matplotlib.style.available) nor a style file", param="style") from None
         for key in figures_of(res):
             names = save_figure(plots[key](res), folder, FILES[key], options)
             paths.extend(Path(folder) / n for n in names)

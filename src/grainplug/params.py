@@ -8,6 +8,7 @@ them from :data:`FLOW_DIRECTIONS`.
 from __future__ import annotations
 
 import dataclasses
+import decimal
 import math
 import numbers
 from dataclasses import dataclass
@@ -43,7 +44,25 @@ class Range:
     def message(self, value: object) -> str:
         whole = "a whole number " if self.integer else ""
         unit = f" {self.unit}" if self.unit else ""
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            return f"must be a number{unit and ' (' + unit.strip() + ')'}, got {value!r} (a {type(value).__name__})"
         return f"must be {whole}between {self.lo:g} and {self.hi:g}{unit}, got {value}"
+
+
+def as_number(value: object) -> object:
+    """``value`` as a plain Python number where it is one in another dress (a numpy scalar, a 0-d array, a
+    Decimal or Fraction), else unchanged (a string stays a string, to be refused by name)."""
+    if value is None or isinstance(value, (str, bytes, bool)):
+        return value
+    if getattr(value, "shape", None) == () and hasattr(value, "item"):
+        value = value.item()
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, (numbers.Real, decimal.Decimal)):
+        return float(value)
+    return value
 
 
 #: the one table of ranges: :class:`AnalysisParams` checks them, the command line's options
@@ -58,6 +77,14 @@ RANGES: dict[str, Range] = {
     "min_gap_mm": Range(0, 1e4, "mm"),
     "sample_frames": Range(4, 10_000, "frames", integer=True),
 }
+
+
+def checked_fps(fps: object) -> float | None:
+    """A frame rate given by the user as a float (None stays None), or :class:`ParameterError` naming it."""
+    value = as_number(fps)
+    if value is not None and not RANGES["fps"].holds(value):
+        raise ParameterError(RANGES["fps"].message(value) + " — give the camera's frame rate", param="fps")
+    return None if value is None else float(value)  # type: ignore[arg-type]
 
 
 def tube_orientation(direction: str) -> str:
@@ -112,10 +139,12 @@ class AnalysisParams:
     calibration : Calibration, optional
         The scale from a calibration image (:func:`grainplug.calibrate_image`, or
         ``grainplug calibrate``), taken along the tube's axis; instead of ``mm_per_px``.
+        :func:`grainplug.analyze` also takes the path of a ``calibration.json``.
     background : Background, optional
         A light calibration: the tube empty or full, nothing moving, with the movie's
         camera and lamp (:func:`grainplug.read_background`); the diagram is divided by
-        its light along the tube.
+        its light along the tube. :func:`grainplug.analyze` also takes the path of the
+        picture or movie.
     start_frame, end_frame : int, optional
         Analyse frames ``start_frame`` (included) to ``end_frame`` (excluded) only, e.g. to
         leave out the start-up transient; counted from 0.
@@ -158,33 +187,53 @@ class AnalysisParams:
                 raise ParameterError(message, param=param)
 
         for name, rng in RANGES.items():
-            value = getattr(self, name)
+            value = as_number(getattr(self, name))
             check(value is None or rng.holds(value), name, rng.message(value))
+            if value is not None and rng.integer:
+                value = int(value)  # 32.0 is 32 frames
+            object.__setattr__(self, name, value)
         check(self.tube_outer_diameter_mm is None or self.tube_outer_diameter_mm > self.tube_diameter_mm * 1.05,
               "tube_outer_diameter_mm", f"must exceed the inner diameter ({self.tube_diameter_mm:g} mm) by at least "
               f"5 %, got {self.tube_outer_diameter_mm}")
         for name in ("start_frame", "end_frame"):
-            value = getattr(self, name)
-            check(value is None or (isinstance(value, numbers.Integral) and 0 <= value <= 10**9), name,
-                  f"must be a frame number, 0 or more, got {value}")
+            value = as_number(getattr(self, name))
+            check(value is None or (isinstance(value, numbers.Integral) and not isinstance(value, bool)
+                                    and 0 <= value <= 10**9), name, f"must be a frame number, 0 or more, got {value!r}")
+            object.__setattr__(self, name, value)
         for name in ("start_s", "end_s"):
-            value = getattr(self, name)
-            check(value is None or (isinstance(value, numbers.Real) and math.isfinite(value) and 0 <= value <= 1e7),
-                  name, f"must be a time in seconds, 0 or more, got {value}")
+            value = as_number(getattr(self, name))
+            check(value is None or (isinstance(value, numbers.Real) and not isinstance(value, bool)
+                                    and math.isfinite(value) and 0 <= value <= 1e7),
+                  name, f"must be a time in seconds, 0 or more, got {value!r}")
+            object.__setattr__(self, name, value)
         check(self.start_frame is None or self.start_s is None, "start_frame", "give the start in frames or in "
               "seconds, not both")
         check(self.end_frame is None or self.end_s is None, "end_frame", "give the end in frames or in seconds, "
               "not both")
         check(self.flow_direction is None or self.flow_direction in FLOW_DIRECTIONS, "flow_direction",
               f"must be one of {', '.join(FLOW_DIRECTIONS)}, got {self.flow_direction!r}")
+        check(self.calibration is None or hasattr(self.calibration, "mm_per_px_along"), "calibration",
+              f"must be a Calibration (gp.load_calibration(path), or the path itself to gp.analyze), got a "
+              f"{type(self.calibration).__name__}")
+        check(self.background is None or hasattr(self.background, "image"), "background",
+              f"must be a Background (gp.read_background(path), or the path itself to gp.analyze), got a "
+              f"{type(self.background).__name__}")
         check(self.calibration is None or self.mm_per_px is None, "calibration",
               "give either a calibration or mm_per_px (the scale), not both")
         if self.roi is not None:
             r = self.roi
-            ok = (isinstance(r, (tuple, list)) and len(r) == 4 and all(isinstance(v, numbers.Integral) for v in r)
-                  and 0 <= r[0] < r[2] and 0 <= r[1] < r[3])
-            check(ok, "roi", f"must be four pixel numbers x0,y0,x1,y1 with x0 < x1 and y0 < y1, got {r}")
-            object.__setattr__(self, "roi", tuple(int(v) for v in r))
+            try:  # a tuple, a list or an array of four whole numbers (0.0 is pixel 0)
+                r = tuple(as_number(v) for v in r)  # type: ignore[union-attr]
+            except TypeError:
+                pass
+            whole = (isinstance(r, tuple) and len(r) == 4
+                     and all(isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+                             and float(v) == int(v) for v in r))
+            check(whole, "roi", f"must be four whole pixel numbers (x0, y0, x1, y1), got {self.roi!r}")
+            r = tuple(int(v) for v in r)
+            check(0 <= r[0] < r[2] and 0 <= r[1] < r[3], "roi",
+                  f"must have 0 <= x0 < x1 and 0 <= y0 < y1 (x1, y1 excluded), got {r}")
+            object.__setattr__(self, "roi", r)
 
     def as_record(self) -> dict[str, object]:
         """The parameters as plain data, for provenance and run keys: a background is recorded by its

@@ -16,9 +16,10 @@ import dataclasses
 import hashlib
 import logging
 import math
+import numbers
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -81,9 +82,18 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     >>> res = gp.analyze(gp.datasets.sample_movie())              # doctest: +SKIP
     >>> res = gp.analyze(frames, fps=1000, mm_per_px=0.1875)      # doctest: +SKIP
     """
+    if isinstance(params, Mapping):  # the fields as a dict: as good as keywords
+        params = AnalysisParams().replace(**params)
+    elif params is not None and not isinstance(params, AnalysisParams):
+        raise ParameterError(f"must be an AnalysisParams (or its fields as keywords), got a {type(params).__name__}",
+                             param="params")
+    for key, read in (("calibration", _load_calibration), ("background", _read_background)):
+        if isinstance(overrides.get(key), (str, os.PathLike)):  # a file, as the command line takes it
+            overrides[key] = read(overrides[key])
     params = (params or AnalysisParams()).replace(**overrides)
-    if threads is not None and threads < 1:
-        raise ParameterError(f"give at least 1 (or None for one per core), got {threads}", param="threads")
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, numbers.Integral) or threads < 1):
+        raise ParameterError(f"give a whole number, at least 1 (or None for one per core), got {threads!r}",
+                             param="threads")
     laps = _Laps()
     with _opened(source, params) as movie:
         movie = _roi(_window(movie, params), params)
@@ -135,7 +145,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         statement=statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
-        warnings=[*info.warnings, *scale_warnings,
+        warnings=[*info.warnings, *_cut_by_the_frame(tube, params), *scale_warnings,
                   *_given_scale_doubts(tube, params, has_plugs=has_plugs), *light_warnings,
                   *filter(None, [repair.describe(diagram.n_frames, first=first_movie_frame(info))]), *time_warnings,
                   *flow.warnings, *other_tubes,
@@ -300,6 +310,22 @@ def _scale(tube: TubeGeometry, params: AnalysisParams,
     return (*_calibrated_scale(cal, tube, info, from_tube, params.tube_diameter_mm, bore), bore)
 
 
+#: the contents' change at the frame's sides, as a share of the most they change, above which the tube is cut by
+#: the frame (a whole tube: 0-0.002 in the sample; cut by a region of interest: 0.88-0.93)
+CUT_SIDE_SHARE = 0.3
+
+
+def _cut_by_the_frame(tube: TubeGeometry, params: AnalysisParams) -> list[str]:
+    """A warning when the tube's moving contents run up to a side of the frame: the tube is cut there."""
+    if tube.side_variation <= CUT_SIDE_SHARE:
+        return []
+    fix = ("widen roi= to hold the whole tube and its walls" if params.roi else
+           "frame the whole tube and its walls (or give roi= around a tube that is whole in view)")
+    return [f"the tube's contents change at a side of the frame {100 * tube.side_variation:.0f} % as much as "
+            "anywhere: the tube is cut by the frame's edge, so the tube found, its width, the scale from it and "
+            f"every measure may be wrong — {fix}"]
+
+
 #: the width over which a tube's contents are seen, against its bore: a back-lit tube looks up to 35 % narrower
 #: (by the lamp's size), never much wider
 SEEN_OVER_BORE = (0.6, 1.15)
@@ -307,6 +333,18 @@ SEEN_OVER_BORE = (0.6, 1.15)
 #: of it in the synthetic empty and compact tubes): narrower than this share, the given scale is the doubt (a
 #: scale 10 times too fine makes every plug "shorter than min_plug_mm")
 SEEN_OVER_BORE_NO_PLUGS = 0.3
+
+
+def _load_calibration(path: str | os.PathLike) -> object:
+    from .calibration.files import load_calibration
+
+    return load_calibration(path)
+
+
+def _read_background(path: str | os.PathLike) -> object:
+    from .calibration.files import read_background
+
+    return read_background(path)
 
 
 def _given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs: bool) -> list[str]:
@@ -373,9 +411,11 @@ def _tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, params: AnalysisP
     out = list(bore.warnings)
     est = bore.estimates_px
     if tube.back_lit is None:
-        out.append(f"the scale comes from the tube's edges in the mean image ({bore.diameter_px:.1f} px): its contents "
-                   "were not seen to change, so neither the bore nor the walls' optics could be measured and the "
-                   f"scale may be off by 10 % or more — {fix}")
+        why = ("the tube is cut by the frame's edge" if tube.side_variation > CUT_SIDE_SHARE else
+               "its contents were not seen to change")
+        out.append(f"the scale comes from the tube's edges in the mean image ({bore.diameter_px:.1f} px): {why}, so "
+                   "neither the bore nor the walls' optics could be measured and the scale may be off by 10 % or "
+                   f"more — {fix}")
     elif bore.method == "contents" and tube.back_lit:
         out.append(f"the scale comes from the width over which the tube's contents are seen ({bore.diameter_px:.1f} "
                    "px) and the walls showed neither refraction stripes nor an outer silhouette to correct it: a "
@@ -414,9 +454,9 @@ def _calibrated_scale(cal: Calibration, tube: TubeGeometry, info: MovieInfo, fro
     axis = (slope, 1.0) if tube.orientation == "vertical" else (1.0, slope)
     mm_per_px = cal.mm_per_px_along(axis)
     rel_sd = math.hypot(cal.rel_sd, cal.scale_variation / math.sqrt(12.0))
-    name = cal.image.get("name", "calibration image")
-    source = (f"calibration image {name} ({cal.pattern}, {cal.n_points} points {cal.pitch_mm:g} mm apart, "
-              "along the tube's axis)")
+    name = cal.image.get("name")
+    source = (f"calibration image{' ' + name if name else ''} ({cal.pattern}, {cal.n_points} points "
+              f"{cal.pitch_mm:g} mm apart, along the tube's axis)")
     warnings = list(cal.warnings)
     if tuple(cal.image_shape) != (info.height, info.width):
         warnings.append(f"the calibration image is {cal.image_shape[1]} x {cal.image_shape[0]} px but the movie's "

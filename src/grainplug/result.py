@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ._format import signed
+from ._format import with_interval
 from ._version import __version__
 from .calibration.tube import TubeGeometry
 from .calibration.tube_model import BoreEstimate
@@ -49,7 +49,7 @@ CONVENTIONS = ("positions in mm along the tube from the upstream end of the view
                "with the flow; celerity in m/s, positive downstream (negative: plugs climb)")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class AnalysisResult:
     """Everything :func:`grainplug.analyze` found in one movie.
 
@@ -64,9 +64,14 @@ class AnalysisResult:
     tube : TubeGeometry
         Where the tube is in the frames.
     mm_per_px : float
-        Scale, and ``scale_source``: where it came from.
-    flow_direction : str
-        Direction of the flow in the image, and ``flow_direction_source``: how it was decided.
+        Scale of the frames along the tube.
+    scale_source : str
+        Where the scale came from, in words (given, a calibration image, the tube model...).
+    flow_direction : {"down", "up", "left", "right"}
+        Direction of the flow in the image.
+    flow_direction_source : str
+        How the flow direction was decided (given, from the grains falling through the
+        bubbles, assumed).
     diagram : Diagram
         Spatiotemporal diagram (grey level, time x position); see :meth:`to_xarray`.
     normalized : Normalized
@@ -78,9 +83,14 @@ class AnalysisResult:
     motion, lengths : Motion, Lengths or None
         Celerity and oscillation; plug and bubble lengths (None without plugs).
     has_plugs : bool
-        Whether plugs were found; ``statement`` says why not.
+        Whether plugs were found.
+    statement : str
+        Why there are no measures (no plugs, a single phase...), or a note on them; empty
+        when there is nothing to say.
     sample_frame : ndarray
-        One frame of the movie (the annotated figure's), index ``sample_frame_index``.
+        One frame of the movie, the annotated figure's.
+    sample_frame_index : int
+        Its index among the analysed frames.
     timings : dict
         Seconds spent in each stage.
     falling_grain_speed_m_s : float or None
@@ -186,7 +196,11 @@ class AnalysisResult:
         """One row per plug track: when it was seen, its celerity and length, how it began and ended."""
         import pandas as pd
 
-        return pd.DataFrame(track_rows(self), columns=list(TRACK_COLUMNS))
+        rows = track_rows(self)
+        table = pd.DataFrame(rows, columns=list(TRACK_COLUMNS))
+        if not rows:  # the columns' types of a table with rows, not object
+            table = table.astype({k: "str" if t == "string" else t for k, (t, _) in TRACK_SCHEMA.items()})
+        return table
 
     @cached_property
     def plugs(self) -> pd.DataFrame:
@@ -239,9 +253,8 @@ class AnalysisResult:
             return lines
         m, ln = self.motion, self.lengths
         if m is not None:
-            lo, hi = m.celerity_ci95_m_s
-            lines.append(f"{m.regime}: celerity {signed(m.celerity_m_s, 4)} m/s (95% CI {signed(lo, 4)} to "
-                         f"{signed(hi, 4)})"
+            value, lo, hi = with_interval(m.celerity_m_s, *m.celerity_ci95_m_s)
+            lines.append(f"{m.regime}: celerity {value} m/s (95% CI {lo} to {hi})"
                          + (f", oscillation {m.oscillation_frequency_hz:.2f} Hz" if m.oscillation_frequency_hz
                             else ""))
         if ln is not None and ln.plug_length_mm is not None:
@@ -283,7 +296,9 @@ class AnalysisResult:
 
         rows = [
             ("regime", s["regime"]),
-            ("celerity", f"{num(s['celerity_m_s'], 4)} m/s{ci(s['celerity_ci95_m_s'], 4)}"),
+            ("celerity", "—" if s["celerity_m_s"] is None else
+             "{} m/s (95% CI {} to {})".format(*with_interval(s["celerity_m_s"],
+                                                               *(s["celerity_ci95_m_s"] or [None, None])))),
             ("plug length", f"{num(s['plug_length_mm'], 2)} mm{ci(s['plug_length_ci95_mm'], 2)}, "
                             f"{num(s['plug_length_over_diameter'], 2)} D, {s['n_plugs']} plugs"),
             ("bubble length", f"{num(s['bubble_length_mm'], 2)} mm{ci(s['bubble_length_ci95_mm'], 2)}"),
@@ -331,17 +346,43 @@ class AnalysisResult:
 
         Writes ``summary.json``, ``plug_edges.csv``, ``tracks.csv``, ``diagram.npz``,
         ``result.npz`` (everything :func:`~grainplug.load_result` needs) and, unless
-        switched off, the figures and ``report.html``. Returns the paths written.
-        An earlier result in ``out_dir`` is replaced as a whole (a folder holding files
-        grainplug did not write is refused, naming them).
-        ``figure_worker`` (:class:`grainplug.plotting.worker.FigureWorker`, started
-        before the analysis) draws the figures in another process meanwhile.
-        ``figure_options`` (:class:`grainplug.FigureOptions`): resolution, formats
-        (PNG, SVG, PDF) and a matplotlib style sheet; by default PNG at 200 dpi,
-        ``grainplug.PUBLICATION`` adds SVG and PDF.
-        """
-        from .outputs import write_outputs
+        switched off, the figures and ``report.html``. An earlier result in ``out_dir`` is
+        replaced as a whole (a folder holding files grainplug did not write is refused,
+        naming them).
 
+        Parameters
+        ----------
+        out_dir : str or Path
+            The folder to write (created; replaced whole if it holds an earlier result).
+        figures, report : bool
+            Draw the figures, write ``report.html``.
+        figure_worker : FigureWorker, optional
+            A :class:`grainplug.plotting.worker.FigureWorker` started before the analysis:
+            it draws the figures in another process meanwhile.
+        figure_options : FigureOptions or dict, optional
+            Resolution, formats (PNG, SVG, PDF) and a matplotlib style sheet
+            (:class:`grainplug.FigureOptions`, or its fields as a dict); by default PNG at
+            200 dpi, ``grainplug.PUBLICATION`` adds SVG and PDF.
+
+        Returns
+        -------
+        dict of str to Path
+            Every file written, by its output key.
+        """
+        from collections.abc import Mapping
+
+        from .errors import ParameterError
+        from .outputs import FigureOptions, write_outputs
+
+        if isinstance(figure_options, Mapping):
+            try:
+                figure_options = FigureOptions(**figure_options)
+            except TypeError:
+                raise ParameterError(f"the figure options are dpi, formats and style, got {sorted(figure_options)}",
+                                     param="figure_options") from None
+        elif figure_options is not None and not isinstance(figure_options, FigureOptions):
+            raise ParameterError(f"must be a FigureOptions (or a dict of its fields), got a "
+                                 f"{type(figure_options).__name__}", param="figure_options")
         return write_outputs(self, out_dir, figures=figures, report=report, figure_worker=figure_worker,
                              figure_options=figure_options)
 

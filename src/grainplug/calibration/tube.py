@@ -96,6 +96,11 @@ class TubeGeometry:
     walls : WallMeasure or None
         The outer silhouette and the bright stripes of the walls, measured on the
         mean image (see :mod:`grainplug.calibration.tube_model`).
+    side_variation : float
+        How much the contents change at the frame's two sides (the two outer columns of
+        the canonical view), as a share of the most they change anywhere: near 1 when
+        the moving contents run up to a side, a tube cut by the frame or the region of
+        interest; near 0 when the tube is whole in view.
     """
 
     orientation: str
@@ -108,6 +113,7 @@ class TubeGeometry:
     background_level: float = float("nan")
     back_lit: bool | None = None
     walls: WallMeasure | None = None
+    side_variation: float = 0.0
 
     def axis_x(self, y: np.ndarray | float) -> np.ndarray:
         """Axis position (canonical x) at canonical row ``y``."""
@@ -120,6 +126,7 @@ class TubeGeometry:
             "contrast": self.contrast, "method": self.method,
             "canonical_shape": list(self.canonical_shape), "background_level": self.background_level,
             "back_lit": self.back_lit, "walls": None if self.walls is None else self.walls.as_dict(),
+            "side_variation": self.side_variation,
         }
 
 
@@ -296,6 +303,8 @@ def _coarse_tilt(feature: np.ndarray, *, centre: float = 0.0, span: float = MAX_
 
     def energy(deg: float) -> float:
         prof = sheared_profile(small, np.tan(np.radians(deg)), grid)
+        if not np.isfinite(prof).any():  # every line leaves the frame at this angle
+            return 0.0
         prof = gaussian_filter1d(np.nan_to_num(prof, nan=float(np.nanmedian(prof))), 1.0)
         prof = prof - np.median(prof)
         return float(np.mean(prof * prof))
@@ -447,6 +456,10 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
         candidates.append((energy, orient, tilt, m, v, feat))
     _, orient, tilt, m, v, feat = max(candidates, key=lambda c: c[0])
     h, w = m.shape
+    # how much the contents change at the two sides, against the most they change (a tube cut by the frame)
+    across = np.clip(v, 0, None).mean(axis=0)
+    top = float(across.max())
+    side = float(max(across[:2].max(), across[-2:].max())) / top if top > 0 else 0.0
     tan_b = np.tan(np.radians(tilt))
     # coarse axis position: the peak of the projected feature
     pad = h * abs(tan_b) + 2
@@ -541,7 +554,7 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     log.info("tube: %s, tilt %.3f deg, axis x0 %.2f px, inner diameter %.3f px (%s)",
              orient, tilt, axis_x0, width_px, method)
     return TubeGeometry(orient, float(tilt), float(axis_x0), float(width_px), float(contrast),
-                        method, (h, w), back_lit=back_lit, walls=walls)
+                        method, (h, w), back_lit=back_lit, walls=walls, side_variation=side)
 
 
 def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> TubeGeometry:
@@ -610,4 +623,6 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
     fine = _locate(cm, cs, "vertical", tilt_hint=coarse.tilt_deg)
     log.debug("coarse tube at binning %d: %s", b, coarse)
     return TubeGeometry(coarse.orientation, fine.tilt_deg, fine.axis_x0_px + lo, fine.inner_diameter_px,
-                        fine.contrast, fine.method, (ch, cw), level, fine.back_lit, fine.walls)
+                        fine.contrast, fine.method, (ch, cw), level, fine.back_lit, fine.walls,
+                        # the fine look sees a band of columns: the frame's sides are in the coarse one
+                        side_variation=coarse.side_variation)

@@ -158,6 +158,31 @@ class Campaign:
     #: folders under ``runs/`` of runs the manifest no longer lists (kept, not in the campaign)
     stale_runs: tuple[str, ...] = ()
 
+    @property
+    def run_warnings(self) -> list[tuple[str, str]]:
+        """``(run, warning)`` for every warning of every run (its analysis's, its manifest row's), in order."""
+        if "warnings" not in self.table:
+            return []
+        return [(str(run), w) for run, ws in zip(self.table["run"], self.table["warnings"], strict=True)
+                if isinstance(ws, str) for w in ws.split(" | ") if w]
+
+    @property
+    def warnings(self) -> list[str]:
+        """What the campaign cannot vouch for, a line each: failed runs and why, every run's warnings, run
+        folders left out; what ``grainplug batch`` prints."""
+        out = []
+        if "error" in self.table:
+            failed = self.table[self.table.status == "failed"]
+            out += [f"run {run} failed: {err}" for run, err in zip(failed["run"], failed["error"], strict=True)]
+        out += [f"run {run}: {w}" for run, w in self.run_warnings]
+        if self.stale_runs:
+            out.append(f"{len(self.stale_runs)} run folder(s) under {self.out_dir / 'runs'} are no longer in the "
+                       f"manifest ({', '.join(self.stale_runs)}): kept, but left out of the campaign")
+        if self.worker_deaths:
+            out.append(f"{self.worker_deaths} worker process(es) died during the batch (killed, or out of memory); "
+                       "their runs were started again")
+        return out
+
 
 def _group(row: pd.Series) -> str | None:
     if isinstance(row.get("group"), str) and row["group"]:

@@ -13,6 +13,7 @@ from click.core import ParameterSource
 from rich.console import Console
 from rich.markup import escape
 
+from .._format import with_interval
 from .._version import __version__
 from ..errors import ParameterError
 from ..params import FLOW_DIRECTIONS
@@ -20,7 +21,7 @@ from .config import ConfigCommand
 from .types import FINITE, FRAME_OR_TIME, Number, param_number
 
 if TYPE_CHECKING:
-    import pandas as pd
+    from ..campaigns.batch import Campaign
 
 err_console = Console(stderr=True)
 
@@ -366,19 +367,12 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
 
         ci = s.get("celerity_ci95_m_s") or [None, None]
         # three significant digits (a slow plug is not -0.0000), more where the interval is narrower than that
-        digits = 3
-        if all(isinstance(v, float) for v in ci):
-            while digits < 8 and f"{ci[0]:+#.{digits}g}" == f"{ci[1]:+#.{digits}g}":
-                digits += 1
-
-        def speed(v: object) -> str:
-            return "—" if v is None else f"{v:+#.{digits}g}" if isinstance(v, float) else str(v)
-
+        value, lo, hi = with_interval(s["celerity_m_s"], *ci)
         still = ci[0] is not None and ci[1] is not None and ci[0] <= 0 <= ci[1]
         note = ("  (the plugs did not move by a pixel over the record)" if s["regime"] == "static" else
                 "  (no direction of travel: the celerity's 95% CI holds 0)" if still else "")
         click.echo(f"regime          {s['regime']}{note}")
-        click.echo(f"celerity        {speed(s['celerity_m_s'])} m/s  (95% CI {speed(ci[0])} to {speed(ci[1])})")
+        click.echo(f"celerity        {value} m/s  (95% CI {lo} to {hi})")
         n_plugs = s["n_plugs"]
         click.echo(f"plug length     {fmt(s['plug_length_mm'], ' mm', 2)}  "
                    f"({fmt(s['plug_length_over_diameter'], ' D', 2)}, {n_plugs} plug{'' if n_plugs == 1 else 's'})")
@@ -394,11 +388,10 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
 MAX_RUN_WARNINGS = 20
 
 
-def _print_run_warnings(table: pd.DataFrame, out: Path) -> None:
+def _print_run_warnings(camp: Campaign, out: Path) -> None:
     """Each run's warnings, as ``analyze`` prints them (``warning: run X: ...``), at most
     :data:`MAX_RUN_WARNINGS` lines."""
-    lines = [(str(row.run), w) for row in table.itertuples()
-             if isinstance(getattr(row, "warnings", None), str) for w in row.warnings.split(" | ") if w]
+    lines = camp.run_warnings
     for run, w in lines[:MAX_RUN_WARNINGS]:
         say_warning(w, f"run {run}: ")
     if len(lines) > MAX_RUN_WARNINGS:
@@ -998,7 +991,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
     if as_json:
         from ..campaigns.batch import fit_selection
 
-        _print_run_warnings(t, out)  # on stderr, as analyze --json prints its warnings
+        _print_run_warnings(camp, out)  # on stderr, as analyze --json prints its warnings
         _echo_json({"grainplug_version": __version__, "fits": camp.fits,
                     "runs": t[["run", "status"]].to_dict(orient="records"), "n_reused": camp.n_reused,
                     "n_remeasured": camp.n_remeasured, "left_out_of_fits": fit_selection(t)[1]})
@@ -1009,7 +1002,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused)
         from ..campaigns.batch import ALL_RUNS, fit_selection
 
-        _print_run_warnings(t, out)
+        _print_run_warnings(camp, out)
         for run, why in fit_selection(t)[1].items():
             if run == ALL_RUNS or not why.endswith("no plugs measured"):
                 say_warning(why, f"run {run}: " if run else "fits: ")

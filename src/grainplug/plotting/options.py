@@ -7,6 +7,7 @@ figure flags and start the figure worker before the analysis's heavy imports.
 from __future__ import annotations
 
 import logging
+import numbers
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,8 +48,10 @@ class FigureOptions:
     def __post_init__(self) -> None:
         from ..errors import ParameterError
 
-        if not 20 <= self.dpi <= 1200:
-            raise ParameterError(f"dpi must be between 20 and 1200, got {self.dpi}", param="dpi")
+        if isinstance(self.dpi, bool) or not isinstance(self.dpi, numbers.Real) or not 20 <= self.dpi <= 1200:
+            raise ParameterError(f"dpi must be between 20 and 1200, got {self.dpi!r}", param="dpi")
+        if isinstance(self.formats, str):  # "png,svg", as the command line takes them
+            object.__setattr__(self, "formats", tuple(f.strip() for f in self.formats.split(",") if f.strip()))
         bad = [f for f in self.formats if f not in FIGURE_FORMATS]
         if bad or not self.formats:
             raise ParameterError(f"figure formats are {', '.join(FIGURE_FORMATS)}; got {', '.join(self.formats)}",

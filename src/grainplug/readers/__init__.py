@@ -14,7 +14,8 @@ import logging
 import os
 from pathlib import Path
 
-from ..errors import MovieError, ParameterError
+from ..errors import MovieError
+from ..params import checked_fps
 from .base import TIFF_SIGNATURES, Movie, MovieInfo
 
 log = logging.getLogger(__name__)
@@ -56,9 +57,11 @@ def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float
     MovieError
         With a one-line message when the path is missing, empty, corrupt or not a movie.
     """
-    if fps is not None and not (fps > 0):
-        raise ParameterError(f"must be positive, got {fps} — give the camera's frame rate", param="fps")
+    fps = checked_fps(fps)
     if not isinstance(path, (str, os.PathLike)):
+        if isinstance(path, (list, tuple)) and path and all(isinstance(p, (str, os.PathLike)) for p in path):
+            raise MovieError(f"a list of {len(path)} file names is not a movie — give the folder that holds them "
+                             "(and glob= to choose among its files), or one movie file")
         if hasattr(path, "shape") or isinstance(path, (list, tuple)):
             from .array import ArrayMovie
 

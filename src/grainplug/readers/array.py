@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import MovieError, ParameterError
+from ..errors import MovieError
+from ..params import checked_fps
 from .base import Movie, MovieInfo
 
 
@@ -41,11 +42,19 @@ class ArrayMovie(Movie):
         shape = getattr(frames, "shape", None)
         dtype = getattr(frames, "dtype", None)
         if shape is None or dtype is None:
-            frames = np.asarray(frames)
+            try:
+                frames = np.asarray(frames)
+            except ValueError:  # a list of frames of several sizes
+                sizes = sorted({tuple(np.shape(f)) for f in frames})  # type: ignore[attr-defined]
+                raise MovieError(f"the frames are not all the same size ({', '.join(map(str, sizes[:3]))}"
+                                 f"{', ...' if len(sizes) > 3 else ''}) — pass frames of one size") from None
             shape, dtype = frames.shape, frames.dtype
         shape = tuple(int(s) for s in shape)
         if len(shape) == 4 and shape[3] in (3, 4):
             channels = 3
+        elif len(shape) == 3 and shape[2] in (3, 4) and min(shape[:2]) >= 8:
+            raise MovieError(f"an array of shape {shape} is one colour frame, not a movie — pass many frames, "
+                             "T x H x W x 3")
         elif len(shape) == 3:
             channels = 1
         else:
@@ -54,8 +63,10 @@ class ArrayMovie(Movie):
         dtype = np.dtype(dtype)
         if dtype.kind == "b" or not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)):
             raise MovieError(f"frames of dtype {dtype} are not images — pass integer or float pixel values")
-        if fps is not None and not fps > 0:
-            raise ParameterError(f"must be positive, got {fps} — give the camera's frame rate", param="fps")
+        if dtype.kind == "i":  # a camera's grey levels start at 0: a signed type's negative half reads as "dark"
+            raise MovieError(f"frames of dtype {dtype} are signed integers, not a camera's grey levels — pass "
+                             f"unsigned integers or floats (e.g. frames.astype(np.float32))")
+        fps = checked_fps(fps)
         self._frames = frames
         self._dask = hasattr(frames, "compute") and hasattr(frames, "chunks")
         info = MovieInfo(

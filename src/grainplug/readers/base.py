@@ -352,13 +352,29 @@ class Movie(abc.ABC):
         return self.info.n_frames
 
     def read(self, index: int) -> np.ndarray:
-        """Return one frame by index (may be slow for compressed video)."""
+        """One frame by its index (may be slow for compressed video: it decodes from a key frame).
+
+        Parameters
+        ----------
+        index : int
+            The frame's index, ``0 <= index < info.n_frames``.
+
+        Returns
+        -------
+        ndarray
+            ``H x W`` (grey) or ``H x W x 3`` (RGB), in the movie's own dtype.
+        """
         if not 0 <= index < self.info.n_frames:
             raise IndexError(f"frame {index} out of range 0..{self.info.n_frames - 1}")
         return next(iter(self.frames(index, index + 1)))
 
     def sample(self, n: int) -> tuple[np.ndarray, list[np.ndarray]]:
         """About ``n`` frames spread over the movie, read the cheapest way.
+
+        Parameters
+        ----------
+        n : int
+            How many frames to sample (all of them in a shorter movie).
 
         Returns
         -------

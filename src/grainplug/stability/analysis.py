@@ -79,6 +79,23 @@ class StabilityResult:
     def cutoff_wavelength_over_diameter(self) -> list[float]:
         return [2 * math.pi / k for k in self.cutoff_k]
 
+    def __repr__(self) -> str:
+        """A few lines: the set-up, the most unstable mode and the cut-offs (not the arrays)."""
+        m = self.most_unstable
+        head = (f"<StabilityResult {self.params.variant} ({self.params.law} friction), k* in "
+                f"[{self.k[0]:g}, {self.k[-1]:g}] ({len(self.k)} points)")
+        if m is None:
+            lines = [head, "stable: no wavenumber in the range grows"]
+        else:
+            what = ("most unstable" if m.at_range_edge is None else
+                    f"largest growth, at the range's end {m.at_range_edge}")
+            lines = [head, f"{what}: k* = {m.k:.4g}, lambda/D = {m.wavelength_over_diameter:.4g}, growth "
+                           f"{m.growth_rate:.4g}/t_c, phase speed {m.phase_speed:+.4g} v_c"]
+        if self.cutoff_k:
+            lines.append("cut-off lambda/D: " + ", ".join(f"{x:.4g}" for x in self.cutoff_wavelength_over_diameter))
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n  ".join(lines) + ">"
+
     @property
     def stable(self) -> bool:
         return self.most_unstable is None
@@ -137,8 +154,30 @@ def analyze_stability(p: ModelParams, k: np.ndarray | None = None, *, k_min: flo
     Parameters
     ----------
     p : ModelParams
+        The set-up (the paper's printed model by default; variants and switches in
+        :class:`ModelParams`).
     k : array_like, optional
-        Wavenumbers; by default ``n_k`` evenly spaced in ``[k_min, k_max]``.
+        Dimensionless wavenumbers ``k* = k D``; by default ``n_k`` evenly spaced in
+        ``[k_min, k_max]``.
+    k_min, k_max : float
+        The range scanned when ``k`` is not given (``0 < k_min < k_max``). A largest
+        growth at one of its ends is flagged (:attr:`Mode.at_range_edge`) and warned
+        about (:attr:`StabilityResult.warnings`): move that end.
+    n_k : int
+        Number of wavenumbers in the range (2 to 10^6).
+
+    Returns
+    -------
+    StabilityResult
+        The three roots at each ``k*``, the most unstable mode (refined between grid
+        points), the cut-offs and the unstable bands.
+
+    Examples
+    --------
+    >>> import grainplug as gp
+    >>> res = gp.analyze_stability(gp.ModelParams(variant="frozen-friction"))
+    >>> round(res.most_unstable.wavelength_over_diameter, 1)
+    42.6
     """
     if k is None:
         if not (np.isfinite(k_min) and np.isfinite(k_max) and 0 < k_min < k_max):

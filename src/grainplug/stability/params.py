@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 
 from ..errors import ParameterError
 
@@ -117,6 +117,15 @@ class ModelParams:
     jamming_c_max: float = 0.64
 
     def __post_init__(self) -> None:
+        from ..params import as_number
+
+        for f in fields(self):  # numbers in another dress (numpy, Decimal) as floats; a string refused
+            if "float" in str(f.type) and getattr(self, f.name) is not None:
+                value = as_number(getattr(self, f.name))
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise ParameterError(f"must be a number, got {value!r} (a {type(value).__name__})",
+                                         param=f.name)
+                object.__setattr__(self, f.name, float(value))
         checks = [
             (self.diameter_mm > 0, "diameter must be positive"),
             (self.grain_diameter_um > 0, "grain diameter must be positive"),
@@ -130,7 +139,8 @@ class ModelParams:
             (0 < self.c0 < 1, "c0 (compactness) must be between 0 and 1"),
             (self.kappa > 0, "kappa must be positive"),
             (self.mu_s >= 0, "mu_s must be non-negative"),
-            (abs(self.theta_deg) < 90, "theta must be within +-90 degrees"),
+            (abs(self.theta_deg) < 90, "theta must be strictly between -90 and 90 degrees (90: a horizontal pipe, "
+                                       "where gravity does not drive the grains along it)"),
             (self.b > 0, "b must be positive"),
             (self.B1_star_override is None or self.B1_star_override >= 0, "B1* must be non-negative"),
             (self.variant in VARIANTS, f"variant must be one of {', '.join(VARIANTS)}"),

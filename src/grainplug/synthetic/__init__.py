@@ -123,6 +123,8 @@ def synthesize(config: SynthConfig, out_dir: str | Path, *, fmt: str = "tiff",
         Folder that receives the movie, ``truth.json`` and ``truth_edges.csv``.
     fmt : str
         One of :data:`FORMATS` (``tiff``, ``png``, ``avi``, ``ffv1``, ``h264`` ...).
+    stem : str
+        Name of the movie file (or folder, for image formats) without its extension.
 
     Returns
     -------

@@ -77,6 +77,9 @@ class SynthConfig:
         Relative fall of the illumination from the top to the bottom of the view.
     seed : int
         Seed of the random generator: same seed, same bytes.
+    extra : dict
+        Notes of one's own, written into ``truth.json`` with the rest; the renderer does
+        not read them.
     """
 
     width_px: int = 128
