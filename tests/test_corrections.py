@@ -427,3 +427,46 @@ def test_a_restore_may_name_a_track_a_split_emptied(result):
     res = apply_corrections(result, corr)
     assert not [w for w in res.warnings if w.startswith("a correction no longer fits")], res.warnings
     assert len(res.summary["corrections"]) == 3 and len(res.runs) == len(result.runs)
+
+
+@pytest.mark.parametrize(("edit", "says"), [
+    ({"action": "exclude", "track": 3.7}, "track must be a whole number"),
+    ({"action": "exclude", "track": True}, "track must be a whole number"),
+    ({"action": "exclude", "track": "3"}, "track must be a whole number"),
+    ({"action": "merge", "track": 1, "other": False}, "other must be a whole number"),
+    ({"action": "split", "track": 1, "frame": 10.5}, "frame must be a whole number"),
+    ({"action": "window", "start_s": "0.5s"}, "start_s must be a finite time in seconds"),
+    ({"action": "no_plugs", "start_s": 0.1, "end_s": True}, "end_s must be a finite time in seconds"),
+    ({"action": "exclude", "track": 1, "track_trace": [[0.1, True]]}, "track_trace must be a list"),
+])
+def test_a_malformed_edit_is_refused_not_reinterpreted(result, tmp_path, capsys, edit, says):
+    """3.7 used to exclude track 3, true track 1; "0.5s" crashed with a bare ValueError (exit 1, "report it"). Each
+    is now one line naming the file, the edit and the fix (exit 2), from the API a ParameterError, and nothing
+    is written."""
+    args = {k: v for k, v in edit.items() if k != "action"}
+    with pytest.raises(ParameterError, match=says):
+        Corrections().add(edit["action"], **args)
+    out = tmp_path / "run"
+    result.save(out, figures=False, report=False)
+    before = (out / "summary.json").read_bytes()
+    (out / "corrections.json").write_text(json.dumps(
+        {"format": "grainplug-corrections", "format_version": 2, "edits": [{"action": "window"}, edit]}))
+    assert main(["remeasure", str(out), "--no-figures"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "corrections.json: edit 2: " in err[0], err
+    assert says in err[0] and "report it" not in err[0]
+    assert (out / "summary.json").read_bytes() == before
+
+
+def test_whole_floats_are_track_numbers():
+    assert Corrections().add("exclude", track=3.0).edits[0].track == 3
+
+
+@pytest.mark.parametrize("version", ["2", True, 0, 1.5, None])
+def test_a_malformed_format_version_is_not_called_newer(version):
+    """"format_version": "2" used to be "newer than this grainplug reads (2)"."""
+    with pytest.raises(ParameterError, match="format_version\" must be a whole number from 1 to 2") as err:
+        Corrections.from_dict({"format": "grainplug-corrections", "format_version": version, "edits": []})
+    assert "newer" not in str(err.value)
+    with pytest.raises(ParameterError, match=r"format 3 is newer than this grainplug reads \(up to 2\)"):
+        Corrections.from_dict({"format": "grainplug-corrections", "format_version": 3, "edits": []})
