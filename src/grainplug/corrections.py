@@ -340,8 +340,9 @@ def _misfit(runs: Runs, track: np.ndarray, time_s: np.ndarray, centre: np.ndarra
 @dataclass(frozen=True)
 class Replay:
     """A result's corrections as replayed on its detected tracks: each run's track, the tracks excluded, the
-    time window kept (None: that end of the record), the spans marked as not plugs, why edits were not applied,
-    and the edits applied."""
+    time window kept (None: that end of the record), the spans marked as not plugs, why edits were not applied
+    (and which applied windows hold none of the record), the edits applied, and those of them that are windows
+    holding none of the record (applied: what they cut away stays cut, and no plugs are left)."""
 
     run_track: np.ndarray
     excluded: frozenset[int]
@@ -349,6 +350,7 @@ class Replay:
     spans: tuple[tuple[float, float], ...]
     not_applied: tuple[str, ...] = ()
     applied: tuple[Edit, ...] = ()
+    empty_windows: tuple[Edit, ...] = ()
 
 
 def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> Replay:
@@ -357,6 +359,7 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> R
     spans: list[tuple[float, float]] = []
     applied: list[Edit] = []
     skipped: list[str] = []
+    empty: list[Edit] = []
     centre = _centres(runs, diagram)
     for k, e in enumerate(corr.edits, 1):
         split_at = e.frame
@@ -402,8 +405,9 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> R
                 lo = t0 if start is None else start
                 hi = t1 if end is None else end
                 if lo > t1 or hi < t0:
-                    skipped.append(f"edit {k}, {e.describe()}, holds none of this record ({t0:g} to {t1:g} s): no "
-                                   "plugs are left")
+                    skipped.append(f"edit {k}, {e.describe()}, was applied but holds none of this record ({t0:g} to "
+                                   f"{t1:g} s): no plugs are left")
+                    empty.append(e)
         applied.append(e)
         if e.action == "merge":
             track[track == e.other] = e.track
@@ -416,7 +420,7 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> R
             spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
         elif e.action == "clear_no_plugs":
             spans.clear()
-    return Replay(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied))
+    return Replay(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied), tuple(empty))
 
 
 def replayed(res: AnalysisResult) -> Replay | None:
