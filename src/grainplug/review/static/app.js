@@ -40,14 +40,16 @@ function adopt(s) {
   const old = state.version;
   if (s.version.result !== old.result) {  // analysed again: another diagram, tracks numbered anew
     selected = null; npStart = null;
+    const t = frame === null ? null : timeOf(frame);  // the same time, in the new analysis' frames
     view = [s.diagram.t0, s.diagram.t1];
-    if (frame !== null && frame >= s.diagram.n_frames) frame = null;
     img = new Image();
     img.onload = draw;
     img.src = api("diagram.png") + "?" + Date.now();
     notice("result.npz changed on disk (the run analysed again, or remeasured): the page shows it as it is now");
+    frame = null;
     show(s);
-    if (frame !== null) showFrame(frame);
+    if (t !== null && t >= s.diagram.t0 && t <= s.diagram.t1) showFrame(frameAt(t));
+    else { $("frame").hidden = true; $("frame-label").textContent = "click the diagram"; }
     return;
   }
   if (s.version.corrections !== old.corrections) {
