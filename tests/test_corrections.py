@@ -427,3 +427,116 @@ def test_a_restore_may_name_a_track_a_split_emptied(result):
     res = apply_corrections(result, corr)
     assert not [w for w in res.warnings if w.startswith("a correction no longer fits")], res.warnings
     assert len(res.summary["corrections"]) == 3 and len(res.runs) == len(result.runs)
+
+
+@pytest.mark.parametrize(("edit", "says"), [
+    ({"action": "exclude", "track": 3.7}, "track must be a whole number"),
+    ({"action": "exclude", "track": True}, "track must be a whole number"),
+    ({"action": "exclude", "track": "3"}, "track must be a whole number"),
+    ({"action": "merge", "track": 1, "other": False}, "other must be a whole number"),
+    ({"action": "split", "track": 1, "frame": 10.5}, "frame must be a whole number"),
+    ({"action": "window", "start_s": "0.5s"}, "start_s must be a finite time in seconds"),
+    ({"action": "no_plugs", "start_s": 0.1, "end_s": True}, "end_s must be a finite time in seconds"),
+    ({"action": "exclude", "track": 1, "track_trace": [[0.1, True]]}, "track_trace must be a list"),
+])
+def test_a_malformed_edit_is_refused_not_reinterpreted(result, tmp_path, capsys, edit, says):
+    """3.7 used to exclude track 3, true track 1; "0.5s" crashed with a bare ValueError (exit 1, "report it"). Each
+    is now one line naming the file, the edit and the fix (exit 2), from the API a ParameterError, and nothing
+    is written."""
+    args = {k: v for k, v in edit.items() if k != "action"}
+    with pytest.raises(ParameterError, match=says):
+        Corrections().add(edit["action"], **args)
+    out = tmp_path / "run"
+    result.save(out, figures=False, report=False)
+    before = (out / "summary.json").read_bytes()
+    (out / "corrections.json").write_text(json.dumps(
+        {"format": "grainplug-corrections", "format_version": 2, "edits": [{"action": "window"}, edit]}))
+    assert main(["remeasure", str(out), "--no-figures"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "corrections.json: edit 2: " in err[0], err
+    assert says in err[0] and "report it" not in err[0]
+    assert (out / "summary.json").read_bytes() == before
+
+
+def test_whole_floats_are_track_numbers():
+    assert Corrections().add("exclude", track=3.0).edits[0].track == 3
+
+
+@pytest.mark.parametrize("version", ["2", True, 0, 1.5, None])
+def test_a_malformed_format_version_is_not_called_newer(version):
+    """"format_version": "2" used to be "newer than this grainplug reads (2)"."""
+    with pytest.raises(ParameterError, match="format_version\" must be a whole number from 1 to 2") as err:
+        Corrections.from_dict({"format": "grainplug-corrections", "format_version": version, "edits": []})
+    assert "newer" not in str(err.value)
+    with pytest.raises(ParameterError, match=r"format 3 is newer than this grainplug reads \(up to 2\)"):
+        Corrections.from_dict({"format": "grainplug-corrections", "format_version": 3, "edits": []})
+
+
+@pytest.mark.parametrize("name", [".", "./"])
+def test_remeasure_inside_the_result_folder(result, tmp_path, capsys, monkeypatch, name):
+    """`grainplug remeasure .` used to be refused ("the output folder is the current folder"). It rewrites the
+    folder, and the process (its current folder replaced whole) is in the new folder afterwards: relative paths
+    name the new files, nothing is left beside the folder, and the shell is told how to see them."""
+    out = tmp_path / "run"
+    result.save(out, figures=False, report=False)
+    (out / "corrections.json").write_text(json.dumps(Corrections().add("exclude", track=0).as_dict()))
+    monkeypatch.chdir(out)
+    assert main(["remeasure", name, "--no-figures"]) == 0
+    captured = capsys.readouterr()
+    assert "1 applied: excluded track 0" in captured.out
+    assert "`cd .`" in captured.err
+    from pathlib import Path
+
+    assert Path.cwd() == out.resolve()
+    assert json.loads(Path("summary.json").read_text())["corrections"] == ["excluded track 0"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no temporary or old folder left
+    assert main(["remeasure", name, "--no-figures"]) == 0  # and again, from the new folder
+
+
+def test_remeasure_keeps_what_the_lab_put_in_the_folder(result, tmp_path, capsys):
+    """A run folder holding a user's notes (a file, a folder) used to be refused by remeasure ("move it out
+    first"). remeasure rewrites the same analysis: the notes stay, remeasure after remeasure, and stay the
+    user's (not listed as grainplug's, so a new analysis there still refuses to delete them)."""
+    out = tmp_path / "run"
+    result.save(out, figures=False, report=False)
+    (out / "notes.txt").write_text("lamp flickered at 0.3 s")
+    (out / "mine").mkdir()
+    (out / "mine" / "sketch.txt").write_text("x")
+    for _ in range(2):
+        assert main(["remeasure", str(out), "--no-figures"]) == 0
+        assert (out / "notes.txt").read_text() == "lamp flickered at 0.3 s"
+        assert (out / "mine" / "sketch.txt").read_text() == "x"
+    listed = json.loads((out / ".grainplug").read_text())["files"]
+    assert "notes.txt" not in listed and not any(f.startswith("mine") for f in listed)
+    from grainplug._atomic import is_complete
+
+    assert is_complete(out)
+    movie = result.input["path"]
+    assert main(["analyze", movie, "--out", str(out), "--overwrite", "--no-figures"]) == 2
+    assert "notes.txt" in capsys.readouterr().err
+
+
+def test_remeasure_says_the_edits_it_did_not_apply(result, tmp_path, capsys):
+    """remeasure used to print only "corrections 0 applied" (the reason in summary.json alone), and "1 applied"
+    for a window outside the record that summary.json said holds none of it. Its warnings are printed as
+    analyze prints them, and the count says what was not applied and what left no plugs."""
+    out = tmp_path / "run"
+    result.save(out, figures=False, report=False)
+    t_end = float(result.diagram.time_s[-1])
+    corr = Corrections().add("exclude", track=len(result.links) + 5).add("exclude", track=0)
+    (out / "corrections.json").write_text(json.dumps(corr.as_dict()))
+    assert main(["remeasure", str(out), "--no-figures"]) == 0
+    captured = capsys.readouterr()
+    assert "corrections        1 of 2 applied: excluded track 0 — 1 not applied (see the warnings)" in captured.out
+    lines = [w for w in captured.err.splitlines() if "no longer fits" in w]
+    assert len(lines) == 1 and lines[0].startswith("warning: ") and "was not applied" in lines[0]
+    late = Corrections().add("window", start_s=t_end + 5, end_s=t_end + 6)
+    (out / "corrections.json").write_text(json.dumps(late.as_dict()))
+    assert main(["remeasure", str(out), "--no-figures", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert any(w.startswith("warning: ") and "holds none of this record" in w for w in captured.err.splitlines())
+    assert main(["remeasure", str(out), "--no-figures"]) == 0
+    captured = capsys.readouterr()
+    assert "1 applied" in captured.out and "it holds none of the record: no plugs are left" in captured.out
+    summary = json.loads((out / "summary.json").read_text())
+    assert any("was applied but holds none" in w for w in summary["warnings"])

@@ -342,3 +342,175 @@ def test_a_horizontal_tube_s_overlay_is_written_upright(tmp_path):
     assert dark[0:16, 0:110].mean() > 0.6  # the time stamp's band, across the top left
     assert dark[20:110, 0:12].mean() < 0.2  # not down the left side (the old, transposed band)
     assert dark[rows - 20:, 0:45].mean() > 0.5  # the scale bar's band, at the bottom left
+
+
+def _append_by_hand(folder, edit):
+    """A hand edit of corrections.json (docs/review.md: by hand, or a colleague's copy)."""
+    f = folder / "corrections.json"
+    data = json.loads(f.read_text()) if f.exists() else {"format": "grainplug-corrections", "format_version": 2,
+                                                          "edits": []}
+    data["edits"].append(edit)
+    f.write_text(json.dumps(data))
+
+
+def test_an_open_session_never_writes_over_a_hand_edit(copy):
+    """A session used to keep the corrections it read first and write them back with its next edit: an edit
+    appended by hand meanwhile was lost. The session reads the file again when it changed and appends to it; an
+    edit made on what the page showed before the change is refused (nothing written)."""
+    with ReviewSession(copy) as s:
+        tids = [t["plug_id"] for t in s.state("run1")["tracks"]]
+        s.edit("run1", {"action": "exclude", "track": tids[0]})
+        _append_by_hand(copy, {"action": "window", "start_s": 0.1})
+        s.edit("run1", {"action": "exclude", "track": tids[1]})
+        kept = [e["action"] for e in json.loads((copy / "corrections.json").read_text())["edits"]]
+        assert kept == ["exclude", "window", "exclude"]
+        assert len(s.state("run1")["corrections"]) == 3
+
+        from grainplug.review.server import StaleReview
+
+        shown = s.state("run1")
+        _append_by_hand(copy, {"action": "no_plugs", "start_s": 0.2, "end_s": 0.25})
+        on_disk = (copy / "corrections.json").read_bytes()
+        with pytest.raises(StaleReview, match=r"corrections.json changed on disk .* nothing was written"):
+            s.edit("run1", {"action": "restore", "track": tids[1]}, version=shown["version"])
+        with pytest.raises(StaleReview):
+            s.undo("run1", version=shown["version"])
+        with pytest.raises(StaleReview):
+            s.save("run1", version=shown["version"])
+        assert (copy / "corrections.json").read_bytes() == on_disk
+        now = s.state("run1")  # what the page shows after the refusal
+        assert now["corrections"][-1]["text"] == "marked 0.2–0.25 s as not plugs"
+        s.edit("run1", {"action": "restore", "track": tids[1]}, version=now["version"])
+    kept = [e["action"] for e in json.loads((copy / "corrections.json").read_text())["edits"]]
+    assert kept == ["exclude", "window", "exclude", "no_plugs", "restore"]
+
+
+def test_an_open_session_sees_the_run_analysed_again(copy):
+    """A campaign's review kept showing the old analysis after batch analysed the run again, and numbered new
+    edits against its old tracks. The session reads result.npz again when it changed; the page's edit made on the
+    old analysis is refused."""
+    with ReviewSession(copy) as s:
+        old = s.state("run1")
+        assert old["diagram"]["n_frames"] == 120
+        movie = gp.load_result(copy).input["path"]
+        gp.analyze(movie, gp.AnalysisParams(start_frame=40)).save(copy, figures=False, report=False)
+        new = s.state("run1")
+        assert new["diagram"]["n_frames"] == 80
+        s.frame_png("run1", 70)  # the movie is read at the new analysis' window
+
+        from grainplug.review.server import StaleReview
+
+        assert new["version"]["result"] != old["version"]["result"] and s.version("run1") == new["version"]
+        with pytest.raises(StaleReview, match=r"result\.npz changed on disk"):
+            s.edit("run1", {"action": "exclude", "track": 0}, version=old["version"])
+        assert not (copy / "corrections.json").exists()
+
+
+def test_an_empty_track_box_is_no_track(copy):
+    """The page sent Number("") = 0 for an empty box: merge 3 "into" nothing merged into track 0. The server takes
+    an empty string as no number at all."""
+    with ReviewServer(copy) as srv:
+        for body in ('{"action": "merge", "track": "", "other": 1}', '{"action": "merge", "track": 0, "other": " "}',
+                     '{"action": "exclude", "track": ""}'):
+            req = urllib.request.Request(srv.url + "api/run/run1/edit", data=body.encode(),
+                                         headers={"Content-Type": "application/json"})
+            with pytest.raises(urllib.error.HTTPError) as err:
+                urllib.request.urlopen(req)
+            with err.value:
+                assert err.value.code == 400 and " needs " in json.loads(err.value.read())["error"]
+    assert not (copy / "corrections.json").exists()
+
+
+def test_edges_break_across_spans_without_plugs(copy):
+    """Across a span marked as not plugs, a track's edges were drawn as a straight line through it: the state
+    holds a point without positions there, where the page lifts its pen."""
+    with ReviewSession(copy) as s:
+        st = s.state("run1")
+        tid, e = max(st["edges"].items(), key=lambda kv: kv[1]["t"][-1] - kv[1]["t"][0])
+        a = e["t"][0] + 0.4 * (e["t"][-1] - e["t"][0])
+        s.edit("run1", {"action": "no_plugs", "start_s": a, "end_s": a + 0.05})
+        e = s.state("run1")["edges"][tid]
+        gaps = [i for i, z in enumerate(e["top"]) if z is None and e["bottom"][i] is None]
+        assert len(gaps) == 1 and e["t"][gaps[0] - 1] < a and e["t"][gaps[0] + 1] > a + 0.05
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
+def test_the_page_refuses_empty_boxes_and_stale_edits(copy, tmp_path):
+    """In Chromium: no broken image before a frame is chosen; merge with one box empty (or both) says which box
+    and writes nothing; an edit made after corrections.json was changed by hand is refused with the reason and
+    the page shows the file; a hand edit made while the page is idle is shown within seconds; every track has
+    its number."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    errors: list[str] = []
+    with ReviewServer(copy) as srv, sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=[
+            "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"])
+        try:
+            page = browser.new_page(viewport={"width": 1366, "height": 768})
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(srv.url)
+            page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+            assert not page.is_visible("#frame")  # not the broken-image alt text
+            st = json.loads(urllib.request.urlopen(srv.url + "api/run/run1/state").read())
+            page.fill("#merge-b", "1")
+            page.click("#merge")
+            assert 'the box "into" is empty' in page.inner_text("#error")
+            page.fill("#merge-b", "")
+            page.fill("#merge-a", "2")
+            page.click("#merge")
+            assert 'the box "merge track" is empty' in page.inner_text("#error")
+            page.fill("#merge-b", "1.5")
+            page.click("#merge")
+            assert '"1.5" in the box "merge track" is not a track number' in page.inner_text("#error")
+            assert not (copy / "corrections.json").exists()
+            tids = [t["plug_id"] for t in st["tracks"]]
+            page.locator(f"#tracks tbody tr[data-track='{tids[0]}'] button").click()
+            page.wait_for_selector("#tracks tbody tr.excluded", timeout=20_000)
+            _append_by_hand(copy, {"action": "window", "start_s": 0.1})
+            page.locator(f"#tracks tbody tr[data-track='{tids[1]}'] button").click()  # before the next poll
+            page.wait_for_function("() => document.getElementById('error').textContent.includes('changed on disk')",
+                                   timeout=20_000)
+            assert "kept the frames from 0.1 s on" in page.inner_text("#corrections")
+            kept = json.loads((copy / "corrections.json").read_text())["edits"]
+            assert [e["action"] for e in kept] == ["exclude", "window"]
+            _append_by_hand(copy, {"action": "no_plugs", "start_s": 0.2, "end_s": 0.25})  # the page idle
+            page.wait_for_function("() => document.getElementById('corrections').textContent.includes('not plugs')",
+                                   timeout=10_000)
+            assert "changed on disk" in page.inner_text("#notice")
+            page.locator(f"#tracks tbody tr[data-track='{tids[1]}'] button").click()
+            page.wait_for_function("() => document.querySelectorAll('#corrections li').length === 4", timeout=20_000)
+            assert page.inner_text("#error") == ""
+            kept = json.loads((copy / "corrections.json").read_text())["edits"]
+            assert [e["action"] for e in kept] == ["exclude", "window", "no_plugs", "exclude"]
+        finally:
+            browser.close()
+    assert errors == []
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
+def test_the_page_shows_the_oscillation_and_every_track_s_number(tmp_path):
+    """The state had the oscillation frequency, the page never showed it. And a track whose upper edge the view
+    cuts all along (this movie's first plug) had no number on the diagram: it has one, under its lower edge."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    movie = synthesize(SynthConfig(n_frames=200, seed=4, regime="oscillating"), tmp_path / "m", fmt="tiff").movie
+    gp.analyze(movie).save(tmp_path / "osc", figures=False, report=False)
+    with ReviewServer(tmp_path / "osc") as srv, sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=["--no-sandbox", "--disable-gpu"])
+        try:
+            page = browser.new_page(viewport={"width": 1366, "height": 768})
+            page.goto(srv.url)
+            page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+            st = json.loads(urllib.request.urlopen(srv.url + "api/run/osc/state").read())["measures"]
+            assert st["regime"] == "oscillating" and st["oscillation_frequency_hz"]
+            f = st["oscillation_frequency_hz"]
+            assert float(page.get_attribute("#frequency", "data-value")) == pytest.approx(f)
+            assert page.inner_text("#frequency") == f"{f:.2f}"
+            assert page.inner_text("#amplitude") == f"{st['oscillation_amplitude_mm']:.2f}"
+            edges = json.loads(urllib.request.urlopen(srv.url + "api/run/osc/state").read())["edges"]
+            assert any(all(z is None for z in e["top"]) for e in edges.values())  # the case is there
+            labels = page.evaluate("() => { const out = []; const ctx = document.getElementById('diagram')"
+                                   ".getContext('2d'); const f = ctx.fillText.bind(ctx); ctx.fillText = (t, x, y) => "
+                                   "{ out.push(String(t)); f(t, x, y); }; draw(); return out; }")
+            assert set(edges) <= set(labels)
+        finally:
+            browser.close()

@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import json
+import logging
 import os
 import secrets
 import shutil
@@ -32,6 +33,8 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from .errors import GrainplugError
+
+log = logging.getLogger(__name__)
 
 __all__ = ["OutputPlaceError", "atomic_directory", "atomic_file", "check_output_place", "is_complete"]
 
@@ -59,7 +62,7 @@ def _describe(exc: OSError, place: Path) -> str:
 
 
 def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), replace: bool = True,
-                       keeps: Iterable[str] = ()) -> Path:
+                       keeps: Iterable[str] = (), carry: bool = False) -> Path:
     """The output folder, checked; raises :class:`OutputPlaceError` with the fix when it cannot be used.
 
     Parameters
@@ -74,6 +77,9 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
         list (a user's notes, a reviewer's ``corrections.json``) would be lost, so it is refused.
     keeps : names
         :data:`USER_FILES` the new output writes again (a result that carries its corrections).
+    carry : bool
+        What grainplug did not write there is carried into the new folder (see :func:`atomic_directory`),
+        so it is no loss and not refused.
     """
     if str(out).strip() == "" or (replace and str(out).strip() == "."):
         what = "empty" if str(out).strip() == "" else "the current folder (it would be replaced whole)"
@@ -104,7 +110,7 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
         if entries and not ours:
             raise OutputPlaceError(f"{p} holds files grainplug did not write ({entries[0].name}, ...) — give a new "
                                    "or empty folder (grainplug replaces its output folder whole)")
-        foreign = _foreign(resolved, entries, set(keeps))
+        foreign = [] if carry else _foreign(resolved, entries, set(keeps))
         if foreign:
             names = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
             why = (" (a reviewer's corrections: `grainplug remeasure` applies them to the analysis there)"
@@ -140,13 +146,48 @@ def _fsync_tree(folder: Path) -> None:
             os.close(fd)
 
 
-def _seal(folder: Path) -> None:
+def _seal(folder: Path, carried: Iterable[str] = ()) -> None:
     """Write the completion marker: every file of the set with its size (see :func:`is_complete`),
-    except the files a user edits (:data:`USER_FILES`)."""
+    except the files a user edits (:data:`USER_FILES`) and the entries carried from the previous folder
+    (``carried``: they stay the user's, so that a later run does not take them for grainplug's)."""
+    skip = set(carried)
     files = {f.relative_to(folder).as_posix(): f.stat().st_size
-             for f in sorted(folder.rglob("*")) if f.is_file() and f.name != MARKER and f.name not in USER_FILES}
+             for f in sorted(folder.rglob("*")) if f.is_file() and f.name != MARKER and f.name not in USER_FILES
+             and f.relative_to(folder).parts[0] not in skip}
     (folder / MARKER).write_text(json.dumps({"grainplug_output": "replaced whole by each run", "complete": True,
                                              "files": files}, indent=1) + "\n")
+
+
+def _carry(src: Path, dst: Path) -> None:
+    """Put ``src`` (a file, a folder or a symbolic link) at ``dst`` as well: hard links where the file system
+    has them, copies otherwise. ``src`` stays where it is until the swap, so a run killed meanwhile loses
+    nothing."""
+    if src.is_symlink():
+        os.symlink(os.readlink(src), dst)
+    elif src.is_dir():
+        try:
+            shutil.copytree(src, dst, symlinks=True, copy_function=os.link)
+        except (OSError, shutil.Error):
+            shutil.rmtree(dst, ignore_errors=True)
+            shutil.copytree(src, dst, symlinks=True)
+    else:
+        try:
+            os.link(src, dst)
+        except OSError:
+            shutil.copy2(src, dst)
+
+
+def _cwd_inside(folder: Path) -> Path | None:
+    """Where this process's current folder is inside ``folder`` (relative to it), or None when it is not
+    there (or is gone)."""
+    try:
+        cwd = Path.cwd()
+    except OSError:
+        return None
+    folder = folder.resolve()
+    if cwd == folder or folder in cwd.parents:
+        return cwd.relative_to(folder)
+    return None
 
 
 def is_complete(folder: str | Path) -> bool:
@@ -194,7 +235,8 @@ def recover(out: Path) -> None:
 
 @contextlib.contextmanager
 def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None, *, replace: bool = False,
-                     inputs: Iterable[str | Path] = (), keeps: Iterable[str] = ()) -> Iterator[Path]:
+                     inputs: Iterable[str | Path] = (), keeps: Iterable[str] = (),
+                     carry: bool = False) -> Iterator[Path]:
     """Write files into a temporary folder, then move them all into ``out_dir``.
 
     Parameters
@@ -211,6 +253,17 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
         Files the run reads (refused as output places, see :func:`check_output_place`).
     keeps : names
         User files (:data:`USER_FILES`) this block writes again, so their being there is no loss.
+    carry : bool
+        With ``replace``: what grainplug did not write in the folder (a user's ``notes.txt``, a
+        subfolder) is carried into the new folder (hard-linked, or copied), instead of refusing the
+        folder; an entry this block writes under the same name wins. For a result rewritten in place
+        (``remeasure``), where the user's files belong to the same analysis.
+
+    Notes
+    -----
+    The folder replaced may be this process's current folder (``grainplug remeasure .``): the
+    process then moves into the new folder, at the same place inside it, so relative paths still
+    name the new files. (A shell that was there stays in the old, removed folder: ``cd .``.)
 
     Yields
     ------
@@ -223,7 +276,9 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
         When the place cannot be used or written (full disk, read-only): nothing
         of the previous result is changed.
     """
-    out = check_output_place(out_dir, inputs=inputs, replace=replace, keeps=keeps)
+    out = check_output_place(out_dir, inputs=inputs, replace=replace, keeps=keeps, carry=carry)
+    if replace:  # "./" or "run1/..": the folder by its name in its parent (links are not followed)
+        out = Path(os.path.abspath(out))
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         recover(out)
@@ -243,14 +298,25 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
             raise
         try:
             if replace:
-                _seal(tmp)
+                carried = []
+                if carry and out.is_dir():
+                    for name in _foreign(out.resolve(), list(out.iterdir()), set(keeps)):
+                        if not os.path.lexists(tmp / name):
+                            _carry(out / name, tmp / name)
+                            carried.append(name)
+                    if carried:
+                        log.info("kept in %s what grainplug did not write there: %s", out, ", ".join(carried))
+                _seal(tmp, carried)
                 _fsync_tree(tmp)
+                here = _cwd_inside(out)
                 old = None
                 if out.exists():
                     old = Path(tempfile.mkdtemp(prefix=f".{out.name}.grainplug-old-{os.getpid()}-", dir=out.parent))
                     old.rmdir()
                     os.replace(out, old)
                 os.replace(tmp, out)
+                if here is not None:  # this process was in the old folder: into the new one
+                    os.chdir(out / here if (out / here).is_dir() else out)
                 if old is not None:
                     shutil.rmtree(old, ignore_errors=True)
                 if written is not None:

@@ -41,6 +41,7 @@ made without ``on``) are replayed as they are.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -182,9 +183,12 @@ class Corrections:
         if not isinstance(data, dict) or data.get("format") != "grainplug-corrections":
             raise ParameterError("not a grainplug corrections file (no \"format\": \"grainplug-corrections\")")
         version = data.get("format_version")
-        if not isinstance(version, int) or version > FORMAT_VERSION:
-            raise ParameterError(f"corrections format {version!r} is newer than this grainplug reads "
-                                 f"({FORMAT_VERSION}): upgrade grainplug")
+        if not _is_number(version) or not float(version).is_integer() or version < 1:  # type: ignore[arg-type, operator]
+            raise ParameterError(f"\"format_version\" must be a whole number from 1 to {FORMAT_VERSION}, not "
+                                 f"{json.dumps(version, default=repr)}")
+        if version > FORMAT_VERSION:  # type: ignore[operator]
+            raise ParameterError(f"corrections format {version} is newer than this grainplug reads "
+                                 f"(up to {FORMAT_VERSION}): upgrade grainplug")
         edits = data.get("edits")
         if not isinstance(edits, list):
             raise ParameterError("the corrections' \"edits\" must be a list")
@@ -212,7 +216,7 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
     for name in need:
         if args.get(name) is None:
             raise ParameterError(f"{action} needs {name}")
-    ints = {k: int(args[k]) for k in ("track", "other", "frame") if args.get(k) is not None}  # type: ignore[call-overload]
+    ints = {k: _whole(action, k, args[k]) for k in ("track", "other", "frame") if args.get(k) is not None}
     for k, v in ints.items():
         if v < 0:
             raise ParameterError(f"{action}: {k} must be >= 0")
@@ -221,27 +225,49 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
         v = args.get(k)
         if v is not None:
             try:
-                pts = tuple((float(t), float(x)) for t, x in v)  # type: ignore[union-attr, misc]
+                pts = tuple((float(t), float(x)) for t, x in v  # type: ignore[union-attr, misc]
+                            if _is_number(t) and _is_number(x))
             except (TypeError, ValueError):
+                pts = None
+            if pts is None or len(pts) != len(v):  # type: ignore[arg-type]
                 raise ParameterError(f"{action}: {k} must be a list of [time_s, position_mm] pairs") from None
             if not pts or not all(math.isfinite(t) and math.isfinite(x) for t, x in pts):
                 raise ParameterError(f"{action}: {k} must hold finite [time_s, position_mm] pairs")
             places[k] = pts
     if args.get("frame_time_s") is not None:
-        ft = float(args["frame_time_s"])  # type: ignore[arg-type]
-        if not math.isfinite(ft):
-            raise ParameterError(f"{action}: frame_time_s must be a finite time in seconds")
-        places["frame_time_s"] = ft
-    times = {k: (None if args.get(k) is None else float(args[k])) for k in ("start_s", "end_s")}  # type: ignore[arg-type]
-    for k, v in times.items():
-        if v is not None and not math.isfinite(v):
-            raise ParameterError(f"{action}: {k} must be a finite time in seconds")
+        places["frame_time_s"] = _seconds(action, "frame_time_s", args["frame_time_s"])
+    times = {k: (None if args.get(k) is None else _seconds(action, k, args[k])) for k in ("start_s", "end_s")}
     if times["start_s"] is not None and times["end_s"] is not None and times["end_s"] <= times["start_s"]:
         raise ParameterError(f"{action}: the end ({times['end_s']:g} s) must come after the start "
                              f"({times['start_s']:g} s)")
     if action == "merge" and ints["track"] == ints["other"]:
         raise ParameterError("merge: a track cannot be merged into itself")
     return Edit(action, at=at, **ints, **times, **places)
+
+
+def _is_number(v: object) -> bool:
+    """Whether ``v`` is a number as JSON writes one (an int or a float; a bool is not one, nor a string)."""
+    return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool | np.bool_)
+
+
+def _whole(action: str, name: str, v: object) -> int:
+    """``v`` as a track or frame number; raises ParameterError for anything but a whole number.
+
+    ``3.0`` is 3; ``3.7``, ``true``, ``"3"`` are refused (``int()`` would make them 3, 1 and 3: an
+    edit on another track than the one written).
+    """
+    if _is_number(v) and math.isfinite(float(v)) and float(v).is_integer():  # type: ignore[arg-type]
+        return int(v)  # type: ignore[call-overload]
+    raise ParameterError(f"{action}: {name} must be a whole number (a track or frame number, e.g. 3), "
+                         f"not {json.dumps(v, default=repr)}")
+
+
+def _seconds(action: str, name: str, v: object) -> float:
+    """``v`` as a finite time in seconds; raises ParameterError for anything else (``"0.5s"``, ``true``, NaN)."""
+    if _is_number(v) and math.isfinite(float(v)):  # type: ignore[arg-type]
+        return float(v)  # type: ignore[arg-type]
+    raise ParameterError(f"{action}: {name} must be a finite time in seconds written as a number (e.g. 0.5), "
+                         f"not {json.dumps(v, default=repr)}")
 
 
 def _both_seen(runs: Runs, track: np.ndarray, time_s: np.ndarray, a: int, b: int) -> str | None:
@@ -314,8 +340,9 @@ def _misfit(runs: Runs, track: np.ndarray, time_s: np.ndarray, centre: np.ndarra
 @dataclass(frozen=True)
 class Replay:
     """A result's corrections as replayed on its detected tracks: each run's track, the tracks excluded, the
-    time window kept (None: that end of the record), the spans marked as not plugs, why edits were not applied,
-    and the edits applied."""
+    time window kept (None: that end of the record), the spans marked as not plugs, why edits were not applied
+    (and which applied windows hold none of the record), the edits applied, and those of them that are windows
+    holding none of the record (applied: what they cut away stays cut, and no plugs are left)."""
 
     run_track: np.ndarray
     excluded: frozenset[int]
@@ -323,6 +350,7 @@ class Replay:
     spans: tuple[tuple[float, float], ...]
     not_applied: tuple[str, ...] = ()
     applied: tuple[Edit, ...] = ()
+    empty_windows: tuple[Edit, ...] = ()
 
 
 def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> Replay:
@@ -331,6 +359,7 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> R
     spans: list[tuple[float, float]] = []
     applied: list[Edit] = []
     skipped: list[str] = []
+    empty: list[Edit] = []
     centre = _centres(runs, diagram)
     for k, e in enumerate(corr.edits, 1):
         split_at = e.frame
@@ -376,8 +405,9 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> R
                 lo = t0 if start is None else start
                 hi = t1 if end is None else end
                 if lo > t1 or hi < t0:
-                    skipped.append(f"edit {k}, {e.describe()}, holds none of this record ({t0:g} to {t1:g} s): no "
-                                   "plugs are left")
+                    skipped.append(f"edit {k}, {e.describe()}, was applied but holds none of this record ({t0:g} to "
+                                   f"{t1:g} s): no plugs are left")
+                    empty.append(e)
         applied.append(e)
         if e.action == "merge":
             track[track == e.other] = e.track
@@ -390,7 +420,7 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> R
             spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
         elif e.action == "clear_no_plugs":
             spans.clear()
-    return Replay(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied))
+    return Replay(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied), tuple(empty))
 
 
 def replayed(res: AnalysisResult) -> Replay | None:

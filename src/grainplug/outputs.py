@@ -10,6 +10,7 @@ import csv
 import io
 import json
 import logging
+import os
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -150,10 +151,12 @@ def draw_figures(res: AnalysisResult, folder: str | Path, options: FigureOptions
 def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = True,
                   report: bool = True, extra: dict | None = None,
                   figure_worker: FigureWorker | None = None,
-                  figure_options: FigureOptions | None = None) -> dict[str, Path]:
+                  figure_options: FigureOptions | None = None, carry: bool = False) -> dict[str, Path]:
     """Write every output of ``res`` into ``out_dir``, atomically; returns the paths written.
 
     ``extra`` is merged into ``summary.json`` (e.g. the campaign's run key).
+    ``carry``: what grainplug did not write in ``out_dir`` (a user's notes) is kept in the new folder
+    rather than refused (:func:`grainplug._atomic.atomic_directory`): for a result rewritten in place.
     ``figure_worker`` draws the figures in a helper process meanwhile
     (:class:`grainplug.plotting.worker.FigureWorker`); by default they are drawn here.
     """
@@ -163,7 +166,8 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
     from .corrections import CORRECTIONS_FILE
 
     keeps = (CORRECTIONS_FILE,) if res.corrections is not None else ()
-    with atomic_directory(out_dir, written, replace=True, inputs=[source] if source else (), keeps=keeps) as tmp:
+    with atomic_directory(out_dir, written, replace=True, inputs=[source] if source else (), keeps=keeps,
+                          carry=carry) as tmp:
         summary = res.summary
         summary.update(extra or {})
         options = figure_options or FigureOptions()
@@ -219,10 +223,15 @@ def remeasure(folder: str | Path, *, figures: bool = True, report: bool = True) 
 
     The measures are recomputed from the detected tracks (the movie is not read); without a
     corrections file, the detection is restored as it was. Returns the corrected result.
+
+    The folder is rewritten where it is, by its absolute path, so ``remeasure(".")`` from inside it
+    works (the process then finds itself in the new folder). What grainplug did not write there (a
+    user's notes) is kept in the new folder.
     """
     from .corrections import Corrections, apply_corrections
     from .store import load_result, read_corrections
 
+    folder = Path(os.path.abspath(folder))  # "." names the folder by its name in its parent
     res = load_result(folder)
     corr = read_corrections(folder)
     new = apply_corrections(res, corr if corr is not None else Corrections())
@@ -236,5 +245,5 @@ def remeasure(folder: str | Path, *, figures: bool = True, report: bool = True) 
         extra["batch"] = old["batch"]  # a campaign's run keeps its key
     # the figures as they were written: their formats, resolution and style
     write_outputs(new, folder, figures=figures, report=report, extra=extra,
-                  figure_options=FigureOptions.recorded(old))
+                  figure_options=FigureOptions.recorded(old), carry=True)
     return new

@@ -707,17 +707,35 @@ def remeasure(folder: Path, no_figures: bool, as_json: bool) -> None:
     The measures are recomputed from the detected plugs without reading the movie; without a
     corrections file the detection is restored as it was.
     """
+    from .._atomic import _cwd_inside
+    from ..corrections import replayed
     from ..outputs import remeasure as run_remeasure
 
     if not folder.is_dir():
         raise ParameterError(f"{folder} is not a folder: give the --out folder of an analysis")
+    here = _cwd_inside(folder)  # `remeasure .`: the shell stays in the folder replaced
     res = run_remeasure(folder, figures=not no_figures, report=not no_figures)
     s = res.summary
+    for line in res.warnings:  # as analyze prints them: an edit not applied is said here, not only in the files
+        err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
+    if here is not None:
+        err_console.print(f"note: {escape(str(folder))} was replaced whole by its new version: a shell in it still "
+                          "sees the old, removed folder — `cd .` to see the new one", highlight=False, soft_wrap=True)
     if as_json:
         _echo_json(s)
         return
-    applied = s["corrections"]
-    click.echo(f"corrections        {len(applied)} applied" + (": " + "; ".join(applied) if applied else ""))
+    st = replayed(res)
+    n_edits = 0 if res.corrections is None else len(res.corrections.edits)
+    applied = [] if st is None else [e.describe() for e in st.applied]
+    empty = 0 if st is None else len(st.empty_windows)
+    said = f"{len(applied)} applied" if len(applied) == n_edits else f"{len(applied)} of {n_edits} applied"
+    said += ": " + "; ".join(applied) if applied else ""
+    if len(applied) < n_edits:
+        said += f" — {n_edits - len(applied)} not applied (see the warnings)"
+    if empty:
+        which = "it holds" if len(applied) == 1 else f"{empty} of them hold{'s' if empty == 1 else ''}"
+        said += f" — {which} none of the record: no plugs are left (see the warnings)"
+    click.echo(f"corrections        {said}")
     cel = "-" if s["celerity_m_s"] is None else f"{s['celerity_m_s']:+.4f} m/s"
     plug = "-" if s["plug_length_mm"] is None else f"{s['plug_length_mm']:.2f} mm"
     click.echo(f"regime             {s['regime']}; celerity {cel}; plug length {plug}")

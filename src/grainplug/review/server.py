@@ -14,20 +14,33 @@ campaign's runs):
 
 - ``GET /`` and ``/app.js``: the page;
 - ``GET /api/runs``: the runs that can be reviewed;
-- ``GET /api/run/R/state``: measures, tracks, edges, corrections, the movie's status;
+- ``GET /api/run/R/state``: measures, tracks, edges, corrections, the movie's status, and the
+  ``version`` of the files they come from;
+- ``GET /api/run/R/version``: that version, as it is on disk now (the page asks every few seconds,
+  and reloads when ``corrections.json`` or ``result.npz`` changed under it);
 - ``GET /api/run/R/diagram.png``: the spatiotemporal diagram (time across, position down);
 - ``GET /api/run/R/frame/K.png``: frame ``K`` read from the movie, with the tube and the
   plug edges drawn on it;
 - ``POST /api/run/R/edit`` (a JSON edit: ``{"action": "exclude", "track": 3}``),
   ``/undo``, ``/save``: change the corrections (kept in ``corrections.json`` at once,
-  measures recomputed) or rewrite the run's outputs (:func:`grainplug.remeasure`).
+  measures recomputed) or rewrite the run's outputs (:func:`grainplug.remeasure`). A body
+  with the ``version`` the page was shown is refused (409, with the state as it is now) when
+  the files changed since: the page's edit named tracks of what it showed.
+
+The session never writes over what it has not read: each request first compares
+``corrections.json`` (its bytes) and ``result.npz`` (inode, size, time) with what it read,
+and reads them again when they changed (a hand edit, a colleague's copy, another review
+page, ``grainplug batch`` analysing the run again). An edit is appended to the file as it
+is on disk.
 """
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import logging
+import os
 import threading
 from dataclasses import dataclass
 from http import HTTPStatus
@@ -53,8 +66,8 @@ MAX_POINTS_PER_TRACK = 2000
 
 
 def review_targets(folder: str | Path) -> dict[str, Path]:
-    """The analyses under ``folder``: itself, or a campaign's runs (``runs/*``); name -> folder."""
-    p = Path(folder)
+    """The analyses under ``folder``: itself, or a campaign's runs (``runs/*``); name -> folder (absolute)."""
+    p = Path(os.path.abspath(folder))  # "." stays the folder when it is replaced whole (Write outputs)
     if (p / RESULT_FILE).is_file():
         return {p.resolve().name or "analysis": p}
     runs = p / "runs"
@@ -81,14 +94,45 @@ def _campaign_runs(folder: Path) -> set[str] | None:
         return {run_folder_name(str(row.get("run", ""))) for row in csv.DictReader(fh)}
 
 
+class StaleReview(ParameterError):
+    """The page's edit was made on files that have changed on disk since it was shown; nothing was written."""
+
+
+def _result_id(folder: Path) -> str:
+    """Which ``result.npz`` is in ``folder``: inode, size and time (a new analysis replaces the folder whole)."""
+    try:
+        st = (folder / RESULT_FILE).stat()
+    except OSError:
+        return "none"
+    return f"{st.st_ino}-{st.st_size}-{st.st_mtime_ns}"
+
+
+def _corrections_id(folder: Path) -> str:
+    """What ``corrections.json`` holds: a hash of its bytes ("none" without the file)."""
+    try:
+        return hashlib.sha256((folder / CORRECTIONS_FILE).read_bytes()).hexdigest()[:16]
+    except FileNotFoundError:
+        return "none"
+    except OSError as exc:
+        raise ParameterError(f"cannot read {folder / CORRECTIONS_FILE}: {exc.strerror or exc} — check the file's "
+                             "permissions") from None
+
+
 @dataclass
 class _Run:
     folder: Path
     result: AnalysisResult
     corrections: Corrections
+    result_id: str = ""
+    corrections_id: str = ""
     movie: Any = None
     movie_error: str | None = None
     offset: int = 0
+
+    @property
+    def version(self) -> dict[str, str]:
+        """What the run's state was made from (compared with the page's at each edit)."""
+        return {"result": self.result_id, "corrections": self.corrections_id}
 
 
 class ReviewSession:
@@ -120,15 +164,54 @@ class ReviewSession:
 
     # -- runs ------------------------------------------------------------------------
     def run(self, name: str) -> _Run:
+        """The run as its files are on disk now: read again when ``result.npz`` or ``corrections.json`` changed
+        since it was read (never a stale copy to write over the file)."""
         if name not in self.targets:
             raise ParameterError(f"no run named {name!r}")
         with self._lock:
-            if name not in self._runs:
-                folder = self.targets[name]
-                res = load_result(folder)
+            folder = self.targets[name]
+            run = self._runs.get(name)
+            result_id, corrections_id = _result_id(folder), _corrections_id(folder)  # before reading: a change
+            # meanwhile is seen at the next request
+            if run is not None and run.result_id == result_id and run.corrections_id == corrections_id:
+                return run
+            if run is not None and run.result_id == result_id:
+                log.info("review: %s changed on disk: read again", folder / CORRECTIONS_FILE)
                 corr = read_corrections(folder) or Corrections()
-                self._runs[name] = _Run(folder, apply_corrections(res, corr), corr)
+                run.result, run.corrections = apply_corrections(run.result, corr), corr
+                run.corrections_id = corrections_id
+                return run
+            if run is not None:
+                log.info("review: %s changed on disk (analysed again?): read again", folder / RESULT_FILE)
+                if run.movie is not None:
+                    run.movie.close()
+            res = load_result(folder)
+            corr = read_corrections(folder) or Corrections()
+            self._runs[name] = _Run(folder, apply_corrections(res, corr), corr, result_id, corrections_id)
             return self._runs[name]
+
+    def version(self, name: str) -> dict[str, str]:
+        """The run's files' version on disk now (what :meth:`state` would be made from), without reading them."""
+        if name not in self.targets:
+            raise ParameterError(f"no run named {name!r}")
+        folder = self.targets[name]
+        return {"result": _result_id(folder), "corrections": _corrections_id(folder)}
+
+    def _check_version(self, name: str, seen: object) -> _Run:
+        """The run, read again if its files changed; raises :class:`StaleReview` when ``seen`` (the version the
+        page was shown; None: not checked) is not what is on disk."""
+        run = self.run(name)
+        if seen is None or seen == run.version:
+            return run
+        if not isinstance(seen, dict):
+            raise ParameterError("\"version\" must be the version object of the run's state")
+        if seen.get("result") != run.result_id:
+            raise StaleReview(f"{name}'s result.npz changed on disk since this page showed it (the run analysed "
+                              "again by grainplug batch, or remeasured): its tracks may be numbered otherwise — "
+                              "nothing was written; the page now shows the analysis as it is: make the edit again")
+        raise StaleReview(f"{name}'s corrections.json changed on disk since this page showed it (edited by hand, "
+                          "copied, or by another review page) — nothing was written; the page now shows the file "
+                          "as it is: check it, then make the edit again")
 
     def _movie(self, run: _Run) -> Any:
         """The run's movie, opened on first use (None, with the reason, when it cannot be)."""
@@ -172,14 +255,13 @@ class ReviewSession:
             sel = np.flatnonzero(res.links.run_track == tid)
             step = max(1, len(sel) // MAX_POINTS_PER_TRACK)
             sel = sel[::step]
-            edges[int(tid)] = {"t": _list(t[res.runs.frame[sel]]), "top": _list(res.runs.top_mm[sel]),
-                               "bottom": _list(res.runs.bottom_mm[sel])}
+            edges[int(tid)] = _broken(t[res.runs.frame[sel]], res.runs.top_mm[sel], res.runs.bottom_mm[sel], spans)
         self._movie(run)
         return {
-            "run": name, "runs": list(self.targets),
+            "run": name, "runs": list(self.targets), "version": run.version,
             "measures": {k: s.get(k) for k in ("regime", "celerity_m_s", "celerity_ci95_m_s", "plug_length_mm",
-                                               "bubble_length_mm", "oscillation_frequency_hz", "n_plugs",
-                                               "n_edges_used")},
+                                               "bubble_length_mm", "oscillation_frequency_hz",
+                                               "oscillation_amplitude_mm", "n_plugs", "n_edges_used")},
             "statement": res.statement, "warnings": list(res.warnings),
             "diagram": {"t0": float(t[0]), "t1": float(t[-1]), "n_frames": int(res.diagram.n_frames),
                         "z0": float(res.diagram.position_mm[0]), "z1": float(res.diagram.position_mm[-1]),
@@ -224,29 +306,60 @@ class ReviewSession:
         return buf.getvalue()
 
     # -- corrections -----------------------------------------------------------------------
-    def _set(self, name: str, corr: Corrections) -> None:
-        run = self.run(name)
+    def _set(self, run: _Run, corr: Corrections) -> None:
         new = apply_corrections(run.result, corr)
-        with atomic_file(run.folder / CORRECTIONS_FILE) as tmp:
-            Path(tmp).write_text(dumps(corr.as_dict()), encoding="utf-8")
-        run.result, run.corrections = new, corr
+        text = dumps(corr.as_dict())
+        with self._lock:
+            if _corrections_id(run.folder) != run.corrections_id:  # written since this request read it
+                raise StaleReview(f"{run.folder / CORRECTIONS_FILE} changed on disk while the edit was made — "
+                                  "nothing was written; the page now shows the file as it is: make the edit again")
+            with atomic_file(run.folder / CORRECTIONS_FILE) as tmp:
+                Path(tmp).write_text(text, encoding="utf-8")
+            run.result, run.corrections = new, corr
+            run.corrections_id = hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
-    def edit(self, name: str, edit: dict[str, object]) -> None:
+    def edit(self, name: str, edit: dict[str, object], *, version: object = None) -> None:
+        """Add ``edit`` (``{"action": ..., ...}``) to the run's corrections, as they are on disk now.
+
+        ``version``: the version of the state the edit was made on (:meth:`state`); when the files
+        changed since, :class:`StaleReview` is raised and nothing is written.
+        """
         if not isinstance(edit, dict) or "action" not in edit:
             raise ParameterError("an edit is a JSON object with an \"action\"")
-        args = {k: v for k, v in edit.items() if k != "action"}
-        run = self.run(name)  # the edit keeps the spans of its tracks in this analysis
-        self._set(name, run.corrections.add(str(edit["action"]), on=run.result, **args))
+        # an empty box is no number: "merge needs other", not a merge into track 0
+        args = {k: None if isinstance(v, str) and not v.strip() else v for k, v in edit.items() if k != "action"}
+        run = self._check_version(name, version)  # the edit keeps the spans of its tracks in this analysis
+        self._set(run, run.corrections.add(str(edit["action"]), on=run.result, **args))
 
-    def undo(self, name: str) -> None:
-        self._set(name, self.run(name).corrections.undo())
+    def undo(self, name: str, *, version: object = None) -> None:
+        """Remove the last edit (refused, as :meth:`edit`, when the files changed since ``version``)."""
+        run = self._check_version(name, version)
+        if not run.corrections.edits:
+            raise ParameterError("there is no edit to undo")
+        self._set(run, run.corrections.undo())
 
-    def save(self, name: str) -> None:
+    def save(self, name: str, *, version: object = None) -> None:
         """Rewrite the run's outputs with the corrections (as ``grainplug remeasure``)."""
         from ..outputs import remeasure
 
-        run = self.run(name)
-        run.result = remeasure(run.folder)
+        run = self._check_version(name, version)
+        with self._lock:
+            run.result = remeasure(run.folder)
+            run.result_id, run.corrections_id = _result_id(run.folder), _corrections_id(run.folder)
+
+
+def _broken(t: np.ndarray, top: np.ndarray, bottom: np.ndarray,
+            spans: tuple[tuple[float, float], ...] | frozenset[Any]) -> dict[str, list[float | None]]:
+    """A track's edges for the page, with a break (a point without positions) wherever a span marked as not
+    plugs lies between two of its points: the page lifts its pen there instead of drawing across the span."""
+    ts, tops, bottoms = _list(t), _list(top), _list(bottom)
+    cuts = [i for i in range(1, len(t)) if any(a < t[i] and b > t[i - 1] for a, b in spans)]
+    for i in reversed(cuts):
+        mid = round(0.5 * (float(t[i - 1]) + float(t[i])), 4)
+        ts.insert(i, mid)
+        tops.insert(i, None)
+        bottoms.insert(i, None)
+    return {"t": ts, "top": tops, "bottom": bottoms}
 
 
 def _list(a: np.ndarray) -> list[float | None]:
@@ -275,10 +388,17 @@ class _Handler(BaseHTTPRequestHandler):
     def _json(self, data: object, status: int = 200) -> None:
         self._send(dumps(data).encode(), "application/json", status)
 
-    def _error(self, exc: Exception) -> None:
+    def _error(self, exc: Exception, name: str = "") -> None:
         status = HTTPStatus.BAD_REQUEST if isinstance(exc, ParameterError) else HTTPStatus.INTERNAL_SERVER_ERROR
         msg = exc.message if isinstance(exc, ParameterError) else str(exc)
-        self._json({"error": msg}, status)
+        body: dict[str, object] = {"error": msg}
+        if isinstance(exc, StaleReview):  # the page shows what is on disk now
+            status = HTTPStatus.CONFLICT
+            try:
+                body["state"] = self.session.state(name)
+            except (GrainplugError, ValueError) as again:
+                body["error"] = f"{msg} ({again})"
+        self._json(body, status)
 
     def _route(self) -> tuple[str, str, list[str]]:
         parts = [unquote(p) for p in self.path.split("?")[0].strip("/").split("/")]
@@ -301,6 +421,8 @@ class _Handler(BaseHTTPRequestHandler):
                     return self._send(b"", "image/x-icon", HTTPStatus.NO_CONTENT)
             elif rest == ["state"]:
                 return self._json(s.state(name))
+            elif rest == ["version"]:
+                return self._json(s.version(name))
             elif rest == ["diagram.png"]:
                 return self._send(s.diagram_png(name), "image/png")
             elif len(rest) == 2 and rest[0] == "frame" and rest[1].endswith(".png"):
@@ -313,23 +435,27 @@ class _Handler(BaseHTTPRequestHandler):
             self._error(exc)
 
     def do_POST(self) -> None:
+        kind = name = ""
         try:
             kind, name, rest = self._route()
             if kind != "run":
                 return self._json({"error": "not found"}, HTTPStatus.NOT_FOUND)
             n = int(self.headers.get("Content-Length") or 0)
             body = json.loads(self.rfile.read(n) or b"{}")
+            if not isinstance(body, dict):
+                raise ParameterError("the request's body must be a JSON object")
+            version = body.pop("version", None)
             if rest == ["edit"]:
-                self.session.edit(name, body)
+                self.session.edit(name, body, version=version)
             elif rest == ["undo"]:
-                self.session.undo(name)
+                self.session.undo(name, version=version)
             elif rest == ["save"]:
-                self.session.save(name)
+                self.session.save(name, version=version)
             else:
                 return self._json({"error": "not found"}, HTTPStatus.NOT_FOUND)
             self._json(self.session.state(name))
         except (GrainplugError, ValueError) as exc:
-            self._error(exc)
+            self._error(exc, name if kind == "run" else "")
         except Exception as exc:
             log.exception("review: %s", self.path)
             self._error(exc)

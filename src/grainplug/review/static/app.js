@@ -2,7 +2,7 @@
 // grainplug review: the diagram (canvas), the frame under a click, the tracks and the corrections.
 const $ = (id) => document.getElementById(id);
 let run = null, state = null, img = null, view = null, frame = null, selected = null, playing = null;
-let npStart = null;
+let npStart = null, busy = 0;
 const api = (path) => `api/run/${encodeURIComponent(run)}/${path}`;
 const fmt = (x, d) => (x === null || x === undefined) ? "—" : Number(x).toFixed(d);
 
@@ -11,17 +11,68 @@ async function getJSON(url, body) {
                                           body: JSON.stringify(body)};
   const r = await fetch(url, opts);
   const data = await r.json();
-  if (!r.ok) throw new Error(data.error || r.statusText);
+  if (!r.ok) {
+    const err = new Error(data.error || r.statusText);
+    err.state = data.state;  // a stale page's edit (409): the state as it is on disk now
+    throw err;
+  }
   return data;
 }
 
+function say(text) { $("error").textContent = text; }
+function notice(text) { $("notice").textContent = text; }
+
+// an edit, undo or save, sent with the version of the state it was made on: the server refuses it (and
+// sends the state as it is now) when corrections.json or result.npz changed on disk since
 async function post(path, body) {
-  try { $("error").textContent = ""; show(await getJSON(api(path), body || {})); }
-  catch (e) { $("error").textContent = e.message; }
+  busy++;
+  try {
+    say(""); notice("");
+    show(await getJSON(api(path), Object.assign({}, body || {}, {version: state.version})));
+  } catch (e) {
+    if (e.state) adopt(e.state);
+    say(e.message);
+  } finally { busy--; }
+}
+
+// a state read again because the files changed on disk (by hand, another page, a batch)
+function adopt(s) {
+  const old = state.version;
+  if (s.version.result !== old.result) {  // analysed again: another diagram, tracks numbered anew
+    selected = null; npStart = null;
+    const t = frame === null ? null : timeOf(frame);  // the same time, in the new analysis' frames
+    view = [s.diagram.t0, s.diagram.t1];
+    img = new Image();
+    img.onload = draw;
+    img.src = api("diagram.png") + "?" + Date.now();
+    notice("result.npz changed on disk (the run analysed again, or remeasured): the page shows it as it is now");
+    frame = null;
+    show(s);
+    if (t !== null && t >= s.diagram.t0 && t <= s.diagram.t1) showFrame(frameAt(t));
+    else { $("frame").hidden = true; $("frame-label").textContent = "click the diagram"; }
+    return;
+  }
+  if (s.version.corrections !== old.corrections) {
+    notice("corrections.json changed on disk (by hand, a copy or another page): the page shows it as it is now");
+  }
+  show(s);
+}
+
+async function poll() {  // has a file changed under the page?
+  if (!state || busy || document.hidden) return;
+  try {
+    const asked = run, v = await getJSON(api("version"));
+    if (busy || asked !== run || asked !== state.run) return;
+    if (v.result !== state.version.result || v.corrections !== state.version.corrections) {
+      adopt(await getJSON(api("state")));
+    }
+  } catch (e) { /* the folder may be mid-swap: asked again at the next tick */ }
 }
 
 async function load(name) {
-  run = name;
+  run = name; selected = null; npStart = null; frame = null;
+  $("frame").hidden = true;
+  $("frame-label").textContent = "click the diagram";
   state = await getJSON(api("state"));
   view = [state.diagram.t0, state.diagram.t1];
   img = new Image();
@@ -35,7 +86,10 @@ function show(s) {
   const m = s.measures;
   $("measures").innerHTML = `regime <b id="regime">${m.regime}</b> · celerity <b id="celerity" data-value="${m.celerity_m_s}">${fmt(m.celerity_m_s, 4)}</b> m/s`
     + ` · plug <b>${fmt(m.plug_length_mm, 2)}</b> mm · bubble <b>${fmt(m.bubble_length_mm, 2)}</b> mm`
-    + ` · ${m.n_plugs} plugs`;
+    + ` · ${m.n_plugs} plugs`
+    + ((m.oscillation_frequency_hz ?? null) !== null || m.regime === "oscillating"
+      ? ` · oscillation <b id="frequency" data-value="${m.oscillation_frequency_hz}">${fmt(m.oscillation_frequency_hz, 2)}</b> Hz`
+        + `, amplitude <b id="amplitude">${fmt(m.oscillation_amplitude_mm, 2)}</b> mm` : "");
   const tb = $("tracks").querySelector("tbody");
   tb.innerHTML = "";
   for (const t of s.tracks) {
@@ -137,12 +191,17 @@ function axes(ctx, w, h, d) {  // time along the bottom, position along the flow
 }
 
 function labelTracks(ctx, w, zToY) {  // each track's number at the middle of what is in view
+  const h = ctx.canvas.height;
   for (const [tid, e] of Object.entries(state.edges)) {
-    const inView = e.t.map((t, i) => [t, i]).filter(([t, i]) => t >= view[0] && t <= view[1] && e.top[i] !== null);
-    if (!inView.length) continue;
-    const [t, i] = inView[Math.floor(inView.length / 2)];
-    const y = zToY(e.top[i]) - 4;
-    tag(ctx, tid, tToX(t, w), Math.max(18, y), "center", "bottom");
+    // over its upper edge; under its lower edge where the view cuts the upper one all along
+    for (const [key, dy, base] of [["top", -4, "bottom"], ["bottom", 4, "top"]]) {
+      const inView = e.t.map((t, i) => [t, i]).filter(([t, i]) => t >= view[0] && t <= view[1] && e[key][i] !== null);
+      if (!inView.length) continue;
+      const [t, i] = inView[Math.floor(inView.length / 2)];
+      const y = zToY(e[key][i]) + dy;
+      tag(ctx, tid, tToX(t, w), Math.min(Math.max(18, y), h - 40), "center", base);
+      break;
+    }
   }
 }
 
@@ -155,8 +214,18 @@ function timeOf(k) { const d = state.diagram; return d.t0 + k / Math.max(d.n_fra
 function showFrame(k) {
   frame = k;
   $("frame-label").textContent = `frame ${k}, t = ${timeOf(k).toFixed(4)} s`;
-  if (state.movie === "ok") $("frame").src = api(`frame/${k}.png`);
+  if (state.movie === "ok") { $("frame").src = api(`frame/${k}.png`); $("frame").hidden = false; }
   draw();
+}
+
+// a track number typed in a box: a whole number, or the reason it is none (an empty box is not track 0)
+function trackBox(id, action, box) {
+  const text = $(id).value.trim();
+  if (!/^[0-9]+$/.test(text)) {
+    throw new Error(`${action}: ${text === "" ? `the box "${box}" is empty` : `"${text}" in the box "${box}" is not a track number`}`
+      + " — type a plug number of the table in both boxes");
+  }
+  return Number(text);
 }
 
 function canvasX(ev) {
@@ -197,20 +266,42 @@ function setup() {
       showFrame(frame + 1);
     }, 150);
   };
+  $("frame").onerror = () => { $("frame").hidden = true; };
   const here = () => frame === null ? null : timeOf(frame);
+  // each button says what it lacks instead of doing nothing (or sending a 0 for an empty box)
+  const noTime = (what) => say(`${what}: click a time on the diagram first`);
   $("undo").onclick = () => post("undo");
   $("save").onclick = () => post("save");
-  $("win-start").onclick = () => here() !== null && post("edit", {action: "window", start_s: here()});
-  $("win-end").onclick = () => here() !== null && post("edit", {action: "window", end_s: here()});
-  $("np-start").onclick = () => { npStart = here(); };
-  $("np-end").onclick = () => npStart !== null && here() !== null &&
+  $("win-start").onclick = () => here() === null ? noTime("time window")
+    : post("edit", {action: "window", start_s: here()});
+  $("win-end").onclick = () => here() === null ? noTime("time window")
+    : post("edit", {action: "window", end_s: here()});
+  $("np-start").onclick = () => {
+    if (here() === null) return noTime("no plugs");
+    npStart = here(); say("");
+    notice(`no plugs from ${npStart.toFixed(4)} s: click where they end, then "to here"`);
+  };
+  $("np-end").onclick = () => {
+    if (npStart === null) return say('no plugs: click where the span starts and "from here" first');
+    if (here() === null) return noTime("no plugs");
     post("edit", {action: "no_plugs", start_s: Math.min(npStart, here()), end_s: Math.max(npStart, here())});
+    npStart = null;
+  };
   $("np-clear").onclick = () => post("edit", {action: "clear_no_plugs"});
-  $("merge").onclick = () => post("edit", {action: "merge", track: Number($("merge-a").value),
-                                           other: Number($("merge-b").value)});
-  $("split").onclick = () => selected !== null && frame !== null &&
+  $("merge").onclick = () => {
+    let track, other;
+    try {
+      other = trackBox("merge-b", "merge", "merge track");
+      track = trackBox("merge-a", "merge", "into");
+    } catch (e) { return say(e.message); }
+    post("edit", {action: "merge", track: track, other: other});
+  };
+  $("split").onclick = () => {
+    if (selected === null) return say("split: select a track in the table first");
+    if (frame === null) return noTime("split");
     post("edit", {action: "split", track: selected, frame: frame});
-  $("run").onchange = () => load($("run").value);
+  };
+  $("run").onchange = () => { say(""); notice(""); load($("run").value); };
 }
 
 (async () => {
@@ -219,4 +310,5 @@ function setup() {
   $("run").innerHTML = runs.map((r) => `<option>${r}</option>`).join("");
   if (runs.length < 2) $("run").disabled = true;
   await load(runs[0]);
+  setInterval(poll, 2000);
 })();
