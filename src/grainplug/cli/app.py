@@ -717,7 +717,7 @@ def remeasure(folder: Path, no_figures: bool, as_json: bool) -> None:
     res = run_remeasure(folder, figures=not no_figures, report=not no_figures)
     s = res.summary
     for line in res.warnings:  # as analyze prints them: an edit not applied is said here, not only in the files
-        err_console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
+        say_warning(line)
     if here is not None:
         err_console.print(f"note: {escape(str(folder))} was replaced whole by its new version: a shell in it still "
                           "sees the old, removed folder — `cd .` to see the new one", highlight=False, soft_wrap=True)
