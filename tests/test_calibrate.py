@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -155,3 +156,68 @@ def test_lattice_indexing_follows_perspective_and_gaps():
             continue
         ka, kb = np.array(lookup[tuple(np.round(pts[a], 6))]), np.array(lookup[tuple(np.round(pts[b], 6))])
         assert np.abs(ka - kb).sum() == 1
+
+
+def rendered_board(shape=(800, 1024), px_per_mm=10.0, pitch_mm=5.0, n=(12, 9), roll_deg=0.0, ink=25.0,
+                   paper=235.0, noise=0.0, ss=4, seed=0) -> np.ndarray:
+    """A board of n squares centred in the frame (larger than it if n is large), supersampled, with noise."""
+    h, w = shape
+    ys, xs = np.mgrid[0:h * ss, 0:w * ss].astype(np.float64)
+    xs, ys = (xs + 0.5) / ss - 0.5 - w / 2, (ys + 0.5) / ss - 0.5 - h / 2
+    a = math.radians(roll_deg)
+    u = (math.cos(a) * xs + math.sin(a) * ys) / (px_per_mm * pitch_mm) + n[0] / 2
+    v = (-math.sin(a) * xs + math.cos(a) * ys) / (px_per_mm * pitch_mm) + n[1] / 2
+    inside = (u >= 0) & (u < n[0]) & (v >= 0) & (v < n[1])
+    img = np.where(inside & ((np.floor(u) + np.floor(v)) % 2 == 0), ink, paper)
+    img = img.reshape(h, ss, w, ss).mean(axis=(1, 3))
+    img += np.random.default_rng(seed).normal(0.0, noise, img.shape)
+    return np.clip(np.round(img), 0, 255).astype(np.uint8)
+
+
+def _synth_movie(tmp_path, **kw) -> str:
+    from grainplug.synthetic import synthesize
+
+    return str(synthesize(SynthConfig(fps=500.0, seed=2, **kw), tmp_path / "m", fmt="tiff").movie)
+
+
+@pytest.mark.parametrize(("what", "pitch"), [("noise", 1.0), ("empty tube", 1.0), ("plug flow", 3.0)])
+def test_calibrate_refuses_images_without_a_pattern(tmp_path, capsys, what, pitch):
+    """Noise (grey 200, sd 3) was read as a ruler of 556 ticks; a movie of the empty tube as graph paper with
+    0 crossings, varying by 190 %; a plug-flow movie crashed in the line reader."""
+    if what == "noise":
+        image = np.clip(np.random.default_rng(1).normal(200.0, 3.0, (800, 1024)), 0, 255).astype(np.uint8)
+        tifffile.imwrite(tmp_path / "x.tif", image)
+        path = str(tmp_path / "x.tif")
+    elif what == "empty tube":
+        path = _synth_movie(tmp_path, regime="none", n_frames=30)
+    else:
+        path = _synth_movie(tmp_path, n_frames=20)
+    out = tmp_path / "c.json"
+    assert main(["calibrate", path, "--pitch-mm", str(pitch), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: no checkerboard, dot grid, graph paper or ruler was found")
+    assert "unexpected" not in err and not out.exists() and not out.with_suffix(".png").exists()
+
+
+@pytest.mark.parametrize("sample", ["pyidi/data_showcase.cih", "pyMRAW/beam.cihx"])
+def test_calibrate_refuses_camera_movies_of_other_things(sample):
+    """Real camera files (a structure, a speckled beam) were read as rulers of 48 and 221 ticks."""
+    path = Path("/work/shared/camera-samples") / sample
+    if not path.exists():
+        pytest.skip("the camera samples are not on this machine")
+    from grainplug.calibration.files import calibrate_file
+
+    with pytest.raises(CalibrationError, match="no checkerboard, dot grid, graph paper or ruler was found"):
+        calibrate_file(path, pitch_mm=1.0)
+
+
+def test_lines_are_believed_only_on_evidence():
+    """The line reader asked for directly refuses noise with the reason, and still reads a real ruler's ticks."""
+    noise = np.clip(np.random.default_rng(5).normal(200.0, 3.0, (400, 500)), 0, 255).astype(np.uint8)
+    with pytest.raises(CalibrationError, match=r"no ruler's ticks was found in the image \(the strongest repeat.*"
+                                               r"stands only \d+ times above the image's noise"):
+        gp.calibrate_image(noise, pitch_mm=1.0, pattern="ruler")
+    from calibration_optics import GRATING_CASES, render
+
+    image, _ = render(rng=np.random.default_rng(11), **GRATING_CASES["ruler"])
+    assert gp.calibrate_image(image, pitch_mm=1.0, pattern="ruler").pattern == "ruler"

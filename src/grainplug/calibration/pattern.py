@@ -207,29 +207,75 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
             f"do not fit a flat square pattern ({cal.rms_residual_px:.1f} px off, x:y scales "
             f"{cal.mm_per_px_x / cal.mm_per_px_y:.3f}) — check that the pattern is flat and square and the "
             "pitch is right, or give --mm-per-px")
+    why = ""
     if not fits and pattern in ("auto", "graph", "ruler"):
         grating = _grating(grey, pitch_mm=pitch_mm, kind=pattern, identity=identity or {})
-        if grating is not None:
+        if isinstance(grating, Calibration):
             fits.append(grating)
+        elif grating:
+            why = f" ({grating})"
     if not fits:
         what = {"auto": "checkerboard, dot grid, graph paper or ruler", "checkerboard": "checkerboard",
                 "dots": "dot grid", "graph": "graph paper (two families of lines)", "ruler": "ruler's ticks"}[pattern]
-        raise CalibrationError(f"no {what} was found in the image — make sure the pattern "
+        raise CalibrationError(f"no {what} was found in the image{why} — make sure the pattern "
                                "is in focus, evenly lit and fills a good part of the frame")
     return fits[0]  # a checkerboard where one was found: its squares could pass for a grid of dots
 
 
-def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str, object]) -> Calibration | None:
-    """The scale from line gratings (graph paper, a ruler's ticks); see :mod:`grainplug.calibration.periodic`."""
-    from .periodic import find_gratings, local_frequencies
+#: a scale from lines is refused when its relative standard uncertainty exceeds this
+GRATING_MAX_REL_SD = 0.01
+#: ... or when it varies over the pattern by more than this (perspective of 10 deg: 2-3 %)
+GRATING_MAX_VARIATION = 0.25
+
+
+def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str, object]) -> Calibration | str:
+    """The scale from line gratings (graph paper, a ruler's ticks); see :mod:`grainplug.calibration.periodic`.
+
+    Lines are believed only on evidence: each family's peak must stand
+    ``MIN_PEAK_TO_NOISE`` times above the transform's median at the same spatial
+    frequency, span ``MIN_LINES`` lines or more, and the parts of the image (3 x 3 tiles,
+    five stretches along a ruler) must agree on the spacing about a smooth trend within
+    ``MAX_PART_MISFIT_BINS`` of a part's frequency bin; the scale's uncertainty and its
+    variation over the pattern must stay under ``GRATING_MAX_REL_SD`` and
+    ``GRATING_MAX_VARIATION``. Noise, a movie of the tube, a speckled beam or a
+    checkerboard's diagonals pass none or few of these.
+
+    Returns
+    -------
+    Calibration or str
+        The calibration, or why the lines were not believed ("" when none were seen at all).
+    """
+    from .periodic import (
+        MAX_PART_MISFIT_BINS,
+        MIN_LINES,
+        MIN_PEAK_TO_NOISE,
+        find_gratings,
+        local_frequencies,
+        part_misfit,
+    )
 
     found = find_gratings(grey, families=1 if kind == "ruler" else 2)
     if found is None or (kind == "graph" and len(found.freqs) < 2):
-        return None
+        return ""
     freqs = found.freqs
     graph = len(freqs) == 2
     box = found.box
-    where, parts = local_frequencies(grey, found)
+    lines = "lines" if graph else "ticks"
+    spacing = 1.0 / float(np.hypot(*freqs[0]))
+    for snr, count in zip(found.peak_to_noise, found.lines, strict=True):
+        if snr < MIN_PEAK_TO_NOISE:
+            return (f"the strongest repeat, every {spacing:.3g} px, stands only {snr:.0f} times above the image's "
+                    f"noise; {lines} stand {MIN_PEAK_TO_NOISE:.0f} times or more")
+        if count < MIN_LINES:
+            return (f"the strongest repeat, every {spacing:.3g} px, makes only {count:.0f} {lines}; "
+                    f"at least {MIN_LINES} are needed")
+    where, parts, sizes = local_frequencies(grey, found)
+    misfit = part_misfit(where, parts, sizes)
+    if not misfit <= MAX_PART_MISFIT_BINS:
+        detail = ("it fills too little of the image to be checked" if not math.isfinite(misfit)
+                  else f"its spacing differs between parts of the image by {misfit:.2f} of a frequency bin, "
+                       f"{lines} agree within {MAX_PART_MISFIT_BINS:g}")
+        return f"the strongest repeat, every {spacing:.3g} px, is not a pattern of {lines}: {detail}"
     f1 = freqs[0]
     u = f1 / np.hypot(*f1)
     perp = np.array([-u[1], u[0]])
@@ -272,6 +318,10 @@ def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str
     if not graph:
         warnings.append("a ruler gives the scale along its length only: pixels are taken as square — lay the "
                         "ruler along the tube's axis (or use graph paper or a checkerboard)")
+    if rel_sd > GRATING_MAX_REL_SD or variation > GRATING_MAX_VARIATION:
+        return (f"the {lines} every {spacing:.3g} px give a scale uncertain by {100 * rel_sd:.2g} % that varies by "
+                f"{100 * variation:.2g} % over the image; at most {100 * GRATING_MAX_REL_SD:g} % and "
+                f"{100 * GRATING_MAX_VARIATION:g} % are accepted")
     if variation > SCALE_VARIATION_WARN:
         warnings.append(f"the scale varies by {100 * variation:.1f} % over the pattern (perspective or lens "
                         "distortion): hold the pattern square to the camera, at the tube's plane, and use the "
