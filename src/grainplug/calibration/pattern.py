@@ -395,21 +395,55 @@ def _checkerboard_points(grey: np.ndarray) -> tuple[np.ndarray, np.ndarray] | No
     two-fold symmetry of an inner corner (dark, light, dark, light around a circle: the
     second Fourier harmonic of the circle's profile dominates; the board's outer
     corners, a quarter dark, have a dominant first harmonic), then indexed on their
-    lattice (:func:`index_lattice`).
+    lattice (:func:`index_lattice`). The peaks are looked for in the image as it is and
+    smoothed by a Gaussian of 1 px (in a noisy, low-contrast image the noise's own
+    corners outnumber the board's and hide its pitch); the larger lattice is kept. The
+    corners are always refined in the image as it is.
     """
+    g = grey.astype(np.float64) / 255.0
+    best = None
+    for smooth_px in (0.0, 1.0):
+        found = _checkerboard_corners(g, smooth_px=smooth_px)
+        if found is not None and (best is None or len(found[0]) > len(best[0])):
+            best = found
+    return best
+
+
+def _checkerboard_corners(g: np.ndarray, *, smooth_px: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`_checkerboard_points` with the peaks looked for in ``g`` smoothed by ``smooth_px``.
+
+    A corner nearer the image's edge than the refinement's half-window (or the symmetry
+    test's circle) is dropped: :func:`skimage.feature.corner_subpix` pads the image with
+    zeros, whose edge pulls such a corner by several pixels (a board larger than the frame
+    had its corners along the edge 3.5-5 px off, and a false "not flat" warning).
+    """
+    import cv2
     from skimage.feature import corner_harris, corner_peaks, corner_subpix
 
-    g = grey.astype(np.float64) / 255.0
-    peaks = corner_peaks(corner_harris(g, sigma=2), min_distance=4, threshold_rel=0.02)
+    detect = cv2.GaussianBlur(g, (0, 0), smooth_px) if smooth_px > 0 else g
+    peaks = corner_peaks(corner_harris(detect, sigma=2), min_distance=4, threshold_rel=0.02)
     if len(peaks) < 9:
         return None
     gaps = np.sort(np.hypot(*(peaks[:, None, :] - peaks[None, :, :]).transpose(2, 0, 1)), axis=1)[:, 1]
     pitch = float(np.median(gaps))
-    refined = corner_subpix(g, peaks, window_size=max(5, int(0.6 * pitch) | 1), alpha=0.99)
+    window = max(5, int(0.6 * pitch) | 1)
+    radius = pitch / 3
+    margin = max((window - 1) // 2, math.ceil(radius)) + 1
+    h, w = g.shape
+
+    def inside(rc: np.ndarray) -> np.ndarray:
+        return ((rc[:, 0] >= margin) & (rc[:, 0] <= h - 1 - margin)
+                & (rc[:, 1] >= margin) & (rc[:, 1] <= w - 1 - margin))
+
+    peaks = peaks[inside(peaks)]
+    if len(peaks) < 9:
+        return None
+    refined = corner_subpix(detect, peaks, window_size=window, alpha=0.99)
     refined = refined[~np.isnan(refined).any(axis=1)]
+    refined = refined[inside(refined)]
     if len(refined) < 9:
         return None
-    inner = refined[_x_corners(g, refined, radius=pitch / 3)]
+    inner = refined[_x_corners(g, refined, radius=radius)]
     return index_lattice(inner[:, ::-1]) if len(inner) >= 9 else None
 
 
@@ -536,10 +570,66 @@ def index_lattice(points: np.ndarray, *, tolerance: float = 0.3) -> tuple[np.nda
         return None
     keys = np.array(list(index))
     ij = np.array([index[k] for k in keys], float)
+    ij, found = _drop_inconsistent(ij, pts[keys])
+    if len(ij) < 9:
+        return None
     ij -= ij.min(axis=0)
     if len(np.unique(ij[:, 0])) < 2 or len(np.unique(ij[:, 1])) < 2:  # a strip of 2 rows is a lattice too
         return None
-    return ij, pts[keys]
+    return ij, found
+
+
+#: a point farther than this share of the local pitch from where its lattice neighbours put it is dropped
+INCONSISTENT_SHARE = 0.05
+#: ... or farther than this many robust standard deviations of all points' such distances
+INCONSISTENT_SD = 6.0
+
+
+def _drop_inconsistent(ij: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The points that sit where their lattice neighbours put them.
+
+    Each point is predicted from the points within two lattice steps of it by the homography
+    (OpenCV, least squares) that maps their indices to the image: exact under perspective,
+    and lens distortion bends a lattice little over two steps. The point farthest from its
+    prediction is dropped while that distance exceeds both ``INCONSISTENT_SHARE`` of the
+    local pitch and ``INCONSISTENT_SD`` robust standard deviations of all the points'
+    distances (and 0.3 px): a speck of noise, or the board's edge, taken for a corner within
+    the indexing's tolerance (30 % of the pitch) would otherwise pull the fit and raise a
+    false "not flat" warning. Points with fewer than 6 neighbours are kept as they are.
+    """
+    import cv2
+
+    ij = np.asarray(ij, float)
+    pts = np.asarray(pts, float)
+    keep = np.ones(len(ij), bool)
+    lookup = {(int(i), int(j)): k for k, (i, j) in enumerate(ij)}
+    offsets = [(di, dj) for di in range(-2, 3) for dj in range(-2, 3) if (di, dj) != (0, 0)]
+
+    def misfit(k: int) -> tuple[float, float]:
+        i, j = int(ij[k, 0]), int(ij[k, 1])
+        nb = [(di, dj, m) for di, dj in offsets if (m := lookup.get((i + di, j + dj))) is not None and keep[m]]
+        d = np.array([(di, dj) for di, dj, _ in nb], float).reshape(-1, 2)
+        if len(nb) < 6 or len(np.unique(d[:, 0])) < 2 or len(np.unique(d[:, 1])) < 2:
+            return 0.0, 0.0
+        H, _ = cv2.findHomography(d, pts[[m for *_, m in nb]], 0)
+        if H is None or not np.all(np.isfinite(H)) or abs(H[2, 2]) < 1e-12:
+            return 0.0, 0.0
+        predicted = H[:2, 2] / H[2, 2]
+        D = (H[:2, :2] * H[2, 2] - np.outer(H[:2, 2], H[2, :2])) / H[2, 2] ** 2  # d(x, y)/d(i, j) at the point
+        return float(np.hypot(*(predicted - pts[k]))), float(np.sqrt(abs(np.linalg.det(D))))
+
+    while keep.sum() >= 9:
+        alive = np.flatnonzero(keep)
+        checked = np.array([misfit(k) for k in alive])
+        dist, pitch = checked[:, 0], checked[:, 1]
+        sd = 1.4826 * float(np.median(dist[pitch > 0])) if np.any(pitch > 0) else 0.0
+        limit = np.maximum.reduce([INCONSISTENT_SHARE * pitch, np.full(len(alive), INCONSISTENT_SD * sd),
+                                   np.full(len(alive), 0.3)])
+        bad = (pitch > 0) & (dist > limit)
+        if not bad.any():
+            break
+        keep[alive[np.argmax(np.where(bad, dist / limit, 0.0))]] = False
+    return ij[keep], pts[keep]
 
 
 # -- the fit ----------------------------------------------------------------------------------
