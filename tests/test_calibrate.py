@@ -257,3 +257,27 @@ def test_a_false_corner_off_the_lattice_is_dropped():
     _, found = index_lattice(pts)
     assert len(found) == len(pts) - 1
     assert not np.any(np.all(np.isclose(found, pts[30]), axis=1))
+
+
+def test_a_16_bit_tiff_written_by_opencv_is_read(tmp_path, capsys, monkeypatch):
+    """OpenCV writes TIFFs LZW-compressed, which tifffile decodes only with the optional imagecodecs package:
+    such a calibration image was refused ("requires the 'imagecodecs' package"); OpenCV reads it instead."""
+    import cv2
+
+    image = board().astype(np.uint16) * 257
+    assert cv2.imwrite(str(tmp_path / "board16.tif"), image)
+    out = tmp_path / "c.json"
+    assert main(["calibrate", str(tmp_path / "board16.tif"), "--pitch-mm", "2", "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["mm_per_px"] == pytest.approx(2.0 / 32.0, rel=2e-3)
+    capsys.readouterr()
+    (tmp_path / "broken.tif").write_bytes((tmp_path / "board16.tif").read_bytes()[:2000])
+    assert main(["calibrate", str(tmp_path / "broken.tif"), "--pitch-mm", "2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ")
+    # when OpenCV cannot either, the message gives the install fix
+    import grainplug.calibration.files as files
+
+    monkeypatch.setattr(files, "_opencv_picture", lambda path: None)
+    assert main(["calibrate", str(tmp_path / "board16.tif"), "--pitch-mm", "2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "install imagecodecs (pip install imagecodecs)" in err
