@@ -128,6 +128,11 @@ def test_doubtful_calibrations_are_said(plug_movie):
     text = " ".join(res.warnings)
     assert "the calibration image is 1280 x 1024 px but the movie's frames are 48 x 300" in text
     assert "the tube's bore reads" in text and "(-17 % in scale)" in text
+    # a coarser calibration: the tube reads wider than it implies, which refraction does not explain
+    assert "reads wider than the calibration implies" in text and "look narrower" not in text
+    finer = gp.analyze(frames, fps=500.0, calibration=uniform_calibration(tube_scale / 1.1))
+    text = " ".join(finer.warnings)
+    assert "(+10 % in scale)" in text and "back-lit tubes look narrower than their bore" in text
     with pytest.raises(gp.ParameterError, match="either a calibration or mm_per_px"):
         gp.AnalysisParams(mm_per_px=0.1, calibration=wrong)
 
