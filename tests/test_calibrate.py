@@ -286,3 +286,23 @@ def test_a_16_bit_tiff_written_by_opencv_is_read(tmp_path, capsys, monkeypatch):
     assert main(["calibrate", str(tmp_path / "board16.tif"), "--pitch-mm", "2", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "install imagecodecs (pip install imagecodecs)" in err
+
+
+def test_pixels_far_from_square_are_taken_when_the_pattern_is_named():
+    """Pixels 10 % from square were refused even with the pattern named; auto mode still refuses them (it must
+    tell a misread lattice from a real one) and says how to accept them."""
+    image = board(shape=(400, 480), square_px=30.0, n=(12, 9), angle_deg=0.0)
+    stretched = cv2_resize(image, 1.1)  # 10 % more pixels per mm along y
+    with pytest.raises(CalibrationError, match=r"10 % from square \(x:y scales 1\.100\) — if the camera's pixels "
+                                               r"are that shape, name the pattern \(--pattern checkerboard\)"):
+        gp.calibrate_image(stretched, pitch_mm=3.0)
+    cal = gp.calibrate_image(stretched, pitch_mm=3.0, pattern="checkerboard")
+    assert cal.mm_per_px_x == pytest.approx(0.1, rel=2e-3) and cal.mm_per_px_y == pytest.approx(0.1 / 1.1, rel=2e-3)
+    assert any("pixels are not square" in w for w in cal.warnings)
+
+
+def cv2_resize(image: np.ndarray, y_factor: float) -> np.ndarray:
+    import cv2
+
+    h, w = image.shape
+    return cv2.resize(image, (w, int(round(h * y_factor))), interpolation=cv2.INTER_AREA)

@@ -28,6 +28,10 @@ CALIBRATION_FORMAT = 1
 #: the scale may vary over the pattern by this much before a warning
 SCALE_VARIATION_WARN = 0.005
 PATTERNS = ("auto", "checkerboard", "dots", "graph", "ruler")
+#: in auto mode, a lattice whose x and y scales differ by this share or more is not taken (a misread lattice)
+ASPECT_LIMIT_AUTO = 0.1
+#: with the pattern named, pixels this far from square are still refused (a lattice read wrongly)
+ASPECT_LIMIT_NAMED = 0.5
 
 
 class CalibrationError(GrainplugError):
@@ -194,19 +198,30 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
                    identity=identity or {})
         # a lattice read wrongly (the corners between dots taken for a board...) is not square
         # (lens distortion bends the lattice by a few per cent of its pitch: allowed, and warned of)
+        # (pixels far from square are believed when the pattern is named: auto mode must tell readings apart)
         pitch_px = pitch_mm / cal.mm_per_px
-        if abs(cal.mm_per_px_x / cal.mm_per_px_y - 1) < 0.1 and cal.rms_residual_px < max(1.0, 0.06 * pitch_px):
+        aspect = abs(cal.mm_per_px_x / cal.mm_per_px_y - 1)
+        if aspect < (ASPECT_LIMIT_AUTO if pattern == "auto" else ASPECT_LIMIT_NAMED) \
+                and cal.rms_residual_px < max(1.0, 0.06 * pitch_px):
             fits.append(cal)
         else:
             rejected.append(cal)
     if not fits and rejected and (pattern != "auto" or len(rejected[0].points_px) >= 20):
         # a lattice of points was there: reading the image as lines instead would mislead
         cal = rejected[0]
+        name = "dot grid" if cal.pattern == "dots" else cal.pattern
+        ratio = cal.mm_per_px_x / cal.mm_per_px_y
+        if pattern == "auto" and cal.rms_residual_px < max(1.0, 0.06 * pitch_mm / cal.mm_per_px) \
+                and abs(ratio - 1) < ASPECT_LIMIT_NAMED:
+            raise CalibrationError(
+                f"a {name} was found but its {cal.n_points} points make pixels {100 * abs(ratio - 1):.0f} % from "
+                f"square (x:y scales {ratio:.3f}) — if the camera's pixels are that shape, name the pattern "
+                f"(--pattern {cal.pattern}) to accept it; else check that the pattern is flat and square and the "
+                "pitch is right, or give --mm-per-px")
         raise CalibrationError(
-            f"a {'dot grid' if cal.pattern == 'dots' else cal.pattern} was found but its {cal.n_points} points "
-            f"do not fit a flat square pattern ({cal.rms_residual_px:.1f} px off, x:y scales "
-            f"{cal.mm_per_px_x / cal.mm_per_px_y:.3f}) — check that the pattern is flat and square and the "
-            "pitch is right, or give --mm-per-px")
+            f"a {name} was found but its {cal.n_points} points do not fit a flat square pattern "
+            f"({cal.rms_residual_px:.1f} px off, x:y scales {ratio:.3f}) — check that the pattern is flat and "
+            "square and the pitch is right, or give --mm-per-px")
     why = ""
     if not fits and pattern in ("auto", "graph", "ruler"):
         grating = _grating(grey, pitch_mm=pitch_mm, kind=pattern, identity=identity or {})
