@@ -306,3 +306,28 @@ def cv2_resize(image: np.ndarray, y_factor: float) -> np.ndarray:
 
     h, w = image.shape
     return cv2.resize(image, (w, int(round(h * y_factor))), interpolation=cv2.INTER_AREA)
+
+
+def test_the_calibration_file_is_recorded_in_the_analysis(tmp_path, plug_movie):
+    """summary.json embedded the calibration's content and its image's name, but not which calibration file it
+    came from; the path is now there, without entering the file itself or a campaign's run key."""
+    from grainplug.campaigns.batch import run_key
+    from grainplug.campaigns.manifest import RunSpec
+
+    frames, tube_scale = plug_movie
+    for where in ("a", "b"):
+        (tmp_path / where).mkdir()
+        gp.save_calibration(uniform_calibration(tube_scale), tmp_path / where / "cal.json")
+    assert "source" not in json.loads((tmp_path / "a" / "cal.json").read_text())
+    cal = gp.load_calibration(tmp_path / "a" / "cal.json")
+    assert cal.source == str((tmp_path / "a" / "cal.json").resolve())
+    res = gp.analyze(frames, fps=500.0, calibration=cal)
+    res.save(tmp_path / "out", figures=False, report=False)
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["parameters"]["calibration"]["source"] == cal.source
+    assert gp.load_result(tmp_path / "out").params.calibration.source == cal.source
+    # the same calibration elsewhere (a campaign copied to another drive) is the same run
+    ident = {"bytes": 1, "files": 1, "sha256_sampled": "x"}
+    keys = {run_key(RunSpec("r", tmp_path / "m.tif", gp.AnalysisParams(
+        calibration=gp.load_calibration(tmp_path / where / "cal.json"))), identity=ident) for where in ("a", "b")}
+    assert len(keys) == 1

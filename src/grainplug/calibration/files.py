@@ -5,6 +5,7 @@ The only I/O of calibration: :mod:`grainplug.calibration.pattern` works on array
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import logging
@@ -138,7 +139,8 @@ def save_calibration(cal: Calibration, path: str | Path) -> Path:
 
 
 def load_calibration(path: str | Path) -> Calibration:
-    """Read a ``calibration.json`` written by :func:`save_calibration` (``grainplug calibrate``).
+    """Read a ``calibration.json`` written by :func:`save_calibration` (``grainplug calibrate``); its
+    absolute path is kept as the calibration's ``source`` (recorded in an analysis's provenance).
 
     Raises
     ------
@@ -156,9 +158,10 @@ def load_calibration(path: str | Path) -> Calibration:
     if not isinstance(data, dict):
         raise CalibrationError(f"{p} is not a calibration JSON — make one with `grainplug calibrate`")
     try:
-        return Calibration.from_dict(data)
+        cal = Calibration.from_dict(data)
     except CalibrationError as exc:
         raise CalibrationError(f"{p}: {exc}") from None
+    return dataclasses.replace(cal, source=str(p.resolve()))
 
 
 def draw_calibration(image: np.ndarray, cal: Calibration, path: str | Path) -> Path:

@@ -81,6 +81,10 @@ class Calibration:
         What is doubtful, each with the fix.
     points_px : tuple of (float, float)
         The pattern's points found in the image (x, y), for drawing them over it.
+    source : str
+        The calibration file this was read from (absolute path, set by
+        :func:`grainplug.load_calibration`), for the analysis's provenance; empty when made
+        in memory. Not written into the calibration file, and not compared.
     """
 
     mm_per_px: float
@@ -100,6 +104,7 @@ class Calibration:
     image: dict[str, object] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
     points_px: tuple[tuple[float, float], ...] = ()
+    source: str = field(default="", compare=False)
 
     def mm_per_px_along(self, direction_xy: tuple[float, float]) -> float:
         """mm per pixel along an image direction ``(dx, dy)`` (e.g. the tube's axis)."""
@@ -110,6 +115,7 @@ class Calibration:
     def as_dict(self) -> dict[str, object]:
         """JSON-ready, with the layout's version."""
         d = dataclasses.asdict(self)
+        d.pop("source")  # where a file is, is not in it
         return {"format": "grainplug-calibration", "version": CALIBRATION_FORMAT, **d}
 
     @classmethod
