@@ -174,7 +174,8 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
     Raises
     ------
     CalibrationError
-        When no pattern of at least 9 points (in 2 rows or more) is found.
+        When no pattern of at least 9 points (in 2 rows or more) is found, nor lines
+        with the evidence :func:`_grating` asks for (the message says which test failed).
 
     Notes
     -----

@@ -34,6 +34,12 @@ tiles over the pattern (five stretches along a ruler): the spread of the local
 scales is the variation over the field (perspective, lens distortion), their
 robust standard error the uncertainty.
 
+*Evidence.* Every image has a strongest peak; lines are believed only when each
+family's peak stands ``MIN_PEAK_TO_NOISE`` times above the transform's median at
+the same spatial frequency, makes ``MIN_LINES`` lines or more across where it was
+found, and the parts agree on the spacing (:func:`part_misfit`); the caller
+(:func:`grainplug.calibration.pattern.calibrate_image`) refuses otherwise.
+
 *The map.* With the families' frequency vectors ``f1``, ``f2`` as rows of ``F``,
 plane coordinates are ``(X, Y) = pitch * F (r - r0)``, so the Jacobian (mm per px)
 is ``pitch * F``; a ruler gives only ``f1``: pixels are then taken as square
