@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -127,6 +128,11 @@ def test_doubtful_calibrations_are_said(plug_movie):
     text = " ".join(res.warnings)
     assert "the calibration image is 1280 x 1024 px but the movie's frames are 48 x 300" in text
     assert "the tube's bore reads" in text and "(-17 % in scale)" in text
+    # a coarser calibration: the tube reads wider than it implies, which refraction does not explain
+    assert "reads wider than the calibration implies" in text and "look narrower" not in text
+    finer = gp.analyze(frames, fps=500.0, calibration=uniform_calibration(tube_scale / 1.1))
+    text = " ".join(finer.warnings)
+    assert "(+10 % in scale)" in text and "back-lit tubes look narrower than their bore" in text
     with pytest.raises(gp.ParameterError, match="either a calibration or mm_per_px"):
         gp.AnalysisParams(mm_per_px=0.1, calibration=wrong)
 
@@ -155,3 +161,173 @@ def test_lattice_indexing_follows_perspective_and_gaps():
             continue
         ka, kb = np.array(lookup[tuple(np.round(pts[a], 6))]), np.array(lookup[tuple(np.round(pts[b], 6))])
         assert np.abs(ka - kb).sum() == 1
+
+
+def rendered_board(shape=(800, 1024), px_per_mm=10.0, pitch_mm=5.0, n=(12, 9), roll_deg=0.0, ink=25.0,
+                   paper=235.0, noise=0.0, ss=4, seed=0) -> np.ndarray:
+    """A board of n squares centred in the frame (larger than it if n is large), supersampled, with noise."""
+    h, w = shape
+    ys, xs = np.mgrid[0:h * ss, 0:w * ss].astype(np.float64)
+    xs, ys = (xs + 0.5) / ss - 0.5 - w / 2, (ys + 0.5) / ss - 0.5 - h / 2
+    a = math.radians(roll_deg)
+    u = (math.cos(a) * xs + math.sin(a) * ys) / (px_per_mm * pitch_mm) + n[0] / 2
+    v = (-math.sin(a) * xs + math.cos(a) * ys) / (px_per_mm * pitch_mm) + n[1] / 2
+    inside = (u >= 0) & (u < n[0]) & (v >= 0) & (v < n[1])
+    img = np.where(inside & ((np.floor(u) + np.floor(v)) % 2 == 0), ink, paper)
+    img = img.reshape(h, ss, w, ss).mean(axis=(1, 3))
+    img += np.random.default_rng(seed).normal(0.0, noise, img.shape)
+    return np.clip(np.round(img), 0, 255).astype(np.uint8)
+
+
+def _synth_movie(tmp_path, **kw) -> str:
+    from grainplug.synthetic import synthesize
+
+    return str(synthesize(SynthConfig(fps=500.0, seed=2, **kw), tmp_path / "m", fmt="tiff").movie)
+
+
+@pytest.mark.parametrize(("what", "pitch"), [("noise", 1.0), ("empty tube", 1.0), ("plug flow", 3.0)])
+def test_calibrate_refuses_images_without_a_pattern(tmp_path, capsys, what, pitch):
+    """Noise (grey 200, sd 3) was read as a ruler of 556 ticks; a movie of the empty tube as graph paper with
+    0 crossings, varying by 190 %; a plug-flow movie crashed in the line reader."""
+    if what == "noise":
+        image = np.clip(np.random.default_rng(1).normal(200.0, 3.0, (800, 1024)), 0, 255).astype(np.uint8)
+        tifffile.imwrite(tmp_path / "x.tif", image)
+        path = str(tmp_path / "x.tif")
+    elif what == "empty tube":
+        path = _synth_movie(tmp_path, regime="none", n_frames=30)
+    else:
+        path = _synth_movie(tmp_path, n_frames=20)
+    out = tmp_path / "c.json"
+    assert main(["calibrate", path, "--pitch-mm", str(pitch), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: no checkerboard, dot grid, graph paper or ruler was found")
+    assert "unexpected" not in err and not out.exists() and not out.with_suffix(".png").exists()
+
+
+@pytest.mark.parametrize("sample", ["pyidi/data_showcase.cih", "pyMRAW/beam.cihx"])
+def test_calibrate_refuses_camera_movies_of_other_things(sample):
+    """Real camera files (a structure, a speckled beam) were read as rulers of 48 and 221 ticks."""
+    path = Path("/work/shared/camera-samples") / sample
+    if not path.exists():
+        pytest.skip("the camera samples are not on this machine")
+    from grainplug.calibration.files import calibrate_file
+
+    with pytest.raises(CalibrationError, match="no checkerboard, dot grid, graph paper or ruler was found"):
+        calibrate_file(path, pitch_mm=1.0)
+
+
+@pytest.mark.parametrize("noise", [9.0, 12.0])
+def test_low_contrast_noisy_checkerboard_is_a_checkerboard(noise):
+    """Grey 110 on 140 with noise 9-12 was read as graph paper along the squares' diagonals: 29 % off."""
+    image = rendered_board(roll_deg=-12.0, ink=110.0, paper=140.0, noise=noise, ss=3)
+    cal = gp.calibrate_image(image, pitch_mm=5.0)
+    # 88 inner corners; a few T-junctions where the lines meet the board's edge lie on the lattice too
+    assert cal.pattern == "checkerboard" and 80 <= cal.n_points <= 96
+    assert cal.mm_per_px == pytest.approx(0.1, rel=0.003)
+    assert cal.mm_per_px_x == pytest.approx(0.1, rel=0.003) and cal.mm_per_px_y == pytest.approx(0.1, rel=0.003)
+
+
+def test_lines_are_believed_only_on_evidence():
+    """The line reader asked for directly refuses noise with the reason, and still reads a real ruler's ticks."""
+    noise = np.clip(np.random.default_rng(5).normal(200.0, 3.0, (400, 500)), 0, 255).astype(np.uint8)
+    with pytest.raises(CalibrationError, match=r"no ruler's ticks was found in the image \(the strongest repeat.*"
+                                               r"stands only \d+ times above the image's noise"):
+        gp.calibrate_image(noise, pitch_mm=1.0, pattern="ruler")
+    from calibration_optics import GRATING_CASES, render
+
+    image, _ = render(rng=np.random.default_rng(11), **GRATING_CASES["ruler"])
+    assert gp.calibrate_image(image, pitch_mm=1.0, pattern="ruler").pattern == "ruler"
+
+
+def test_board_larger_than_the_frame_gives_no_false_warning():
+    """Corners within ~8 px of the frame's edge were pulled 3.5-5 px by the refinement's zero padding and kept:
+    "fit residual 0.80 px", "the scale varies by 0.7 %", "0.80 px from the fitted plane"."""
+    image = rendered_board(n=(30, 24), roll_deg=3.0, noise=3.0, ss=8)
+    cal = gp.calibrate_image(image, pitch_mm=5.0)
+    assert cal.pattern == "checkerboard" and cal.n_points > 250
+    assert not cal.warnings, cal.warnings
+    assert cal.rms_residual_px < 0.1 and cal.scale_variation < 0.002
+    assert cal.mm_per_px == pytest.approx(0.1, rel=2e-4)
+    h, w = image.shape
+    pts = np.asarray(cal.points_px)
+    assert np.min([pts[:, 0], pts[:, 1], w - 1 - pts[:, 0], h - 1 - pts[:, 1]]) > 8
+
+
+def test_a_false_corner_off_the_lattice_is_dropped():
+    """A point within the indexing's tolerance (30 % of the pitch) but off its neighbours' lattice is dropped."""
+    i, j = np.mgrid[0:9, 0:7]
+    pts = np.stack([40.0 * i.ravel() + 3.0 * j.ravel(), 40.0 * j.ravel() - 3.0 * i.ravel()], axis=1) + 100.0
+    pts = pts + np.random.default_rng(0).normal(0.0, 0.1, pts.shape)
+    pts[30] += (6.0, -4.0)  # 7 px: 18 % of the pitch
+    _, found = index_lattice(pts)
+    assert len(found) == len(pts) - 1
+    assert not np.any(np.all(np.isclose(found, pts[30]), axis=1))
+
+
+def test_a_16_bit_tiff_written_by_opencv_is_read(tmp_path, capsys, monkeypatch):
+    """OpenCV writes TIFFs LZW-compressed, which tifffile decodes only with the optional imagecodecs package:
+    such a calibration image was refused ("requires the 'imagecodecs' package"); OpenCV reads it instead."""
+    import cv2
+
+    image = board().astype(np.uint16) * 257
+    assert cv2.imwrite(str(tmp_path / "board16.tif"), image)
+    out = tmp_path / "c.json"
+    assert main(["calibrate", str(tmp_path / "board16.tif"), "--pitch-mm", "2", "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["mm_per_px"] == pytest.approx(2.0 / 32.0, rel=2e-3)
+    capsys.readouterr()
+    (tmp_path / "broken.tif").write_bytes((tmp_path / "board16.tif").read_bytes()[:2000])
+    assert main(["calibrate", str(tmp_path / "broken.tif"), "--pitch-mm", "2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ")
+    # when OpenCV cannot either, the message gives the install fix
+    import grainplug.calibration.files as files
+
+    monkeypatch.setattr(files, "_opencv_picture", lambda path: None)
+    assert main(["calibrate", str(tmp_path / "board16.tif"), "--pitch-mm", "2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "install imagecodecs (pip install imagecodecs)" in err
+
+
+def test_pixels_far_from_square_are_taken_when_the_pattern_is_named():
+    """Pixels 10 % from square were refused even with the pattern named; auto mode still refuses them (it must
+    tell a misread lattice from a real one) and says how to accept them."""
+    image = board(shape=(400, 480), square_px=30.0, n=(12, 9), angle_deg=0.0)
+    stretched = cv2_resize(image, 1.1)  # 10 % more pixels per mm along y
+    with pytest.raises(CalibrationError, match=r"10 % from square \(x:y scales 1\.100\) — if the camera's pixels "
+                                               r"are that shape, name the pattern \(--pattern checkerboard\)"):
+        gp.calibrate_image(stretched, pitch_mm=3.0)
+    cal = gp.calibrate_image(stretched, pitch_mm=3.0, pattern="checkerboard")
+    assert cal.mm_per_px_x == pytest.approx(0.1, rel=2e-3) and cal.mm_per_px_y == pytest.approx(0.1 / 1.1, rel=2e-3)
+    assert any("pixels are not square" in w for w in cal.warnings)
+
+
+def cv2_resize(image: np.ndarray, y_factor: float) -> np.ndarray:
+    import cv2
+
+    h, w = image.shape
+    return cv2.resize(image, (w, int(round(h * y_factor))), interpolation=cv2.INTER_AREA)
+
+
+def test_the_calibration_file_is_recorded_in_the_analysis(tmp_path, plug_movie):
+    """summary.json embedded the calibration's content and its image's name, but not which calibration file it
+    came from; the path is now there, without entering the file itself or a campaign's run key."""
+    from grainplug.campaigns.batch import run_key
+    from grainplug.campaigns.manifest import RunSpec
+
+    frames, tube_scale = plug_movie
+    for where in ("a", "b"):
+        (tmp_path / where).mkdir()
+        gp.save_calibration(uniform_calibration(tube_scale), tmp_path / where / "cal.json")
+    assert "source" not in json.loads((tmp_path / "a" / "cal.json").read_text())
+    cal = gp.load_calibration(tmp_path / "a" / "cal.json")
+    assert cal.source == str((tmp_path / "a" / "cal.json").resolve())
+    res = gp.analyze(frames, fps=500.0, calibration=cal)
+    res.save(tmp_path / "out", figures=False, report=False)
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["parameters"]["calibration"]["source"] == cal.source
+    assert gp.load_result(tmp_path / "out").params.calibration.source == cal.source
+    # the same calibration elsewhere (a campaign copied to another drive) is the same run
+    ident = {"bytes": 1, "files": 1, "sha256_sampled": "x"}
+    keys = {run_key(RunSpec("r", tmp_path / "m.tif", gp.AnalysisParams(
+        calibration=gp.load_calibration(tmp_path / where / "cal.json"))), identity=ident) for where in ("a", "b")}
+    assert len(keys) == 1

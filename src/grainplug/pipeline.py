@@ -464,10 +464,16 @@ def _calibrated_scale(cal: Calibration, tube: TubeGeometry, info: MovieInfo, fro
                         "and distance did not change (a crop is fine)")
     disagree = from_tube / mm_per_px - 1
     if abs(disagree) > 0.03:
+        if disagree > 0:  # the bore reads narrower than the calibration says
+            advice = ("back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
+                      "the tube's plane, else check tube_diameter_mm= (and tube_outer_diameter_mm=)")
+        else:  # the bore reads wider: refraction does not do that
+            advice = ("the tube reads wider than the calibration implies, which refraction does not do — check "
+                      "that the pattern was at the tube's plane (not behind it), its pitch (pitch_mm=), and "
+                      "tube_diameter_mm=")
         warnings.append(f"the tube's bore reads {bore.diameter_px:.1f} px ({bore.method}), {diameter_mm:g} mm by the "
                         f"calibration being {diameter_mm / mm_per_px:.1f} px ({100 * disagree:+.0f} % in scale): "
-                        "back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
-                        "the tube's plane, else check tube_diameter_mm= (and tube_outer_diameter_mm=)")
+                        + advice)
     return mm_per_px, source, rel_sd, warnings
 
 

@@ -5,8 +5,10 @@ The only I/O of calibration: :mod:`grainplug.calibration.pattern` works on array
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +21,8 @@ from .pattern import Calibration, CalibrationError, calibrate_image
 
 #: frames of a movie given as a calibration image that are averaged (less noise)
 MOVIE_FRAMES_AVERAGED = 10
+
+logger = logging.getLogger(__name__)
 
 
 def image_identity(path: Path) -> dict[str, object]:
@@ -52,10 +56,43 @@ def read_calibration_image(path: str | Path) -> np.ndarray:
                 return np.asarray(im)
         except (UnidentifiedImageError, OSError) as exc:
             raise MovieError(f"cannot read {p} as an image ({exc}) — is the file complete?") from None
-    with open_movie(p) as movie:
-        n = min(movie.info.n_frames, MOVIE_FRAMES_AVERAGED)
-        frames = [movie.read(k).astype(np.float64) for k in range(n)]
+    try:
+        with open_movie(p) as movie:
+            n = min(movie.info.n_frames, MOVIE_FRAMES_AVERAGED)
+            frames = [movie.read(k).astype(np.float64) for k in range(n)]
+    except MovieError as exc:
+        if p.suffix.lower() not in (".tif", ".tiff"):
+            raise
+        image = _opencv_picture(p)
+        if image is None:
+            if "imagecodecs" not in str(exc):
+                raise
+            raise MovieError(f"{exc} — install imagecodecs (pip install imagecodecs), or save the calibration "
+                             "image as an uncompressed TIFF or a PNG") from None
+        logger.info("%s: read by OpenCV (tifffile could not: %s); its first page only", p, exc)
+        return image
     return np.mean(frames, axis=0)
+
+
+def _opencv_picture(path: Path) -> np.ndarray | None:
+    """A TIFF's first page read by OpenCV (its libtiff decodes the LZW, Deflate and PackBits that tifffile
+    needs the optional imagecodecs package for), grey or RGB, at its bit depth; None when OpenCV cannot."""
+    import cv2
+
+    quiet = getattr(getattr(cv2, "utils", None), "logging", None)
+    level = quiet.getLogLevel() if quiet is not None else None
+    if quiet is not None:  # OpenCV's libtiff prints its own errors on stderr: grainplug says one line
+        quiet.setLogLevel(quiet.LOG_LEVEL_SILENT)
+    try:
+        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    finally:
+        if quiet is not None:
+            quiet.setLogLevel(level)
+    if image is None or image.ndim not in (2, 3):
+        return None
+    if image.ndim == 3:  # OpenCV gives BGR(A)
+        image = image[..., 2::-1] if image.shape[2] >= 3 else image[..., 0]
+    return np.ascontiguousarray(image)
 
 
 #: frames of a background movie that are averaged
@@ -102,7 +139,8 @@ def save_calibration(cal: Calibration, path: str | Path) -> Path:
 
 
 def load_calibration(path: str | Path) -> Calibration:
-    """Read a ``calibration.json`` written by :func:`save_calibration` (``grainplug calibrate``).
+    """Read a ``calibration.json`` written by :func:`save_calibration` (``grainplug calibrate``); its
+    absolute path is kept as the calibration's ``source`` (recorded in an analysis's provenance).
 
     Raises
     ------
@@ -120,9 +158,10 @@ def load_calibration(path: str | Path) -> Calibration:
     if not isinstance(data, dict):
         raise CalibrationError(f"{p} is not a calibration JSON — make one with `grainplug calibrate`")
     try:
-        return Calibration.from_dict(data)
+        cal = Calibration.from_dict(data)
     except CalibrationError as exc:
         raise CalibrationError(f"{p}: {exc}") from None
+    return dataclasses.replace(cal, source=str(p.resolve()))
 
 
 def draw_calibration(image: np.ndarray, cal: Calibration, path: str | Path) -> Path:

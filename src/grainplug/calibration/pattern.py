@@ -28,6 +28,10 @@ CALIBRATION_FORMAT = 1
 #: the scale may vary over the pattern by this much before a warning
 SCALE_VARIATION_WARN = 0.005
 PATTERNS = ("auto", "checkerboard", "dots", "graph", "ruler")
+#: in auto mode, a lattice whose x and y scales differ by this share or more is not taken (a misread lattice)
+ASPECT_LIMIT_AUTO = 0.1
+#: with the pattern named, pixels this far from square are still refused (a lattice read wrongly)
+ASPECT_LIMIT_NAMED = 0.5
 
 
 class CalibrationError(GrainplugError):
@@ -77,6 +81,10 @@ class Calibration:
         What is doubtful, each with the fix.
     points_px : tuple of (float, float)
         The pattern's points found in the image (x, y), for drawing them over it.
+    source : str
+        The calibration file this was read from (absolute path, set by
+        :func:`grainplug.load_calibration`), for the analysis's provenance; empty when made
+        in memory. Not written into the calibration file, and not compared.
     """
 
     mm_per_px: float
@@ -96,6 +104,7 @@ class Calibration:
     image: dict[str, object] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
     points_px: tuple[tuple[float, float], ...] = ()
+    source: str = field(default="", compare=False)
 
     def mm_per_px_along(self, direction_xy: tuple[float, float]) -> float:
         """mm per pixel along an image direction ``(dx, dy)`` (e.g. the tube's axis)."""
@@ -106,6 +115,7 @@ class Calibration:
     def as_dict(self) -> dict[str, object]:
         """JSON-ready, with the layout's version."""
         d = dataclasses.asdict(self)
+        d.pop("source")  # where a file is, is not in it
         return {"format": "grainplug-calibration", "version": CALIBRATION_FORMAT, **d}
 
     @classmethod
@@ -164,7 +174,8 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
     Raises
     ------
     CalibrationError
-        When no pattern of at least 9 points (in 2 rows or more) is found.
+        When no pattern of at least 9 points (in 2 rows or more) is found, nor lines
+        with the evidence :func:`_grating` asks for (the message says which test failed).
 
     Notes
     -----
@@ -194,42 +205,99 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
                    identity=identity or {})
         # a lattice read wrongly (the corners between dots taken for a board...) is not square
         # (lens distortion bends the lattice by a few per cent of its pitch: allowed, and warned of)
+        # (pixels far from square are believed when the pattern is named: auto mode must tell readings apart)
         pitch_px = pitch_mm / cal.mm_per_px
-        if abs(cal.mm_per_px_x / cal.mm_per_px_y - 1) < 0.1 and cal.rms_residual_px < max(1.0, 0.06 * pitch_px):
+        aspect = abs(cal.mm_per_px_x / cal.mm_per_px_y - 1)
+        if aspect < (ASPECT_LIMIT_AUTO if pattern == "auto" else ASPECT_LIMIT_NAMED) \
+                and cal.rms_residual_px < max(1.0, 0.06 * pitch_px):
             fits.append(cal)
         else:
             rejected.append(cal)
     if not fits and rejected and (pattern != "auto" or len(rejected[0].points_px) >= 20):
         # a lattice of points was there: reading the image as lines instead would mislead
         cal = rejected[0]
+        name = "dot grid" if cal.pattern == "dots" else cal.pattern
+        ratio = cal.mm_per_px_x / cal.mm_per_px_y
+        if pattern == "auto" and cal.rms_residual_px < max(1.0, 0.06 * pitch_mm / cal.mm_per_px) \
+                and abs(ratio - 1) < ASPECT_LIMIT_NAMED:
+            raise CalibrationError(
+                f"a {name} was found but its {cal.n_points} points make pixels {100 * abs(ratio - 1):.0f} % from "
+                f"square (x:y scales {ratio:.3f}) — if the camera's pixels are that shape, name the pattern "
+                f"(pattern=\"{cal.pattern}\") to accept it; else check that the pattern is flat and square and the "
+                "pitch is right, or give mm_per_px= to the analysis")
         raise CalibrationError(
-            f"a {'dot grid' if cal.pattern == 'dots' else cal.pattern} was found but its {cal.n_points} points "
-            f"do not fit a flat square pattern ({cal.rms_residual_px:.1f} px off, x:y scales "
-            f"{cal.mm_per_px_x / cal.mm_per_px_y:.3f}) — check that the pattern is flat and square and the "
-            "pitch is right, or give mm_per_px= to the analysis")
+            f"a {name} was found but its {cal.n_points} points do not fit a flat square pattern "
+            f"({cal.rms_residual_px:.1f} px off, x:y scales {ratio:.3f}) — check that the pattern is flat and "
+            "square and the pitch is right, or give mm_per_px= to the analysis")
+    why = ""
     if not fits and pattern in ("auto", "graph", "ruler"):
         grating = _grating(grey, pitch_mm=pitch_mm, kind=pattern, identity=identity or {})
-        if grating is not None:
+        if isinstance(grating, Calibration):
             fits.append(grating)
+        elif grating:
+            why = f" ({grating})"
     if not fits:
         what = {"auto": "checkerboard, dot grid, graph paper or ruler", "checkerboard": "checkerboard",
                 "dots": "dot grid", "graph": "graph paper (two families of lines)", "ruler": "ruler's ticks"}[pattern]
-        raise CalibrationError(f"no {what} was found in the image — make sure the pattern "
+        raise CalibrationError(f"no {what} was found in the image{why} — make sure the pattern "
                                "is in focus, evenly lit and fills a good part of the frame")
     return fits[0]  # a checkerboard where one was found: its squares could pass for a grid of dots
 
 
-def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str, object]) -> Calibration | None:
-    """The scale from line gratings (graph paper, a ruler's ticks); see :mod:`grainplug.calibration.periodic`."""
-    from .periodic import find_gratings, local_frequencies
+#: a scale from lines is refused when its relative standard uncertainty exceeds this
+GRATING_MAX_REL_SD = 0.01
+#: ... or when it varies over the pattern by more than this (perspective of 10 deg: 2-3 %)
+GRATING_MAX_VARIATION = 0.25
+
+
+def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str, object]) -> Calibration | str:
+    """The scale from line gratings (graph paper, a ruler's ticks); see :mod:`grainplug.calibration.periodic`.
+
+    Lines are believed only on evidence: each family's peak must stand
+    ``MIN_PEAK_TO_NOISE`` times above the transform's median at the same spatial
+    frequency, span ``MIN_LINES`` lines or more, and the parts of the image (3 x 3 tiles,
+    five stretches along a ruler) must agree on the spacing about a smooth trend within
+    ``MAX_PART_MISFIT_BINS`` of a part's frequency bin; the scale's uncertainty and its
+    variation over the pattern must stay under ``GRATING_MAX_REL_SD`` and
+    ``GRATING_MAX_VARIATION``. Noise, a movie of the tube, a speckled beam or a
+    checkerboard's diagonals pass none or few of these.
+
+    Returns
+    -------
+    Calibration or str
+        The calibration, or why the lines were not believed ("" when none were seen at all).
+    """
+    from .periodic import (
+        MAX_PART_MISFIT_BINS,
+        MIN_LINES,
+        MIN_PEAK_TO_NOISE,
+        find_gratings,
+        local_frequencies,
+        part_misfit,
+    )
 
     found = find_gratings(grey, families=1 if kind == "ruler" else 2)
     if found is None or (kind == "graph" and len(found.freqs) < 2):
-        return None
+        return ""
     freqs = found.freqs
     graph = len(freqs) == 2
     box = found.box
-    where, parts = local_frequencies(grey, found)
+    lines = "lines" if graph else "ticks"
+    spacing = 1.0 / float(np.hypot(*freqs[0]))
+    for snr, count in zip(found.peak_to_noise, found.lines, strict=True):
+        if snr < MIN_PEAK_TO_NOISE:
+            return (f"the strongest repeat, every {spacing:.3g} px, stands only {snr:.0f} times above the image's "
+                    f"noise; {lines} stand {MIN_PEAK_TO_NOISE:.0f} times or more")
+        if count < MIN_LINES:
+            return (f"the strongest repeat, every {spacing:.3g} px, makes only {count:.0f} {lines}; "
+                    f"at least {MIN_LINES} are needed")
+    where, parts, sizes = local_frequencies(grey, found)
+    misfit = part_misfit(where, parts, sizes)
+    if not misfit <= MAX_PART_MISFIT_BINS:
+        detail = ("it fills too little of the image to be checked" if not math.isfinite(misfit)
+                  else f"its spacing differs between parts of the image by {misfit:.2f} of a frequency bin, "
+                       f"{lines} agree within {MAX_PART_MISFIT_BINS:g}")
+        return f"the strongest repeat, every {spacing:.3g} px, is not a pattern of {lines}: {detail}"
     f1 = freqs[0]
     u = f1 / np.hypot(*f1)
     perp = np.array([-u[1], u[0]])
@@ -272,6 +340,10 @@ def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str
     if not graph:
         warnings.append("a ruler gives the scale along its length only: pixels are taken as square — lay the "
                         "ruler along the tube's axis (or use graph paper or a checkerboard)")
+    if rel_sd > GRATING_MAX_REL_SD or variation > GRATING_MAX_VARIATION:
+        return (f"the {lines} every {spacing:.3g} px give a scale uncertain by {100 * rel_sd:.2g} % that varies by "
+                f"{100 * variation:.2g} % over the image; at most {100 * GRATING_MAX_REL_SD:g} % and "
+                f"{100 * GRATING_MAX_VARIATION:g} % are accepted")
     if variation > SCALE_VARIATION_WARN:
         warnings.append(f"the scale varies by {100 * variation:.1f} % over the pattern (perspective or lens "
                         "distortion): hold the pattern square to the camera, at the tube's plane, and use the "
@@ -345,21 +417,55 @@ def _checkerboard_points(grey: np.ndarray) -> tuple[np.ndarray, np.ndarray] | No
     two-fold symmetry of an inner corner (dark, light, dark, light around a circle: the
     second Fourier harmonic of the circle's profile dominates; the board's outer
     corners, a quarter dark, have a dominant first harmonic), then indexed on their
-    lattice (:func:`index_lattice`).
+    lattice (:func:`index_lattice`). The peaks are looked for in the image as it is and
+    smoothed by a Gaussian of 1 px (in a noisy, low-contrast image the noise's own
+    corners outnumber the board's and hide its pitch); the larger lattice is kept. The
+    corners are always refined in the image as it is.
     """
+    g = grey.astype(np.float64) / 255.0
+    best = None
+    for smooth_px in (0.0, 1.0):
+        found = _checkerboard_corners(g, smooth_px=smooth_px)
+        if found is not None and (best is None or len(found[0]) > len(best[0])):
+            best = found
+    return best
+
+
+def _checkerboard_corners(g: np.ndarray, *, smooth_px: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`_checkerboard_points` with the peaks looked for in ``g`` smoothed by ``smooth_px``.
+
+    A corner nearer the image's edge than the refinement's half-window (or the symmetry
+    test's circle) is dropped: :func:`skimage.feature.corner_subpix` pads the image with
+    zeros, whose edge pulls such a corner by several pixels (a board larger than the frame
+    had its corners along the edge 3.5-5 px off, and a false "not flat" warning).
+    """
+    import cv2
     from skimage.feature import corner_harris, corner_peaks, corner_subpix
 
-    g = grey.astype(np.float64) / 255.0
-    peaks = corner_peaks(corner_harris(g, sigma=2), min_distance=4, threshold_rel=0.02)
+    detect = cv2.GaussianBlur(g, (0, 0), smooth_px) if smooth_px > 0 else g
+    peaks = corner_peaks(corner_harris(detect, sigma=2), min_distance=4, threshold_rel=0.02)
     if len(peaks) < 9:
         return None
     gaps = np.sort(np.hypot(*(peaks[:, None, :] - peaks[None, :, :]).transpose(2, 0, 1)), axis=1)[:, 1]
     pitch = float(np.median(gaps))
-    refined = corner_subpix(g, peaks, window_size=max(5, int(0.6 * pitch) | 1), alpha=0.99)
+    window = max(5, int(0.6 * pitch) | 1)
+    radius = pitch / 3
+    margin = max((window - 1) // 2, math.ceil(radius)) + 1
+    h, w = g.shape
+
+    def inside(rc: np.ndarray) -> np.ndarray:
+        return ((rc[:, 0] >= margin) & (rc[:, 0] <= h - 1 - margin)
+                & (rc[:, 1] >= margin) & (rc[:, 1] <= w - 1 - margin))
+
+    peaks = peaks[inside(peaks)]
+    if len(peaks) < 9:
+        return None
+    refined = corner_subpix(detect, peaks, window_size=window, alpha=0.99)
     refined = refined[~np.isnan(refined).any(axis=1)]
+    refined = refined[inside(refined)]
     if len(refined) < 9:
         return None
-    inner = refined[_x_corners(g, refined, radius=pitch / 3)]
+    inner = refined[_x_corners(g, refined, radius=radius)]
     return index_lattice(inner[:, ::-1]) if len(inner) >= 9 else None
 
 
@@ -486,10 +592,66 @@ def index_lattice(points: np.ndarray, *, tolerance: float = 0.3) -> tuple[np.nda
         return None
     keys = np.array(list(index))
     ij = np.array([index[k] for k in keys], float)
+    ij, found = _drop_inconsistent(ij, pts[keys])
+    if len(ij) < 9:
+        return None
     ij -= ij.min(axis=0)
     if len(np.unique(ij[:, 0])) < 2 or len(np.unique(ij[:, 1])) < 2:  # a strip of 2 rows is a lattice too
         return None
-    return ij, pts[keys]
+    return ij, found
+
+
+#: a point farther than this share of the local pitch from where its lattice neighbours put it is dropped
+INCONSISTENT_SHARE = 0.05
+#: ... or farther than this many robust standard deviations of all points' such distances
+INCONSISTENT_SD = 6.0
+
+
+def _drop_inconsistent(ij: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The points that sit where their lattice neighbours put them.
+
+    Each point is predicted from the points within two lattice steps of it by the homography
+    (OpenCV, least squares) that maps their indices to the image: exact under perspective,
+    and lens distortion bends a lattice little over two steps. The point farthest from its
+    prediction is dropped while that distance exceeds both ``INCONSISTENT_SHARE`` of the
+    local pitch and ``INCONSISTENT_SD`` robust standard deviations of all the points'
+    distances (and 0.3 px): a speck of noise, or the board's edge, taken for a corner within
+    the indexing's tolerance (30 % of the pitch) would otherwise pull the fit and raise a
+    false "not flat" warning. Points with fewer than 6 neighbours are kept as they are.
+    """
+    import cv2
+
+    ij = np.asarray(ij, float)
+    pts = np.asarray(pts, float)
+    keep = np.ones(len(ij), bool)
+    lookup = {(int(i), int(j)): k for k, (i, j) in enumerate(ij)}
+    offsets = [(di, dj) for di in range(-2, 3) for dj in range(-2, 3) if (di, dj) != (0, 0)]
+
+    def misfit(k: int) -> tuple[float, float]:
+        i, j = int(ij[k, 0]), int(ij[k, 1])
+        nb = [(di, dj, m) for di, dj in offsets if (m := lookup.get((i + di, j + dj))) is not None and keep[m]]
+        d = np.array([(di, dj) for di, dj, _ in nb], float).reshape(-1, 2)
+        if len(nb) < 6 or len(np.unique(d[:, 0])) < 2 or len(np.unique(d[:, 1])) < 2:
+            return 0.0, 0.0
+        H, _ = cv2.findHomography(d, pts[[m for *_, m in nb]], 0)
+        if H is None or not np.all(np.isfinite(H)) or abs(H[2, 2]) < 1e-12:
+            return 0.0, 0.0
+        predicted = H[:2, 2] / H[2, 2]
+        D = (H[:2, :2] * H[2, 2] - np.outer(H[:2, 2], H[2, :2])) / H[2, 2] ** 2  # d(x, y)/d(i, j) at the point
+        return float(np.hypot(*(predicted - pts[k]))), float(np.sqrt(abs(np.linalg.det(D))))
+
+    while keep.sum() >= 9:
+        alive = np.flatnonzero(keep)
+        checked = np.array([misfit(k) for k in alive])
+        dist, pitch = checked[:, 0], checked[:, 1]
+        sd = 1.4826 * float(np.median(dist[pitch > 0])) if np.any(pitch > 0) else 0.0
+        limit = np.maximum.reduce([INCONSISTENT_SHARE * pitch, np.full(len(alive), INCONSISTENT_SD * sd),
+                                   np.full(len(alive), 0.3)])
+        bad = (pitch > 0) & (dist > limit)
+        if not bad.any():
+            break
+        keep[alive[np.argmax(np.where(bad, dist / limit, 0.0))]] = False
+    return ij[keep], pts[keep]
 
 
 # -- the fit ----------------------------------------------------------------------------------

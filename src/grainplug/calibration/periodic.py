@@ -34,6 +34,12 @@ tiles over the pattern (five stretches along a ruler): the spread of the local
 scales is the variation over the field (perspective, lens distortion), their
 robust standard error the uncertainty.
 
+*Evidence.* Every image has a strongest peak; lines are believed only when each
+family's peak stands ``MIN_PEAK_TO_NOISE`` times above the transform's median at
+the same spatial frequency, makes ``MIN_LINES`` lines or more across where it was
+found, and the parts agree on the spacing (:func:`part_misfit`); the caller
+(:func:`grainplug.calibration.pattern.calibrate_image`) refuses otherwise.
+
 *The map.* With the families' frequency vectors ``f1``, ``f2`` as rows of ``F``,
 plane coordinates are ``(X, Y) = pitch * F (r - r0)``, so the Jacobian (mm per px)
 is ``pitch * F``; a ruler gives only ``f1``: pixels are then taken as square
@@ -53,6 +59,11 @@ import numpy as np
 FUNDAMENTAL_SHARE = 0.35
 #: at least this many periods across the image
 MIN_PERIODS = 4
+#: a family's peak must stand this many times above the spectrum's median at the same spatial frequency
+#: (white noise: 4-10 times; the speckle of a painted beam 26; graph paper and rulers 80 or more)
+MIN_PEAK_TO_NOISE = 20.0
+#: a family must have this many lines (periods) across where it was found
+MIN_LINES = 16
 
 
 def _prepare(grey: np.ndarray) -> np.ndarray:
@@ -202,11 +213,18 @@ class Gratings:
         Where the gratings are (weights in [0, 1]).
     box : tuple of int
         Bounding box ``(y0, y1, x0, x1)`` of the support.
+    peak_to_noise : tuple of float
+        Each family's peak over the median of the transform at the same spatial frequency
+        (all directions, within two bins): how far the lines stand above the image's noise.
+    lines : tuple of float
+        How many periods of each family span the box.
     """
 
     freqs: list[np.ndarray]
     support: np.ndarray
     box: tuple[int, int, int, int]
+    peak_to_noise: tuple[float, ...] = ()
+    lines: tuple[float, ...] = ()
 
 
 def find_gratings(grey: np.ndarray, *, families: int) -> Gratings | None:
@@ -247,7 +265,16 @@ def find_gratings(grey: np.ndarray, *, families: int) -> Gratings | None:
     ys, xs = np.nonzero(support > 0.5)
     h, w = g.shape
     box = (0, h, 0, w) if len(ys) < 16 else (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
-    return Gratings(freqs, support, box)
+    y0, y1, x0, x1 = box
+    FX, FY = np.meshgrid(fx, fy)
+    radius = np.hypot(FX, FY)
+    snr, lines = [], []
+    for f in freqs:
+        ring = np.abs(radius - float(np.hypot(*f))) <= 2 * bin_size
+        floor = float(np.median(spec[ring])) if ring.any() else 0.0
+        snr.append(_height(spec, fx, fy, f) / floor if floor > 0 else math.inf)
+        lines.append(float(abs(f[0]) * (x1 - x0) + abs(f[1]) * (y1 - y0)))
+    return Gratings(freqs, support, box, tuple(snr), tuple(lines))
 
 
 def local_frequencies(grey: np.ndarray, found: Gratings) -> tuple[np.ndarray, np.ndarray]:
@@ -260,6 +287,8 @@ def local_frequencies(grey: np.ndarray, found: Gratings) -> tuple[np.ndarray, np
         Each part's weighted centre (x, y) in px.
     freqs : ndarray, (n, 2 * families)
         Its families' frequency vectors, end to end.
+    sizes : ndarray, (n, 2)
+        Its height and width in px.
     """
     y0, y1, x0, x1 = found.box
     freqs = found.freqs
@@ -274,7 +303,7 @@ def local_frequencies(grey: np.ndarray, found: Gratings) -> tuple[np.ndarray, np
         cuts = np.linspace(y0, y1, 6).astype(int)
         parts = [(slice(a, b), slice(x0, x1)) for a, b in itertools.pairwise(cuts)]
     weights = [float(found.support[ys, xs].sum()) for ys, xs in parts]
-    centres, out = [], []
+    centres, out, sizes = [], [], []
     for (ys, xs), wsum in zip(parts, weights, strict=True):
         part = grey[ys, xs]
         weight = found.support[ys, xs]
@@ -285,4 +314,49 @@ def local_frequencies(grey: np.ndarray, found: Gratings) -> tuple[np.ndarray, np
         out.append(np.concatenate([_refine(gw, f, bin_size) for f in freqs]))
         yy, xx = np.mgrid[ys, xs]
         centres.append([float((xx * weight).sum() / wsum), float((yy * weight).sum() / wsum)])
-    return np.asarray(centres, dtype=float).reshape(-1, 2), np.asarray(out, dtype=float).reshape(len(out), -1)
+        sizes.append(part.shape)
+    return (np.asarray(centres, dtype=float).reshape(-1, 2),
+            np.asarray(out, dtype=float).reshape(len(out), 2 * len(freqs)),
+            np.asarray(sizes, dtype=float).reshape(-1, 2))
+
+
+#: the parts' spatial frequencies may scatter about a smooth trend by this share of a part's frequency bin
+MAX_PART_MISFIT_BINS = 0.1
+
+
+def part_misfit(centres: np.ndarray, freqs: np.ndarray, sizes: np.ndarray) -> float:
+    """How far the parts' line spacings scatter about a smooth trend, in frequency bins of a part.
+
+    Perspective makes the spacing change smoothly over the image: each family's spatial
+    frequency ``|f|`` in the parts is fitted by a plane in the parts' centres (a line when
+    the parts lie along a line, as along a ruler), and the residuals' standard deviation is
+    expressed in units of a part's frequency resolution (one over its extent along ``f``).
+    Real lines agree to a few hundredths of a bin (0.02 at most on the rendered graph paper
+    and rulers); the peak of noise or of a random texture wanders by a third of a bin or
+    more from part to part.
+
+    Returns
+    -------
+    float
+        The largest misfit over the families (inf with fewer than 4 parts).
+    """
+    n = len(centres)
+    if n < 4:
+        return math.inf
+    c = centres - centres.mean(axis=0)
+    _, sv, vt = np.linalg.svd(c, full_matrices=False)
+    axes = vt[sv > 0.1 * sv[0]] if sv[0] > 0 else vt[:0]
+    A = np.column_stack([np.ones(n), c @ axes.T])
+    dof = n - A.shape[1]
+    if dof < 1:
+        return math.inf
+    worst = 0.0
+    for k in range(freqs.shape[1] // 2):
+        f = freqs[:, 2 * k: 2 * k + 2]
+        mag = np.hypot(f[:, 0], f[:, 1])
+        coef, *_ = np.linalg.lstsq(A, mag, rcond=None)
+        resid = mag - A @ coef
+        u = np.abs(f / mag[:, None])
+        extent = u[:, 0] * sizes[:, 1] + u[:, 1] * sizes[:, 0]  # each part's length along f, px
+        worst = max(worst, math.sqrt(float(resid @ resid) / dof) * float(np.mean(extent)))
+    return worst

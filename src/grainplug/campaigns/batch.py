@@ -57,7 +57,10 @@ def run_key(spec: RunSpec, *, identity: dict[str, object] | None = None) -> str:
     """
     ident = identity if identity is not None else fingerprint(spec.movie)
     content = {k: ident.get(k) for k in ("bytes", "files", "sha256_sampled")}
-    blob = json.dumps({"input": content, "params": spec.params.as_record(), "version": __version__},
+    params = spec.params.as_record()
+    if isinstance(params.get("calibration"), dict):  # its content counts, not where its file is
+        params["calibration"] = {k: v for k, v in params["calibration"].items() if k != "source"}
+    blob = json.dumps({"input": content, "params": params, "version": __version__},
                       sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()
 
