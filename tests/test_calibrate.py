@@ -294,7 +294,7 @@ def test_pixels_far_from_square_are_taken_when_the_pattern_is_named():
     image = board(shape=(400, 480), square_px=30.0, n=(12, 9), angle_deg=0.0)
     stretched = cv2_resize(image, 1.1)  # 10 % more pixels per mm along y
     with pytest.raises(CalibrationError, match=r"10 % from square \(x:y scales 1\.100\) — if the camera's pixels "
-                                               r"are that shape, name the pattern \(--pattern checkerboard\)"):
+                                               r"are that shape, name the pattern \(pattern=\"checkerboard\"\)"):
         gp.calibrate_image(stretched, pitch_mm=3.0)
     cal = gp.calibrate_image(stretched, pitch_mm=3.0, pattern="checkerboard")
     assert cal.mm_per_px_x == pytest.approx(0.1, rel=2e-3) and cal.mm_per_px_y == pytest.approx(0.1 / 1.1, rel=2e-3)

@@ -33,6 +33,7 @@ from .calibration.pattern import Calibration
 from .calibration.tube_model import AGREEMENT, BoreEstimate, WallMeasure, bore_from_model
 from .diagram import Diagram, Normalized, band_along_tube, normalize
 from .diagram.frames import repair_frames
+from .diagram.normalize import CONFIRMED_ETA, LOW_SEPARATION_ETA, MIN_CLASS_FRACTION, MIN_SEPARATION_ETA
 from .errors import ParameterError, non_finite_frames
 from .measures import Lengths, Motion, measure_lengths, measure_motion
 from .measures.grains import GrainMotion, falling_grains
@@ -125,7 +126,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("fingerprint_s")
     values, repair = repair_frames(values, top=_top_value(info))
     diagram = Diagram(values, time_s, axis_px * mm_per_px, mm_per_px)
-    norm = normalize(diagram.values, background_level=tube.background_level)
+    norm = normalize(diagram.values, background_level=tube.background_level,
+                     confirm_px=_confirm_px(params.min_plug_mm, mm_per_px))
     laps("normalize_s")
     grains = _falling(norm, diagram, info.fps)
     flow = _resolve_flow(params.flow_direction, tube, grains)
@@ -148,7 +150,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         warnings=[*info.warnings, *_cut_by_the_frame(tube, params), *scale_warnings,
                   *_given_scale_doubts(tube, params, has_plugs=has_plugs), *light_warnings,
                   *filter(None, [repair.describe(diagram.n_frames, first=first_movie_frame(info))]), *time_warnings,
-                  *flow.warnings, *other_tubes,
+                  *flow.warnings, *_guessed_sign(flow, motion), *other_tubes,
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
     )
 
@@ -588,6 +590,20 @@ class _Flow:
     warnings: tuple[str, ...] = ()
 
 
+#: how :func:`_resolve_flow` says it took the flow down a vertical tube for want of anything better
+GRAVITY_DOWN = "assumed (gravity down)"
+
+
+def _guessed_sign(flow: _Flow, motion: Motion | None) -> list[str]:
+    """A warning when a celerity was measured along a flow direction only assumed (down a vertical tube): its
+    sign rests on the camera having been upright."""
+    if flow.source != GRAVITY_DOWN or motion is None or motion.celerity_m_s is None:
+        return []
+    return ["no grains were seen falling through the bubbles, so the flow is assumed to run down the image "
+            "(gravity down) and the celerity's sign rests on that: if the camera was not upright, give the flow "
+            "direction (flow_direction=)"]
+
+
 def _resolve_flow(given: str | None, tube: TubeGeometry, grains: GrainMotion | None) -> _Flow:
     """The direction of the flow in the image, decided here and only here.
 
@@ -609,7 +625,7 @@ def _resolve_flow(given: str | None, tube: TubeGeometry, grains: GrainMotion | N
         direction = opposite(forward) if speed < 0 else forward
         return _Flow(direction, f"inferred from the grains falling through the bubbles ({abs(speed):.2f} m/s)")
     if tube.orientation == "vertical":
-        return _Flow(forward, "assumed (gravity down)")
+        return _Flow(forward, GRAVITY_DOWN)
     return _Flow(forward, "assumed", (f"no grains seen falling through the bubbles: the flow is assumed to run "
                                       f"{forward}; if it does not, give the flow direction "
                                       "(flow_direction=)",))
@@ -650,6 +666,14 @@ def _measures(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, bac
               mm_per_px: float, scale_rel_sd: float,
               params: AnalysisParams) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity and oscillation of the plug train, plug and bubble lengths; or why there are none."""
+    if not norm.two_phase and _weakly_two(norm):
+        averaged = ("" if norm.averaged_eta is None else
+                    f"; {norm.averaged_eta:.2f} averaged along the tube, {CONFIRMED_ETA:g} needed")
+        return None, None, (f"no plugs: the tube seems to hold a single phase ({_single_phase(norm, background_level)})"
+                            f", but its grey levels hint at two, too close to tell apart (separation "
+                            f"{norm.separation_eta:.2f}, {MIN_SEPARATION_ETA:g} needed{averaged}): if there are plugs, "
+                            "raise the contrast between grains and air (lighting, exposure, a less compressed file); "
+                            "no celerity, length or frequency is measured")
     if not norm.two_phase:
         return None, None, (f"no plugs: the tube holds a single phase over the whole record "
                             f"({_single_phase(norm, background_level)}); "
@@ -690,11 +714,25 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
     are grey levels with grains dark, rows in time, positions increasing downstream.
     """
     params = params or AnalysisParams()
-    norm = normalize(diagram.values, background_level=background_level or None)
+    norm = normalize(diagram.values, background_level=background_level or None,
+                     confirm_px=_confirm_px(params.min_plug_mm, diagram.mm_per_px))
     runs, links = _plugs(norm, diagram, params)
     motion, lengths, statement = _measures(norm, diagram, runs, links, background_level, fps=fps,
                                            mm_per_px=diagram.mm_per_px, scale_rel_sd=0.0, params=params)
     return DiagramMeasures(norm, runs, links, motion, lengths, statement)
+
+
+def _weakly_two(norm: Normalized) -> bool:
+    """Whether the diagram's two grey levels, too close to be called plugs and bubbles, are still more than one
+    level with noise (a separation of 2/pi = 0.64) and each hold a fair share of it."""
+    return (norm.separation_eta >= LOW_SEPARATION_ETA
+            and MIN_CLASS_FRACTION <= norm.plug_fraction <= 1 - MIN_CLASS_FRACTION)
+
+
+def _confirm_px(min_plug_mm: float, mm_per_px: float) -> int:
+    """Positions along the tube over which a weak plug/bubble separation is looked for again: a third of the
+    shortest plug (:func:`grainplug.diagram.normalize`)."""
+    return max(1, int(round(min_plug_mm / 3 / mm_per_px)))
 
 
 def _single_phase(norm: Normalized, background: float) -> str:

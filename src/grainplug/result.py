@@ -549,6 +549,9 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "illumination": {
             "plugs_darker_than_bubbles": res.normalized.plugs_darker,
             "plug_bubble_separation_eta": _r(res.normalized.separation_eta, 4),
+            # where the separation alone was short: the same along the tube averaged over a third of the shortest plug
+            "plug_bubble_separation_eta_averaged": (None if res.normalized.averaged_eta is None
+                                                    else _r(res.normalized.averaged_eta, 4)),
             "flicker_sd": _r(float(np.std(res.normalized.frame_gain)), 5),
             "gradient_along_view": _r(float(res.normalized.position_gain[-1] / res.normalized.position_gain[0] - 1), 4),
         },

@@ -28,7 +28,17 @@ front light, while air changes neither much).
 
 Whether there are plugs at all: the classes must be well separated (Otsu's
 between-class share of the variance ``eta``) and the minority class must hold
-enough of the diagram; otherwise the flow is compact or the tube empty.
+enough of the diagram; otherwise the flow is compact or the tube empty. One grey
+level with noise gives ``eta = 2/pi = 0.64`` (a Gaussian split at its mean), two
+levels ``d`` apart under noise ``s`` give ``eta = 1 / (1 + 4 s^2 / d^2)`` (even
+classes): ``eta >= 0.8`` asks for ``d >= 4 s`` pixel by pixel. Plugs are long, noise
+and grain texture are not: where ``0.7 <= eta < 0.8``, the classes are looked for
+again in the diagram averaged along the tube over a third of the shortest plug
+(``confirm_px``), which keeps plugs and bubbles at their levels and cuts the noise,
+and two materials separated there (``eta >= 0.85``, ``d >= 4.8 s``) are two.
+Measured on an independent renderer's plugs in grain-laden bubbles: ``eta`` 0.74, 0.86
+averaged over 1 mm, and the plugs measured within 0.4 % (celerity) and 2.5 % (lengths);
+``eta`` 0.67 averaged to 0.78, where the classes came out swapped, stays refused.
 """
 
 from __future__ import annotations
@@ -39,6 +49,10 @@ import numpy as np
 
 MIN_SEPARATION_ETA = 0.8
 MIN_CLASS_FRACTION = 0.02
+#: a separation under ``MIN_SEPARATION_ETA`` but at least this is confirmed by averaging along the tube
+LOW_SEPARATION_ETA = 0.7
+#: the separation the averaged diagram must reach
+CONFIRMED_ETA = 0.85
 
 
 @dataclass(frozen=True)
@@ -59,6 +73,9 @@ class Normalized:
         Plugs are darker than bubbles (back light).
     separation_eta : float
         Otsu's between-class share of the variance (1 = two perfectly separate levels).
+    averaged_eta : float or None
+        The same in the diagram averaged along the tube over ``confirm_px`` positions,
+        where ``separation_eta`` alone was short of two materials (None otherwise).
     plug_fraction : float
         Share of the diagram classed as plug.
     two_phase : bool
@@ -74,6 +91,7 @@ class Normalized:
     separation_eta: float
     plug_fraction: float
     two_phase: bool
+    averaged_eta: float | None = None
 
 
 def _otsu(values: np.ndarray) -> tuple[float, float]:
@@ -110,7 +128,7 @@ def _class_levels(R: np.ndarray) -> tuple[float, float, float, np.ndarray]:
 
 def normalize(values: np.ndarray, *, background_level: float | None = None,
               smooth_positions: float = 0.08, n_iter: int = 6, max_fit_frames: int = 400,
-              tol: float = 1e-4) -> Normalized:
+              tol: float = 1e-4, confirm_px: int = 1) -> Normalized:
     """Fit the two-class illumination model and return the plug contrast.
 
     Parameters
@@ -129,6 +147,9 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
     max_fit_frames : int
         The class levels and ``b(s)`` are fitted on at most this many frames spread
         over the record; the per-frame gains ``a(t)`` are then found for every frame.
+    confirm_px : int
+        Positions along the tube over which a weak separation is looked for again
+        (a third of the shortest plug); 1: not looked for.
     """
     from .._filters import gaussian_filter1d
     d = np.asarray(values, dtype=np.float32)
@@ -173,6 +194,11 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
     sub = R[:: max(1, n_t // 400), ::2]
     mu_hi, mu_lo, eta, _ = _class_levels(sub)
     frac_hi = float((sub > 0.5 * (mu_hi + mu_lo)).mean())
+    averaged = None
+    if LOW_SEPARATION_ETA <= eta < MIN_SEPARATION_ETA and confirm_px > 1:  # weak: looked for again, averaged
+        from .._filters import uniform_filter1d
+
+        _, averaged = _otsu(uniform_filter1d(R[:: max(1, n_t // 400)], int(confirm_px), axis=1)[:, ::2])
     if background_level is not None and background_level > 0:
         bg = np.log(background_level) - a_med
         plugs_high = abs(mu_hi - bg) > abs(mu_lo - bg)
@@ -191,10 +217,11 @@ def normalize(values: np.ndarray, *, background_level: float | None = None,
     else:
         z[:] = 0
     plug_fraction = frac_hi if plugs_high else 1 - frac_hi
-    two_phase = bool(eta >= MIN_SEPARATION_ETA and MIN_CLASS_FRACTION <= plug_fraction <= 1 - MIN_CLASS_FRACTION)
+    separated = eta >= MIN_SEPARATION_ETA or (averaged is not None and averaged >= CONFIRMED_ETA)
+    two_phase = bool(separated and MIN_CLASS_FRACTION <= plug_fraction <= 1 - MIN_CLASS_FRACTION)
     return Normalized(
         z=z, frame_gain=np.exp(a_all - a_med), position_gain=np.exp(b),
         plug_level=float(np.exp(mu_plug + a_med)), bubble_level=float(np.exp(mu_bub + a_med)),
         plugs_darker=bool(not plugs_high), separation_eta=eta, plug_fraction=plug_fraction,
-        two_phase=two_phase,
+        two_phase=two_phase, averaged_eta=averaged,
     )
