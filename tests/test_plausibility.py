@@ -164,3 +164,39 @@ def test_two_grey_levels_too_close_to_tell_apart_are_not_called_one_phase():
     assert 0.7 <= m.normalized.separation_eta < 0.8 and m.normalized.averaged_eta < 0.85
     assert m.motion is None and "hint at two, too close to tell apart" in m.statement
     assert "raise the contrast" in m.statement
+
+
+@pytest.fixture(scope="module")
+def train():
+    """A plug train (10 mm plugs, 8 mm bubbles, +0.05 m/s) and its clean measures."""
+    cfg = SynthConfig(n_frames=200, seed=5, celerity_m_s=0.05, plug_length_mm=10, bubble_length_mm=8,
+                      plug_length_sd_mm=1, bubble_length_sd_mm=1)
+    frames = np.stack(list(Renderer(cfg).frames()))
+    return cfg, frames, gp.analyze(frames, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
+
+
+def test_an_opaque_object_over_the_tube_is_pointed_out(train):
+    """A clamp over the tube (rows 300-329: 55.5-61.1 mm) is a still dark stretch: it was measured as a plug that
+    never moves, and the plugs crossing it cut there (plugs -9 %, bubbles -20 %), without a word. Both the stretch
+    and the track that stays put are said, with where they are."""
+    cfg, frames, clean = train
+    assert not clean.warnings
+    clamped = frames.copy()
+    clamped[:, 300:330] = np.clip(30 + np.random.default_rng(1).normal(0, 3, clamped[:, 300:330].shape), 0, 255)
+    res = gp.analyze(clamped, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
+    assert any(w.startswith("nothing changes at 55.5-61.1 mm") for w in res.warnings), res.warnings
+    assert any("stay put while the plugs move at +0.05 m/s" in w for w in res.warnings), res.warnings
+
+
+def test_plugs_about_the_length_threshold_are_said():
+    """Plugs of 3.3 +- 0.5 mm against the 3 mm threshold: the shorter ones are dropped, the bubbles about them
+    measured as one (bubbles 7.6 mm for 4) and the plugs at the threshold split into tracks, without a word."""
+    cfg = SynthConfig(n_frames=200, seed=5, celerity_m_s=0.05, plug_length_mm=3.3, plug_length_sd_mm=0.5,
+                      bubble_length_mm=4.0, bubble_length_sd_mm=0.5)
+    res = gp.analyze(np.stack(list(Renderer(cfg).frames())), fps=cfg.fps, mm_per_px=cfg.mm_per_px)
+    said = [w for w in res.warnings if "within 20 % of min_plug_mm = 3 mm" in w]
+    assert said and "lower min_plug_mm=" in said[0], res.warnings
+    lowered = gp.analyze(np.stack(list(Renderer(cfg).frames())), fps=cfg.fps, mm_per_px=cfg.mm_per_px,
+                         min_plug_mm=1.5)
+    assert not any("min_plug_mm" in w for w in lowered.warnings)
+    assert lowered.bubble_length_mm == pytest.approx(4.0, rel=0.1)

@@ -151,6 +151,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                   *_given_scale_doubts(tube, params, has_plugs=has_plugs), *light_warnings,
                   *filter(None, [repair.describe(diagram.n_frames, first=first_movie_frame(info))]), *time_warnings,
                   *flow.warnings, *_guessed_sign(flow, motion), *other_tubes,
+                  *_still_regions(diagram), *_still_objects(runs, links, diagram.time_s, motion, mm_per_px),
+                  *_near_the_threshold(runs, params),
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
     )
 
@@ -356,7 +358,8 @@ def _given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs
         return []
     expected_px = params.tube_diameter_mm / float(params.mm_per_px)
     ratio = tube.inner_diameter_px / expected_px
-    low = SEEN_OVER_BORE[0] if has_plugs else SEEN_OVER_BORE_NO_PLUGS
+    # nothing moved (back_lit None): the tube is seen by the mean image's edges, not its bore's contents
+    low = SEEN_OVER_BORE[0] if has_plugs and tube.back_lit is not None else SEEN_OVER_BORE_NO_PLUGS
     if low <= ratio <= SEEN_OVER_BORE[1]:
         return []
     return [f"the tube's contents are seen over {tube.inner_diameter_px:.1f} px, but the given scale makes its "
@@ -425,7 +428,7 @@ def _tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, params: AnalysisP
                    f"inflates every length and celerity by as much — {fix}")
     elif bore.method == "contents":
         out.append(f"the scale comes from the tube's inner width seen through its contents ({bore.diameter_px:.1f} px)"
-                   ", not cross-checked (in front light it usually reads within 2 %) — give "
+                   ", not cross-checked (in front light it read within 2-3 % on the renderers tried) — give "
                    f"tube_outer_diameter_mm= to check it against the tube's outer silhouette, or {fix}")
     elif not math.isfinite(bore.agreement):
         out.append(f"the scale comes from the tube model alone ({bore.method}: bore {bore.diameter_px:.1f} px, "
@@ -588,6 +591,91 @@ class _Flow:
     direction: str
     source: str
     warnings: tuple[str, ...] = ()
+
+
+#: positions whose grey level varies over the record less than this share of the tube's typical variation are still
+STILL_REGION_SHARE = 0.1
+
+
+def _still_regions(diagram: Diagram) -> list[str]:
+    """A warning naming the stretches of the tube (1 mm or more) where nothing changes over the record while the
+    rest of it does: an opaque object over the tube (a clamp, a fitting, the tube's end), which cuts or merges the
+    plugs crossing it."""
+    values = diagram.values
+    d = np.log(np.maximum(np.asarray(values[:: max(1, values.shape[0] // 1000)], np.float32), np.float32(1e-3)))
+    sd = d.std(axis=0)
+    typical = float(np.median(sd))
+    if not typical > 0.01:  # nothing moves anywhere (a jammed or empty record): no contrast to judge by
+        return []
+    step = np.diff(np.concatenate([[0], (sd < STILL_REGION_SHARE * typical).astype(np.int8), [0]]))
+    starts, stops = np.nonzero(step == 1)[0], np.nonzero(step == -1)[0]
+    pos, half = diagram.position_mm, 0.5 * diagram.mm_per_px
+    spans = [(pos[a] - half, pos[b - 1] + half) for a, b in zip(starts, stops, strict=True)
+             if (b - a) * diagram.mm_per_px >= 1.0]
+    if not spans:
+        return []
+    where = ", ".join(f"{lo:.1f}-{hi:.1f} mm" for lo, hi in spans[:4]) + (", ..." if len(spans) > 4 else "")
+    return [f"nothing changes at {where} over the whole record while the rest of the tube does: an object over the "
+            "tube there (a clamp, a fitting, the tube's end)? Plugs crossing it are cut or merged, and their lengths "
+            "with them — leave it out of the region analysed (roi=, on one side of it)"]
+
+
+#: a track that moves less than this share of what the plug train moves over its life stays put
+STILL_SHARE = 0.2
+#: ... judged only where the train moves at least this many pixels over the track's life
+STILL_MIN_TRAIN_PX = 5.0
+
+
+def _still_objects(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion | None,
+                   mm_per_px: float) -> list[str]:
+    """A warning for the tracks that stay put while the plug train moves: a still object over the tube (a clamp,
+    a label, a fitting, the tube's end) taken for a plug, whose "length" enters the lengths."""
+    if motion is None or motion.regime != "propagative" or motion.celerity_m_s is None:
+        return []
+    speed = abs(motion.celerity_m_s) * 1000.0  # mm/s
+    still = []
+    for tid in range(len(links)):
+        sel = links.run_track == tid
+        if np.count_nonzero(sel) < 3:
+            continue
+        t = time_s[runs.frame[sel]]
+        span = float(t.max() - t.min())
+        top, bottom = runs.top_mm[sel], runs.bottom_mm[sel]
+        edge = top if np.isfinite(top).sum() >= 2 else bottom
+        ok = np.isfinite(edge)
+        if speed * span < STILL_MIN_TRAIN_PX * mm_per_px or ok.sum() < 2 or np.ptp(t[ok]) <= 0:
+            continue
+        if abs(float(np.polyfit(t[ok], edge[ok], 1)[0])) * span <= STILL_SHARE * speed * span:
+            seen = np.concatenate([top[np.isfinite(top)], bottom[np.isfinite(bottom)]])
+            still.append(f"plug {tid} at {seen.min():.0f}-{seen.max():.0f} mm for {span:.2g} s")
+    if not still:
+        return []
+    return [f"{'; '.join(still[:5])}{' and more' if len(still) > 5 else ''}: "
+            f"{'it stays' if len(still) == 1 else 'they stay'} put while the plugs move at "
+            f"{motion.celerity_m_s:+.3g} m/s — a still object over the tube (a clamp, a label, a fitting, the tube's "
+            "end)? Measured as plugs, they bias the lengths: exclude them (grainplug review, or Corrections in "
+            "Python) or leave them out with roi="]
+
+
+#: plugs just over ``min_plug_mm``: this share of the whole plugs seen within :data:`NEAR_THRESHOLD` of it ...
+NEAR_SHARE = 0.1
+#: ... above it (relative) is a train whose shorter plugs are dropped
+NEAR_THRESHOLD = 0.2
+
+
+def _near_the_threshold(runs: Runs, params: AnalysisParams) -> list[str]:
+    """A warning when many plugs are just over ``min_plug_mm``: those just under it are dropped (the bubbles
+    about them merge across) and those at it come and go (their tracks split)."""
+    whole = np.isfinite(runs.top_mm) & np.isfinite(runs.bottom_mm)
+    lengths = (runs.bottom_mm - runs.top_mm)[whole]
+    if lengths.size < 10:
+        return []
+    near = float(np.mean(lengths <= params.min_plug_mm * (1 + NEAR_THRESHOLD)))
+    if near < NEAR_SHARE:
+        return []
+    return [f"{100 * near:.0f} % of the plugs seen are within {100 * NEAR_THRESHOLD:.0f} % of min_plug_mm = "
+            f"{params.min_plug_mm:g} mm: shorter plugs are likely there, dropped (the bubbles about them are "
+            "measured as one) and plugs at the threshold come and go (their tracks split) — lower min_plug_mm="]
 
 
 #: how :func:`_resolve_flow` says it took the flow down a vertical tube for want of anything better
