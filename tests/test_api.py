@@ -118,7 +118,7 @@ def test_a_students_slips_are_refused_in_one_line_or_taken_as_meant(movie, resul
         (lambda: gp.analyze(frames, fps="250"), "fps: must be a number"),
         (lambda: gp.analyze(frames[0], fps=250), "one colour frame, not a movie"),
         (lambda: gp.analyze([frames[0], frames[1][:-1], *frames[2:]], fps=250), "not all the same size"),
-        (lambda: gp.analyze((frames.mean(-1) - 128).astype(np.int8), fps=250), "signed integers"),
+        (lambda: gp.analyze((frames.mean(-1) - 128).astype(np.int8), fps=250), "hold negative values"),
         (lambda: gp.analyze(["a.png", "b.png"]), "give the folder"),
         (lambda: gp.analyze(frames, fps=250, threads="4"), "threads: give a whole number"),
         (lambda: gp.analyze(movie.movie, [1]), "must be an AnalysisParams"),
@@ -135,6 +135,14 @@ def test_a_students_slips_are_refused_in_one_line_or_taken_as_meant(movie, resul
     assert (p.fps, p.mm_per_px, p.sample_frames, p.roi) == (250.0, 0.185, 32, (0, 0, 128, 640))
     assert type(p.sample_frames) is int and type(p.fps) is float
     assert gp.analyze(movie.movie, {"fps": 250.0}).summary["celerity_m_s"] == result.summary["celerity_m_s"]
+    assert gp.AnalysisParams(start_frame=5.0, end_frame=np.float64(20)).start_frame == 5
+    with pytest.raises(gp.ParameterError, match="mm_per_px: must be a number"):
+        gp.AnalysisParams(mm_per_px=Decimal("sNaN"))
+    # grey levels as Python ints (int64) or .astype(int) are the unsigned levels they fit
+    as_ints = gp.analyze([f.tolist() for f in frames[:20]], fps=250, mm_per_px=0.185)
+    assert as_ints.info.dtype == "uint8"
+    assert as_ints.summary["celerity_m_s"] == gp.analyze(frames[:20], fps=250, mm_per_px=0.185).summary[
+        "celerity_m_s"]
 
 
 def test_an_empty_track_table_keeps_the_columns_types(tmp_path, result):

@@ -119,6 +119,11 @@ def test_analysis_takes_its_scale_from_the_calibration(tmp_path, plug_movie):
     assert res.summary["celerity_m_s"] == pytest.approx(typed.summary["celerity_m_s"], rel=1e-9)
     res.save(tmp_path / "out", figures=False, report=False)
     assert gp.load_result(tmp_path / "out").params.calibration == cal
+    # the calibration file's path, as the command line takes it, as a keyword or in a dict of parameters
+    gp.save_calibration(cal, tmp_path / "cal.json")
+    for by_path in (gp.analyze(frames, fps=500.0, calibration=str(tmp_path / "cal.json")),
+                    gp.analyze(frames, {"fps": 500.0, "calibration": tmp_path / "cal.json"})):
+        assert by_path.mm_per_px == res.mm_per_px
 
 
 def test_doubtful_calibrations_are_said(plug_movie):

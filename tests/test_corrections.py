@@ -475,8 +475,8 @@ def test_a_malformed_format_version_is_not_called_newer(version):
 @pytest.mark.parametrize("name", [".", "./"])
 def test_remeasure_inside_the_result_folder(result, tmp_path, capsys, monkeypatch, name):
     """`grainplug remeasure .` used to be refused ("the output folder is the current folder"). It rewrites the
-    folder, and the process (its current folder replaced whole) is in the new folder afterwards: relative paths
-    name the new files, nothing is left beside the folder, and the shell is told how to see them."""
+    folder by its absolute path, leaves nothing beside it, and tells the shell (left in the old, removed folder)
+    how to see the new one; the library never changes the working directory."""
     out = tmp_path / "run"
     result.save(out, figures=False, report=False)
     (out / "corrections.json").write_text(json.dumps(Corrections().add("exclude", track=0).as_dict()))
@@ -485,11 +485,9 @@ def test_remeasure_inside_the_result_folder(result, tmp_path, capsys, monkeypatc
     captured = capsys.readouterr()
     assert "1 applied: excluded track 0" in captured.out
     assert "`cd .`" in captured.err
-    from pathlib import Path
-
-    assert Path.cwd() == out.resolve()
-    assert json.loads(Path("summary.json").read_text())["corrections"] == ["excluded track 0"]
+    assert json.loads((out / "summary.json").read_text())["corrections"] == ["excluded track 0"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no temporary or old folder left
+    monkeypatch.chdir(out)  # the user's `cd .`: the library leaves the working directory alone
     assert main(["remeasure", name, "--no-figures"]) == 0  # and again, from the new folder
 
 

@@ -261,9 +261,10 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
 
     Notes
     -----
-    The folder replaced may be this process's current folder (``grainplug remeasure .``): the
-    process then moves into the new folder, at the same place inside it, so relative paths still
-    name the new files. (A shell that was there stays in the old, removed folder: ``cd .``.)
+    The folder replaced may be this process's current folder (``grainplug remeasure .``): it is
+    replaced by its absolute path, and the process (like a shell that was there) stays in the
+    old, removed folder; the working directory is the caller's to change (``os.chdir`` to the
+    folder again, ``cd .`` in a shell), never this function's.
 
     Yields
     ------
@@ -308,15 +309,12 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
                         log.info("kept in %s what grainplug did not write there: %s", out, ", ".join(carried))
                 _seal(tmp, carried)
                 _fsync_tree(tmp)
-                here = _cwd_inside(out)
                 old = None
                 if out.exists():
                     old = Path(tempfile.mkdtemp(prefix=f".{out.name}.grainplug-old-{os.getpid()}-", dir=out.parent))
                     old.rmdir()
                     os.replace(out, old)
                 os.replace(tmp, out)
-                if here is not None:  # this process was in the old folder: into the new one
-                    os.chdir(out / here if (out / here).is_dir() else out)
                 if old is not None:
                     shutil.rmtree(old, ignore_errors=True)
                 if written is not None:

@@ -61,7 +61,10 @@ def as_number(value: object) -> object:
     if isinstance(value, numbers.Integral):
         return int(value)
     if isinstance(value, (numbers.Real, decimal.Decimal)):
-        return float(value)
+        try:
+            return float(value)
+        except ValueError:  # a signalling NaN Decimal: not a number, refused by name
+            return value
     return value
 
 
@@ -197,6 +200,8 @@ class AnalysisParams:
               f"5 %, got {self.tube_outer_diameter_mm}")
         for name in ("start_frame", "end_frame"):
             value = as_number(getattr(self, name))
+            if isinstance(value, float) and math.isfinite(value) and value == int(value):
+                value = int(value)  # 5.0 is frame 5
             check(value is None or (isinstance(value, numbers.Integral) and not isinstance(value, bool)
                                     and 0 <= value <= 10**9), name, f"must be a frame number, 0 or more, got {value!r}")
             object.__setattr__(self, name, value)

@@ -84,7 +84,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     >>> res = gp.analyze(frames, fps=1000, mm_per_px=0.1875)      # doctest: +SKIP
     """
     if isinstance(params, Mapping):  # the fields as a dict: as good as keywords
-        params = AnalysisParams().replace(**params)
+        overrides = {**params, **overrides}
+        params = None
     elif params is not None and not isinstance(params, AnalysisParams):
         raise ParameterError(f"must be an AnalysisParams (or its fields as keywords), got a {type(params).__name__}",
                              param="params")
@@ -148,11 +149,12 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *_cut_by_the_frame(tube, params), *scale_warnings,
-                  *_given_scale_doubts(tube, params, has_plugs=has_plugs), *light_warnings,
+                  *_given_scale_doubts(tube, params, has_plugs=has_plugs, two_phase=norm.two_phase), *light_warnings,
                   *filter(None, [repair.describe(diagram.n_frames, first=first_movie_frame(info))]), *time_warnings,
                   *flow.warnings, *_guessed_sign(flow, motion), *other_tubes,
-                  *_still_regions(diagram), *_still_objects(runs, links, diagram.time_s, motion, mm_per_px),
-                  *_near_the_threshold(runs, params),
+                  *_still_regions(diagram, motion, lengths),
+                  *_still_objects(runs, links, diagram.time_s, motion, mm_per_px),
+                  *_near_the_threshold(runs, motion, params),
                   *_implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=bore,
     )
 
@@ -298,7 +300,8 @@ def _check_movie(info: MovieInfo) -> None:
         raise ParameterError(f"{info.path}: the frame rate is unknown (image folders, arrays and some TIFFs "
                              "hold none) — give the camera's frame rate", param="fps")
     if info.n_frames < 8:
-        raise ParameterError(f"{info.path} holds {info.n_frames} frames; at least 8 are needed", param="source")
+        raise ParameterError(f"{info.path} holds {info.n_frames} frame{'' if info.n_frames == 1 else 's'}; at least 8 "
+                             "are needed", param="source")
 
 
 def _scale(tube: TubeGeometry, params: AnalysisParams,
@@ -333,9 +336,10 @@ def _cut_by_the_frame(tube: TubeGeometry, params: AnalysisParams) -> list[str]:
 #: the width over which a tube's contents are seen, against its bore: a back-lit tube looks up to 35 % narrower
 #: (by the lamp's size), never much wider
 SEEN_OVER_BORE = (0.6, 1.15)
-#: without plugs the tube is seen where falling grains or the mean image's edges show it, inside the bore (0.69-0.99
-#: of it in the synthetic empty and compact tubes): narrower than this share, the given scale is the doubt (a
-#: scale 10 times too fine makes every plug "shorter than min_plug_mm")
+#: grains and air seen but no plug (or nothing moving): the tube is seen where the contents or the mean image's
+#: edges show it, inside the bore (0.59-0.99 of it in the synthetic and an independent renderer's cases); narrower
+#: than this share, the given scale is the doubt (a scale 10 times too fine makes every plug "shorter than
+#: min_plug_mm"). With one material only (sparse falling grains) the tube can be seen over a few pixels: no doubt.
 SEEN_OVER_BORE_NO_PLUGS = 0.3
 
 
@@ -351,15 +355,18 @@ def _read_background(path: str | os.PathLike) -> object:
     return read_background(path)
 
 
-def _given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs: bool) -> list[str]:
+def _given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs: bool,
+                        two_phase: bool = True) -> list[str]:
     """A warning when the tube seen is far wider or narrower than a given scale makes its bore (a wrong
     ``mm_per_px`` or tube diameter, or something in view that is not the tube)."""
     if not params.mm_per_px:
         return []
     expected_px = params.tube_diameter_mm / float(params.mm_per_px)
     ratio = tube.inner_diameter_px / expected_px
-    # nothing moved (back_lit None): the tube is seen by the mean image's edges, not its bore's contents
-    low = SEEN_OVER_BORE[0] if has_plugs and tube.back_lit is not None else SEEN_OVER_BORE_NO_PLUGS
+    # nothing moved (back_lit None): the tube is seen by the mean image's edges, not its bore's contents; one
+    # material only (an empty tube with a few grains falling): seen over a few pixels, nothing to doubt by
+    low = (SEEN_OVER_BORE[0] if has_plugs and tube.back_lit is not None else
+           SEEN_OVER_BORE_NO_PLUGS if two_phase else 0.0)
     if low <= ratio <= SEEN_OVER_BORE[1]:
         return []
     return [f"the tube's contents are seen over {tube.inner_diameter_px:.1f} px, but the given scale makes its "
@@ -597,10 +604,17 @@ class _Flow:
 STILL_REGION_SHARE = 0.1
 
 
-def _still_regions(diagram: Diagram) -> list[str]:
+def _still_regions(diagram: Diagram, motion: Motion | None, lengths: Lengths | None) -> list[str]:
     """A warning naming the stretches of the tube (1 mm or more) where nothing changes over the record while the
     rest of it does: an opaque object over the tube (a clamp, a fitting, the tube's end), which cuts or merges the
-    plugs crossing it."""
+    plugs crossing it. Judged only where the train travelled a plug and a bubble over the record, so that every
+    place should have seen both (in a shorter record a long plug may cover a place throughout)."""
+    if (motion is None or motion.regime != "propagative" or lengths is None or lengths.plug_length_mm is None
+            or lengths.bubble_length_mm is None):
+        return []
+    travel_mm = abs(motion.celerity_m_s) * 1000.0 * float(diagram.time_s[-1] - diagram.time_s[0])
+    if travel_mm < lengths.plug_length_mm + lengths.bubble_length_mm:
+        return []
     values = diagram.values
     d = np.log(np.maximum(np.asarray(values[:: max(1, values.shape[0] // 1000)], np.float32), np.float32(1e-3)))
     sd = d.std(axis=0)
@@ -615,9 +629,10 @@ def _still_regions(diagram: Diagram) -> list[str]:
     if not spans:
         return []
     where = ", ".join(f"{lo:.1f}-{hi:.1f} mm" for lo, hi in spans[:4]) + (", ..." if len(spans) > 4 else "")
-    return [f"nothing changes at {where} over the whole record while the rest of the tube does: an object over the "
-            "tube there (a clamp, a fitting, the tube's end)? Plugs crossing it are cut or merged, and their lengths "
-            "with them — leave it out of the region analysed (roi=, on one side of it)"]
+    return [f"nothing changes at {where} (from the upstream end of the view) over the whole record while the rest "
+            "of the tube does: an object over the tube there (a clamp, a fitting, the tube's end)? Plugs crossing it "
+            "are cut or merged, and their lengths with them — leave it out of the region analysed (roi=, on one side "
+            "of it)"]
 
 
 #: a track that moves less than this share of what the plug train moves over its life stays put
@@ -651,7 +666,8 @@ def _still_objects(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion
     if not still:
         return []
     return [f"{'; '.join(still[:5])}{' and more' if len(still) > 5 else ''}: "
-            f"{'it stays' if len(still) == 1 else 'they stay'} put while the plugs move at "
+            f"(from the upstream end of the view) {'it stays' if len(still) == 1 else 'they stay'} put while the plugs "
+            f"move at "
             f"{motion.celerity_m_s:+.3g} m/s — a still object over the tube (a clamp, a label, a fitting, the tube's "
             "end)? Measured as plugs, they bias the lengths: exclude them (grainplug review, or Corrections in "
             "Python) or leave them out with roi="]
@@ -663,9 +679,12 @@ NEAR_SHARE = 0.1
 NEAR_THRESHOLD = 0.2
 
 
-def _near_the_threshold(runs: Runs, params: AnalysisParams) -> list[str]:
-    """A warning when many plugs are just over ``min_plug_mm``: those just under it are dropped (the bubbles
-    about them merge across) and those at it come and go (their tracks split)."""
+def _near_the_threshold(runs: Runs, motion: Motion | None, params: AnalysisParams) -> list[str]:
+    """A warning when many plugs of a measured train are just over ``min_plug_mm``: those just under it are
+    dropped (the bubbles about them merge across) and those at it come and go (their tracks split). Without a
+    train (clumps of falling grains cut at the threshold) lowering it would make plugs of the clumps: nothing said."""
+    if motion is None:
+        return []
     whole = np.isfinite(runs.top_mm) & np.isfinite(runs.bottom_mm)
     lengths = (runs.bottom_mm - runs.top_mm)[whole]
     if lengths.size < 10:
@@ -754,7 +773,9 @@ def _measures(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, bac
               mm_per_px: float, scale_rel_sd: float,
               params: AnalysisParams) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity and oscillation of the plug train, plug and bubble lengths; or why there are none."""
-    if not norm.two_phase and _weakly_two(norm):
+    if not norm.two_phase and _weakly_two(norm) and not (
+            norm.averaged_eta is not None and norm.averaged_eta < norm.separation_eta - 0.05):
+        # (averaging along the tube pulling the levels together says they are short things, grains, not plugs)
         averaged = ("" if norm.averaged_eta is None else
                     f"; {norm.averaged_eta:.2f} averaged along the tube, {CONFIRMED_ETA:g} needed")
         return None, None, (f"no plugs: the tube seems to hold a single phase ({_single_phase(norm, background_level)})"

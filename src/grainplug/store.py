@@ -130,7 +130,7 @@ def load_result(folder: str | Path) -> Any:
     """
     p = Path(folder).expanduser()
     f = p / RESULT_FILE if p.is_dir() else p
-    if p.is_file() and p.suffix != ".npz" and (p.parent / RESULT_FILE).exists():
+    if p.is_file() and p.name != RESULT_FILE and (p.parent / RESULT_FILE).exists():
         f = p.parent / RESULT_FILE  # another file of the folder (its summary.json): the folder was meant
     if not f.exists():
         hint = (" (it was written by an older grainplug: analyse the movie again)"

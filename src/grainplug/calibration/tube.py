@@ -459,7 +459,8 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     # how much the contents change at the two sides, against the most they change (a tube cut by the frame)
     across = np.clip(v, 0, None).mean(axis=0)
     top = float(across.max())
-    side = float(max(across[:2].max(), across[-2:].max())) / top if top > 0 else 0.0
+    sides = (float(across[:2].max()), float(across[-2:].max()))
+    structured = top > 3.0 * float(np.median(across))  # not noise alike everywhere (nothing moves)
     tan_b = np.tan(np.radians(tilt))
     # coarse axis position: the peak of the projected feature
     pad = h * abs(tan_b) + 2
@@ -543,6 +544,10 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
         raise MovieError(
             f"no tube found (bore {width_px:.1f} px wide) — is the tube in view, lit and at least 3 px wide?"
         )
+    # a side counts where the tube found reaches within its own width of it (a second tube cut there is not this one)
+    reach = max(right - left, 3.0)
+    near = (left + min(0.0, h * tan_b) < reach, right + max(0.0, h * tan_b) > w - 1 - reach)
+    side = max([sv for sv, n in zip(sides, near, strict=True) if n], default=0.0) / top if structured else 0.0
     back_lit = None if method == "walls" else lighting == "transmitted"
     walls = None
     if not coarse and back_lit:

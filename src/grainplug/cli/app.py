@@ -662,7 +662,7 @@ def simulation_lines(summary: dict) -> list[str]:
            "let grains and air in and out)"]
     if r["boundary"] != "periodic" and "grain_budget_residual" in r:
         g0 = abs(r["grain_total"][0]) or 1.0
-        out.append(f"grain budget       in {r['grain_inflow'] / g0:+.3f}, out {-r['grain_outflow'] / g0:+.3f} (of the "
+        out.append(f"grain budget       in {r['grain_inflow'] / g0:.3f}, out {r['grain_outflow'] / g0:.3f} (of the "
                    f"starting content); change - (in - out) = {r['grain_budget_residual']:.1e}")
     if r.get("balance_force_rho_s_g"):
         out.append(f"balance force      S = {r['balance_force_rho_s_g']:+.3f} rho_s g, uniform, so that the base state "

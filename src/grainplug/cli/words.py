@@ -25,8 +25,10 @@ _KEYWORD = re.compile(r"(?<![\w.\-])([a-z][a-z0-9_]*)=(True\b|\"[^\"]*\"|'[^']*'
 def option_flags(group: click.Group) -> dict[str, tuple[str, bool]]:
     """Keyword -> (its long flag, whether it is a switch) over every command of ``group``."""
     flags: dict[str, tuple[str, bool]] = {}
-    for command in group.commands.values():
-        for p in command.params:
+    ctx = click.Context(group)
+    for name in group.list_commands(ctx):  # the lazily loaded commands too (synth)
+        command = group.get_command(ctx, name)
+        for p in getattr(command, "params", ()):
             longs = [o for o in getattr(p, "opts", ()) if o.startswith("--")]
             if isinstance(p, click.Option) and longs and p.name:
                 flags.setdefault(p.name, (longs[0], bool(p.is_flag)))

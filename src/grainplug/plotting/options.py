@@ -49,7 +49,7 @@ class FigureOptions:
         from ..errors import ParameterError
 
         if isinstance(self.dpi, bool) or not isinstance(self.dpi, numbers.Real) or not 20 <= self.dpi <= 1200:
-            raise ParameterError(f"dpi must be between 20 and 1200, got {self.dpi!r}", param="dpi")
+            raise ParameterError(f"must be between 20 and 1200, got {self.dpi!r}", param="dpi")
         if isinstance(self.formats, str):  # "png,svg", as the command line takes them
             object.__setattr__(self, "formats", tuple(f.strip() for f in self.formats.split(",") if f.strip()))
         bad = [f for f in self.formats if f not in FIGURE_FORMATS]

@@ -63,9 +63,13 @@ class ArrayMovie(Movie):
         dtype = np.dtype(dtype)
         if dtype.kind == "b" or not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)):
             raise MovieError(f"frames of dtype {dtype} are not images — pass integer or float pixel values")
-        if dtype.kind == "i":  # a camera's grey levels start at 0: a signed type's negative half reads as "dark"
-            raise MovieError(f"frames of dtype {dtype} are signed integers, not a camera's grey levels — pass "
-                             f"unsigned integers or floats (e.g. frames.astype(np.float32))")
+        if dtype.kind == "i":  # grey levels in a signed type (Python ints, .astype(int)): as the unsigned they fit
+            lo, hi = (int(frames.min()), int(frames.max())) if isinstance(frames, np.ndarray) else (-1, 0)
+            if lo < 0:  # a camera's grey levels start at 0: a signed type's negative half would read as "dark"
+                raise MovieError(f"frames of dtype {dtype} hold negative values, not a camera's grey levels — pass "
+                                 "unsigned integers or floats from 0 (a dask array of a signed type: convert it)")
+            dtype = np.dtype(np.uint8 if hi <= 255 else np.uint16 if hi <= 65535 else np.float32)
+            frames = frames.astype(dtype)
         fps = checked_fps(fps)
         self._frames = frames
         self._dask = hasattr(frames, "compute") and hasattr(frames, "chunks")

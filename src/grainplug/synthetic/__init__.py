@@ -135,14 +135,20 @@ def synthesize(config: SynthConfig, out_dir: str | Path, *, fmt: str = "tiff",
         raise ParameterError(f"unknown format {fmt!r}: use one of {', '.join(FORMATS)}", param="fmt")
     require_writer(fmt)  # before anything is written
     out = Path(out_dir)
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     renderer = Renderer(config)
     path = movie_path(out, fmt, stem)
     meta = {"software": f"grainplug {__version__} synthetic", "seed": config.seed}
     tmp = path.with_name(path.name + ".part" + (path.suffix if path.suffix else ""))
-    with MovieWriter(tmp, fmt, fps=config.fps, metadata=meta, n_frames=config.n_frames) as writer:
-        for frame in renderer.frames():
-            writer.write(frame)
+    try:
+        with MovieWriter(tmp, fmt, fps=config.fps, metadata=meta, n_frames=config.n_frames) as writer:
+            for frame in renderer.frames():
+                writer.write(frame)
+    except BaseException:
+        if created and not any(out.iterdir()):  # a writer's refusal leaves no empty folder behind
+            out.rmdir()
+        raise
     _move_into_place(tmp, path, fmt)
     truth, rows = compute_truth(renderer)
     truth["movie"] = path.name
