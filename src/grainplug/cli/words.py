@@ -11,6 +11,7 @@ keep the library's words, whichever front end wrote them.
 from __future__ import annotations
 
 import re
+import sys
 
 import click
 
@@ -23,10 +24,14 @@ _KEYWORD = re.compile(r"(?<![\w.\-])([a-z][a-z0-9_]*)=(True\b|\"[^\"]*\"|'[^']*'
 
 
 def option_flags(group: click.Group) -> dict[str, tuple[str, bool]]:
-    """Keyword -> (its long flag, whether it is a switch) over every command of ``group``."""
+    """Keyword -> (its long flag, whether it is a switch) over every command of ``group`` (a lazily loaded one
+    once loaded: only then can it be the command whose message is printed)."""
     flags: dict[str, tuple[str, bool]] = {}
     ctx = click.Context(group)
-    for name in group.list_commands(ctx):  # the lazily loaded commands too (synth)
+    lazy = getattr(group, "LAZY", {})
+    for name in group.list_commands(ctx):
+        if name in lazy and lazy[name] not in sys.modules:  # not loaded: not the command that speaks (and costly)
+            continue
         command = group.get_command(ctx, name)
         for p in getattr(command, "params", ()):
             longs = [o for o in getattr(p, "opts", ()) if o.startswith("--")]
