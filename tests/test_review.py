@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 import urllib.error
 import urllib.request
+from collections.abc import Iterator
 
 import pytest
 
@@ -15,6 +17,20 @@ from grainplug.review import ReviewServer, ReviewSession, review_targets
 from grainplug.synthetic import SynthConfig, synthesize
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@contextlib.contextmanager
+def chromium_page(p: object, *args: str, errors: list[str] | None = None) -> Iterator[object]:
+    """A page of a headless Chromium at 1366 x 768 (script errors gathered into ``errors``), closed after."""
+    browser = p.chromium.launch(executable_path=CHROMIUM, headless=True,  # type: ignore[attr-defined]
+                                args=["--no-sandbox", "--disable-gpu", "--no-first-run", *args])
+    try:
+        page = browser.new_page(viewport={"width": 1366, "height": 768})
+        if errors is not None:
+            page.on("pageerror", lambda e: errors.append(str(e)))
+        yield page
+    finally:
+        browser.close()
 
 
 @pytest.fixture(scope="module")
@@ -163,36 +179,30 @@ def test_review_page_in_chromium(copy):
     sync_api = pytest.importorskip("playwright.sync_api")
     stain = with_stain(copy)
     errors: list[str] = []
-    with ReviewServer(copy) as srv, sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=[
-            "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"])
-        try:
-            page = browser.new_page(viewport={"width": 1366, "height": 768})
-            page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(srv.url)
-            page.wait_for_selector("#tracks tbody tr", timeout=20_000)
-            box = page.locator("#diagram").bounding_box()
-            page.mouse.click(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"])
-            page.wait_for_function("() => { const i = document.getElementById('frame');"
-                                   " return i.complete && i.naturalWidth > 0; }", timeout=20_000)
-            label = page.inner_text("#frame-label")
-            k = int(label.split()[1].rstrip(","))
-            assert 50 <= k <= 70, label  # the middle of 120 frames
-            before = float(page.get_attribute("#celerity", "data-value"))
-            assert before == pytest.approx(-0.031, abs=0.005)  # dragged toward 0 by the stain
-            page.locator(f"#tracks tbody tr[data-track='{stain}'] button").click()
-            page.wait_for_function("() => document.querySelector('#corrections li').textContent.includes('excluded')",
-                                   timeout=20_000)
-            after = float(page.get_attribute("#celerity", "data-value"))
-            assert after == pytest.approx(-0.05, rel=0.03)  # the synthetic movie's truth
-            assert page.inner_text("#celerity") == f"{after:.4f}"
-            page.reload()
-            page.wait_for_selector("#tracks tbody tr.excluded", timeout=20_000)
-            assert "excluded track" in page.inner_text("#corrections")
-            assert page.evaluate("document.documentElement.scrollWidth") <= 1366
-        finally:
-            browser.close()
+    with (ReviewServer(copy) as srv, sync_api.sync_playwright() as p,
+          chromium_page(p, "--disable-background-networking", errors=errors) as page):
+        page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+        page.goto(srv.url)
+        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+        box = page.locator("#diagram").bounding_box()
+        page.mouse.click(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"])
+        page.wait_for_function("() => { const i = document.getElementById('frame');"
+                               " return i.complete && i.naturalWidth > 0; }", timeout=20_000)
+        label = page.inner_text("#frame-label")
+        k = int(label.split()[1].rstrip(","))
+        assert 50 <= k <= 70, label  # the middle of 120 frames
+        before = float(page.get_attribute("#celerity", "data-value"))
+        assert before == pytest.approx(-0.031, abs=0.005)  # dragged toward 0 by the stain
+        page.locator(f"#tracks tbody tr[data-track='{stain}'] button").click()
+        page.wait_for_function("() => document.querySelector('#corrections li').textContent.includes('excluded')",
+                               timeout=20_000)
+        after = float(page.get_attribute("#celerity", "data-value"))
+        assert after == pytest.approx(-0.05, rel=0.03)  # the synthetic movie's truth
+        assert page.inner_text("#celerity") == f"{after:.4f}"
+        page.reload()
+        page.wait_for_selector("#tracks tbody tr.excluded", timeout=20_000)
+        assert "excluded track" in page.inner_text("#corrections")
+        assert page.evaluate("document.documentElement.scrollWidth") <= 1366
     assert errors == []
 
 
@@ -269,20 +279,14 @@ def test_overlay_plays_in_chromium(analysis, tmp_path, name):
     video = write_overlay(analysis, tmp_path / name, slowdown=5)
     page_file = tmp_path / "play.html"
     page_file.write_text(f'<!DOCTYPE html><video id="v" src="{name}" muted playsinline></video>')
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=[
-            "--no-sandbox", "--disable-gpu", "--no-first-run", "--autoplay-policy=no-user-gesture-required"])
-        try:
-            page = browser.new_page()
-            page.goto(page_file.as_uri())
-            page.wait_for_function("() => document.getElementById('v').readyState >= 2", timeout=20_000)
-            size = page.evaluate("() => { const v = document.getElementById('v');"
-                                 " return [v.videoWidth, v.videoHeight]; }")
-            page.evaluate("() => { const v = document.getElementById('v'); v.playbackRate = 16; return v.play(); }")
-            page.wait_for_function("() => document.getElementById('v').ended", timeout=30_000)
-            error = page.evaluate("() => document.getElementById('v').error")
-        finally:
-            browser.close()
+    with sync_api.sync_playwright() as p, chromium_page(p, "--autoplay-policy=no-user-gesture-required") as page:
+        page.goto(page_file.as_uri())
+        page.wait_for_function("() => document.getElementById('v').readyState >= 2", timeout=20_000)
+        size = page.evaluate("() => { const v = document.getElementById('v');"
+                             " return [v.videoWidth, v.videoHeight]; }")
+        page.evaluate("() => { const v = document.getElementById('v'); v.playbackRate = 16; return v.play(); }")
+        page.wait_for_function("() => document.getElementById('v').ended", timeout=30_000)
+        error = page.evaluate("() => document.getElementById('v').error")
     import av
 
     with av.open(str(video)) as c:
@@ -442,48 +446,42 @@ def test_the_page_refuses_empty_boxes_and_stale_edits(copy, tmp_path):
     its number."""
     sync_api = pytest.importorskip("playwright.sync_api")
     errors: list[str] = []
-    with ReviewServer(copy) as srv, sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=[
-            "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"])
-        try:
-            page = browser.new_page(viewport={"width": 1366, "height": 768})
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(srv.url)
-            page.wait_for_selector("#tracks tbody tr", timeout=20_000)
-            assert not page.is_visible("#frame")  # not the broken-image alt text
-            st = json.loads(urllib.request.urlopen(srv.url + "api/run/run1/state").read())
-            page.fill("#merge-b", "1")
-            page.click("#merge")
-            assert 'the box "into" is empty' in page.inner_text("#error")
-            page.fill("#merge-b", "")
-            page.fill("#merge-a", "2")
-            page.click("#merge")
-            assert 'the box "merge track" is empty' in page.inner_text("#error")
-            page.fill("#merge-b", "1.5")
-            page.click("#merge")
-            assert '"1.5" in the box "merge track" is not a track number' in page.inner_text("#error")
-            assert not (copy / "corrections.json").exists()
-            tids = [t["plug_id"] for t in st["tracks"]]
-            page.locator(f"#tracks tbody tr[data-track='{tids[0]}'] button").click()
-            page.wait_for_selector("#tracks tbody tr.excluded", timeout=20_000)
-            _append_by_hand(copy, {"action": "window", "start_s": 0.1})
-            page.locator(f"#tracks tbody tr[data-track='{tids[1]}'] button").click()  # before the next poll
-            page.wait_for_function("() => document.getElementById('error').textContent.includes('changed on disk')",
-                                   timeout=20_000)
-            assert "kept the frames from 0.1 s on" in page.inner_text("#corrections")
-            kept = json.loads((copy / "corrections.json").read_text())["edits"]
-            assert [e["action"] for e in kept] == ["exclude", "window"]
-            _append_by_hand(copy, {"action": "no_plugs", "start_s": 0.2, "end_s": 0.25})  # the page idle
-            page.wait_for_function("() => document.getElementById('corrections').textContent.includes('not plugs')",
-                                   timeout=10_000)
-            assert "changed on disk" in page.inner_text("#notice")
-            page.locator(f"#tracks tbody tr[data-track='{tids[1]}'] button").click()
-            page.wait_for_function("() => document.querySelectorAll('#corrections li').length === 4", timeout=20_000)
-            assert page.inner_text("#error") == ""
-            kept = json.loads((copy / "corrections.json").read_text())["edits"]
-            assert [e["action"] for e in kept] == ["exclude", "window", "no_plugs", "exclude"]
-        finally:
-            browser.close()
+    with (ReviewServer(copy) as srv, sync_api.sync_playwright() as p,
+          chromium_page(p, "--disable-background-networking", errors=errors) as page):
+        page.goto(srv.url)
+        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+        assert not page.is_visible("#frame")  # not the broken-image alt text
+        st = json.loads(urllib.request.urlopen(srv.url + "api/run/run1/state").read())
+        page.fill("#merge-b", "1")
+        page.click("#merge")
+        assert 'the box "into" is empty' in page.inner_text("#error")
+        page.fill("#merge-b", "")
+        page.fill("#merge-a", "2")
+        page.click("#merge")
+        assert 'the box "merge track" is empty' in page.inner_text("#error")
+        page.fill("#merge-b", "1.5")
+        page.click("#merge")
+        assert '"1.5" in the box "merge track" is not a track number' in page.inner_text("#error")
+        assert not (copy / "corrections.json").exists()
+        tids = [t["plug_id"] for t in st["tracks"]]
+        page.locator(f"#tracks tbody tr[data-track='{tids[0]}'] button").click()
+        page.wait_for_selector("#tracks tbody tr.excluded", timeout=20_000)
+        _append_by_hand(copy, {"action": "window", "start_s": 0.1})
+        page.locator(f"#tracks tbody tr[data-track='{tids[1]}'] button").click()  # before the next poll
+        page.wait_for_function("() => document.getElementById('error').textContent.includes('changed on disk')",
+                               timeout=20_000)
+        assert "kept the frames from 0.1 s on" in page.inner_text("#corrections")
+        kept = json.loads((copy / "corrections.json").read_text())["edits"]
+        assert [e["action"] for e in kept] == ["exclude", "window"]
+        _append_by_hand(copy, {"action": "no_plugs", "start_s": 0.2, "end_s": 0.25})  # the page idle
+        page.wait_for_function("() => document.getElementById('corrections').textContent.includes('not plugs')",
+                               timeout=10_000)
+        assert "changed on disk" in page.inner_text("#notice")
+        page.locator(f"#tracks tbody tr[data-track='{tids[1]}'] button").click()
+        page.wait_for_function("() => document.querySelectorAll('#corrections li').length === 4", timeout=20_000)
+        assert page.inner_text("#error") == ""
+        kept = json.loads((copy / "corrections.json").read_text())["edits"]
+        assert [e["action"] for e in kept] == ["exclude", "window", "no_plugs", "exclude"]
     assert errors == []
 
 
@@ -494,23 +492,18 @@ def test_the_page_shows_the_oscillation_and_every_track_s_number(tmp_path):
     sync_api = pytest.importorskip("playwright.sync_api")
     movie = synthesize(SynthConfig(n_frames=200, seed=4, regime="oscillating"), tmp_path / "m", fmt="tiff").movie
     gp.analyze(movie).save(tmp_path / "osc", figures=False, report=False)
-    with ReviewServer(tmp_path / "osc") as srv, sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=["--no-sandbox", "--disable-gpu"])
-        try:
-            page = browser.new_page(viewport={"width": 1366, "height": 768})
-            page.goto(srv.url)
-            page.wait_for_selector("#tracks tbody tr", timeout=20_000)
-            st = json.loads(urllib.request.urlopen(srv.url + "api/run/osc/state").read())["measures"]
-            assert st["regime"] == "oscillating" and st["oscillation_frequency_hz"]
-            f = st["oscillation_frequency_hz"]
-            assert float(page.get_attribute("#frequency", "data-value")) == pytest.approx(f)
-            assert page.inner_text("#frequency") == f"{f:.2f}"
-            assert page.inner_text("#amplitude") == f"{st['oscillation_amplitude_mm']:.2f}"
-            edges = json.loads(urllib.request.urlopen(srv.url + "api/run/osc/state").read())["edges"]
-            assert any(all(z is None for z in e["top"]) for e in edges.values())  # the case is there
-            labels = page.evaluate("() => { const out = []; const ctx = document.getElementById('diagram')"
-                                   ".getContext('2d'); const f = ctx.fillText.bind(ctx); ctx.fillText = (t, x, y) => "
-                                   "{ out.push(String(t)); f(t, x, y); }; draw(); return out; }")
-            assert set(edges) <= set(labels)
-        finally:
-            browser.close()
+    with ReviewServer(tmp_path / "osc") as srv, sync_api.sync_playwright() as p, chromium_page(p) as page:
+        page.goto(srv.url)
+        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+        st = json.loads(urllib.request.urlopen(srv.url + "api/run/osc/state").read())["measures"]
+        assert st["regime"] == "oscillating" and st["oscillation_frequency_hz"]
+        f = st["oscillation_frequency_hz"]
+        assert float(page.get_attribute("#frequency", "data-value")) == pytest.approx(f)
+        assert page.inner_text("#frequency") == f"{f:.2f}"
+        assert page.inner_text("#amplitude") == f"{st['oscillation_amplitude_mm']:.2f}"
+        edges = json.loads(urllib.request.urlopen(srv.url + "api/run/osc/state").read())["edges"]
+        assert any(all(z is None for z in e["top"]) for e in edges.values())  # the case is there
+        labels = page.evaluate("() => { const out = []; const ctx = document.getElementById('diagram')"
+                               ".getContext('2d'); const f = ctx.fillText.bind(ctx); ctx.fillText = (t, x, y) => "
+                               "{ out.push(String(t)); f(t, x, y); }; draw(); return out; }")
+        assert set(edges) <= set(labels)
