@@ -317,8 +317,8 @@ def _scale(tube: TubeGeometry, params: AnalysisParams,
     return (*_calibrated_scale(cal, tube, info, from_tube, params.tube_diameter_mm, bore), bore)
 
 
-#: the contents' change at the frame's sides, as a share of the most they change, above which the tube is cut by
-#: the frame (a whole tube: 0-0.002 in the sample; cut by a region of interest: 0.88-0.93)
+#: the contents' change at a side of the frame the tube reaches, as a share of the most they change, above which the
+#: tube is cut by the frame (a whole tube: 0; the sample cut by a region of interest: 0.93)
 CUT_SIDE_SHARE = 0.3
 
 
@@ -665,9 +665,8 @@ def _still_objects(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion
             still.append(f"plug {tid} at {seen.min():.0f}-{seen.max():.0f} mm for {span:.2g} s")
     if not still:
         return []
-    return [f"{'; '.join(still[:5])}{' and more' if len(still) > 5 else ''}: "
-            f"(from the upstream end of the view) {'it stays' if len(still) == 1 else 'they stay'} put while the plugs "
-            f"move at "
+    return [f"{'; '.join(still[:5])}{' and more' if len(still) > 5 else ''} (from the upstream end of the view): "
+            f"{'it stays' if len(still) == 1 else 'they stay'} put while the plugs move at "
             f"{motion.celerity_m_s:+.3g} m/s — a still object over the tube (a clamp, a label, a fitting, the tube's "
             "end)? Measured as plugs, they bias the lengths: exclude them (grainplug review, or Corrections in "
             "Python) or leave them out with roi="]
