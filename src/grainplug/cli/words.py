@@ -17,7 +17,7 @@ import click
 
 #: library keywords whose option has another name
 ALIASES = {"start_frame": "start", "start_s": "start", "end_frame": "end", "end_s": "end", "out_dir": "out",
-           "base_pressure_pa": "base_pressure", "n_cells": "n_cells"}
+           "base_pressure_pa": "base_pressure"}
 
 # a keyword, ``=``, and its value if one follows at once: True, a quoted word, a tuple, a number or a word
 _KEYWORD = re.compile(r"(?<![\w.\-])([a-z][a-z0-9_]*)=(True\b|\"[^\"]*\"|'[^']*'|\([^)]*\)|[\w.+-]+)?")
