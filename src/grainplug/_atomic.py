@@ -177,17 +177,14 @@ def _carry(src: Path, dst: Path) -> None:
             shutil.copy2(src, dst)
 
 
-def _cwd_inside(folder: Path) -> Path | None:
-    """Where this process's current folder is inside ``folder`` (relative to it), or None when it is not
-    there (or is gone)."""
+def cwd_inside(folder: Path) -> bool:
+    """Whether this process's current folder is ``folder`` or inside it (False when it is gone)."""
     try:
         cwd = Path.cwd()
     except OSError:
-        return None
+        return False
     folder = folder.resolve()
-    if cwd == folder or folder in cwd.parents:
-        return cwd.relative_to(folder)
-    return None
+    return cwd == folder or folder in cwd.parents
 
 
 def is_complete(folder: str | Path) -> bool:

@@ -660,7 +660,7 @@ def _still_objects(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion
         ok = np.isfinite(edge)
         if speed * span < STILL_MIN_TRAIN_PX * mm_per_px or ok.sum() < 2 or np.ptp(t[ok]) <= 0:
             continue
-        if abs(float(np.polyfit(t[ok], edge[ok], 1)[0])) * span <= STILL_SHARE * speed * span:
+        if abs(float(np.polyfit(t[ok], edge[ok], 1)[0])) <= STILL_SHARE * speed:
             seen = np.concatenate([top[np.isfinite(top)], bottom[np.isfinite(bottom)]])
             still.append(f"plug {tid} at {seen.min():.0f}-{seen.max():.0f} mm for {span:.2g} s")
     if not still:
@@ -772,9 +772,7 @@ def _measures(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, bac
               mm_per_px: float, scale_rel_sd: float,
               params: AnalysisParams) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity and oscillation of the plug train, plug and bubble lengths; or why there are none."""
-    if not norm.two_phase and _weakly_two(norm) and not (
-            norm.averaged_eta is not None and norm.averaged_eta < norm.separation_eta - 0.05):
-        # (averaging along the tube pulling the levels together says they are short things, grains, not plugs)
+    if not norm.two_phase and _weakly_two(norm):
         averaged = ("" if norm.averaged_eta is None else
                     f"; {norm.averaged_eta:.2f} averaged along the tube, {CONFIRMED_ETA:g} needed")
         return None, None, (f"no plugs: the tube seems to hold a single phase ({_single_phase(norm, background_level)})"
@@ -830,11 +828,17 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
     return DiagramMeasures(norm, runs, links, motion, lengths, statement)
 
 
+#: a separation that averaging along the tube lowers by more than this is of short things (falling grains), not plugs
+AVERAGED_LOSS = 0.05
+
+
 def _weakly_two(norm: Normalized) -> bool:
     """Whether the diagram's two grey levels, too close to be called plugs and bubbles, are still more than one
-    level with noise (a separation of 2/pi = 0.64) and each hold a fair share of it."""
+    level with noise (a separation of 2/pi = 0.64), each hold a fair share of it, and do not part less once
+    averaged along the tube."""
     return (norm.separation_eta >= LOW_SEPARATION_ETA
-            and MIN_CLASS_FRACTION <= norm.plug_fraction <= 1 - MIN_CLASS_FRACTION)
+            and MIN_CLASS_FRACTION <= norm.plug_fraction <= 1 - MIN_CLASS_FRACTION
+            and not (norm.averaged_eta is not None and norm.averaged_eta < norm.separation_eta - AVERAGED_LOSS))
 
 
 def _confirm_px(min_plug_mm: float, mm_per_px: float) -> int:

@@ -707,18 +707,18 @@ def remeasure(folder: Path, no_figures: bool, as_json: bool) -> None:
     The measures are recomputed from the detected plugs without reading the movie; without a
     corrections file the detection is restored as it was.
     """
-    from .._atomic import _cwd_inside
+    from .._atomic import cwd_inside
     from ..corrections import replayed
     from ..outputs import remeasure as run_remeasure
 
     if not folder.is_dir():
         raise ParameterError(f"{folder} is not a folder: give the --out folder of an analysis")
-    here = _cwd_inside(folder)  # `remeasure .`: the shell stays in the folder replaced
+    here = cwd_inside(folder)  # `remeasure .`: the shell stays in the folder replaced
     res = run_remeasure(folder, figures=not no_figures, report=not no_figures)
     s = res.summary
     for line in res.warnings:  # as analyze prints them: an edit not applied is said here, not only in the files
         say_warning(line)
-    if here is not None:
+    if here:
         err_console.print(f"note: {escape(str(folder))} was replaced whole by its new version: a shell in it still "
                           "sees the old, removed folder — `cd .` to see the new one", highlight=False, soft_wrap=True)
     if as_json:

@@ -107,10 +107,14 @@ def _result_id(folder: Path) -> str:
     return f"{st.st_ino}-{st.st_size}-{st.st_mtime_ns}"
 
 
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()[:16]
+
+
 def _corrections_id(folder: Path) -> str:
     """What ``corrections.json`` holds: a hash of its bytes ("none" without the file)."""
     try:
-        return hashlib.sha256((folder / CORRECTIONS_FILE).read_bytes()).hexdigest()[:16]
+        return _digest((folder / CORRECTIONS_FILE).read_bytes())
     except FileNotFoundError:
         return "none"
     except OSError as exc:
@@ -316,7 +320,7 @@ class ReviewSession:
             with atomic_file(run.folder / CORRECTIONS_FILE) as tmp:
                 Path(tmp).write_text(text, encoding="utf-8")
             run.result, run.corrections = new, corr
-            run.corrections_id = hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+            run.corrections_id = _digest(text.encode("utf-8"))
 
     def edit(self, name: str, edit: dict[str, object], *, version: object = None) -> None:
         """Add ``edit`` (``{"action": ..., ...}``) to the run's corrections, as they are on disk now.
