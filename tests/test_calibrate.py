@@ -55,7 +55,7 @@ def test_calibrate_writes_the_scale_and_a_figure(tmp_path, capsys):
     assert data["mm_per_px"] == pytest.approx(2.0 / 32.0, rel=2e-3)
     assert data["tilt_deg"] == pytest.approx(4.0, abs=0.1)  # turned counter-clockwise on the screen
     assert data["image"]["sha256"] and data["image"]["name"] == "board.tif" and data["grainplug_version"]
-    assert out.with_suffix(".png").stat().st_size > 10_000
+    assert out.with_name(f"{out.stem}_points.png").stat().st_size > 10_000
     shown = re.search(r"^scale +([0-9.]+) mm/px ± ([0-9.]+) %", printed, re.M)
     assert shown and float(shown[1]) == pytest.approx(2.0 / 32.0, rel=2e-3) and float(shown[2]) < 0.5
     cal = gp.load_calibration(out)
@@ -206,7 +206,7 @@ def test_calibrate_refuses_images_without_a_pattern(tmp_path, capsys, what, pitc
     assert main(["calibrate", path, "--pitch-mm", str(pitch), "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: no checkerboard, dot grid, graph paper or ruler was found")
-    assert "unexpected" not in err and not out.exists() and not out.with_suffix(".png").exists()
+    assert "unexpected" not in err and not out.exists() and not out.with_name(f"{out.stem}_points.png").exists()
 
 
 @pytest.mark.parametrize("sample", ["pyidi/data_showcase.cih", "pyMRAW/beam.cihx"])

@@ -36,7 +36,8 @@ from .errors import GrainplugError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["OutputPlaceError", "atomic_directory", "atomic_file", "check_output_place", "is_complete"]
+__all__ = ["OutputPlaceError", "atomic_directory", "atomic_file", "check_output_place", "is_complete",
+           "refuse_overwriting_inputs"]
 
 #: a folder holding this file was written by grainplug (an analysis or a campaign)
 MARKER = ".grainplug"
@@ -92,11 +93,13 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
     if p.is_symlink() and not p.exists():
         raise OutputPlaceError(f"{p} is a symbolic link to nothing (or a loop of links) — give another output folder")
     for src in inputs:
-        s = Path(src).expanduser().resolve(strict=False)
-        if s == resolved:
-            raise OutputPlaceError(f"{p} is the input itself — give another output folder, the movie would be lost")
+        s = _resolved(src)
+        if s is None:
+            continue
+        if _same_place(s, resolved):
+            raise OutputPlaceError(f"{p} is the input itself — give another output folder, the input would be lost")
         if replace and resolved in s.parents:
-            raise OutputPlaceError(f"{p} holds the input {s.name}: replacing it would delete the movie — "
+            raise OutputPlaceError(f"{p} holds the input {s.name}: replacing it would delete it — "
                                    "give another output folder")
     for parent in [resolved, *resolved.parents]:
         if parent.exists() and not parent.is_dir():
@@ -118,6 +121,45 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
             raise OutputPlaceError(f"{p} holds what grainplug did not write there: {names}{why} — move it out "
                                    "first (the folder is replaced whole), or give another output folder")
     return p
+
+
+def _resolved(path: str | Path | None) -> Path | None:
+    """``path`` made absolute with its links followed (None for no path; a link loop as it is)."""
+    if path is None or str(path).strip() == "":
+        return None
+    p = Path(path).expanduser()
+    try:
+        return p.resolve(strict=False)
+    except (RuntimeError, OSError):  # a loop of links: compared by its own name
+        return Path(os.path.abspath(p))
+
+
+def _same_place(a: Path, b: Path) -> bool:
+    """Whether two paths name one file: the same path once links are followed, or hard links of one file."""
+    if a == b:
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):
+        return False
+
+
+def refuse_overwriting_inputs(outputs: Iterable[str | Path], inputs: Iterable[str | Path | None]) -> None:
+    """Raise :class:`OutputPlaceError` when one of ``outputs`` (files about to be written) is one of ``inputs``.
+
+    Called before anything is written, so that no command ever writes over what it reads: a movie, a
+    calibration image, a manifest, a background, a settings file (the same file by another path, a
+    symbolic or a hard link, included).
+    """
+    ins = [(src, r) for src in inputs if (r := _resolved(src)) is not None]
+    for out in outputs:
+        o = _resolved(out)
+        if o is None:
+            continue
+        for src, r in ins:
+            if _same_place(o, r):
+                raise OutputPlaceError(f"{out} would be written over the input {src} — give another output name "
+                                       "(nothing was written)")
 
 
 def _foreign(folder: Path, entries: list[Path], keeps: set[str]) -> list[str]:
@@ -361,15 +403,17 @@ def _new_file(parent: Path, prefix: str, suffix: str) -> Path:
 
 
 @contextlib.contextmanager
-def atomic_file(path: str | Path) -> Iterator[Path]:
+def atomic_file(path: str | Path, *, inputs: Iterable[str | Path | None] = ()) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; it replaces ``path`` when the block ends well.
 
     The temporary name keeps the suffix, so writers that pick a format from the
-    name (matplotlib, tifffile) still do.
+    name (matplotlib, tifffile) still do. ``inputs``: files the output was made from; ``path`` must not
+    be one of them (:func:`refuse_overwriting_inputs`).
     """
     dest = Path(path)
     if str(path).strip() == "":
         raise OutputPlaceError("the output file name is empty — give a file name")
+    refuse_overwriting_inputs([dest], inputs)
     if dest.is_dir():
         raise OutputPlaceError(f"{dest} is a folder — give a file name")
     try:

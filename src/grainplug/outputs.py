@@ -23,6 +23,7 @@ from .plotting.options import FIGURE_FORMATS, PUBLICATION, FigureOptions  # noqa
 from .store import RESULT_FILE, write_result
 
 if TYPE_CHECKING:
+    from .params import AnalysisParams
     from .plotting.worker import FigureWorker
     from .result import AnalysisResult
 
@@ -148,6 +149,18 @@ def draw_figures(res: AnalysisResult, folder: str | Path, options: FigureOptions
     return paths
 
 
+def input_files(movie: str | Path | None, p: AnalysisParams) -> list[str]:
+    """The files an analysis reads: the movie, the calibration file and the background of ``p`` (an output
+    folder replaced whole must hold none of them)."""
+    files: list[object] = [movie]
+    if p.calibration is not None:
+        files.append(getattr(p.calibration, "source", None))
+    if p.background is not None:
+        identity = getattr(p.background, "identity", None)
+        files.append(identity.get("path") if isinstance(identity, dict) else None)
+    return [str(f) for f in files if f]
+
+
 def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = True,
                   report: bool = True, extra: dict | None = None,
                   figure_worker: FigureWorker | None = None,
@@ -162,11 +175,11 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
     """
     t_write = time.perf_counter()
     written: dict[str, Path] = {}
-    source = res.input.get("path") if isinstance(res.input, dict) else None
     from .corrections import CORRECTIONS_FILE
 
+    source = res.input.get("path") if isinstance(res.input, dict) else None
     keeps = (CORRECTIONS_FILE,) if res.corrections is not None else ()
-    with atomic_directory(out_dir, written, replace=True, inputs=[source] if source else (), keeps=keeps,
+    with atomic_directory(out_dir, written, replace=True, inputs=input_files(source, res.params), keeps=keeps,
                           carry=carry) as tmp:
         summary = res.summary
         summary.update(extra or {})

@@ -143,7 +143,7 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
     every : int
         Keep one frame in ``every`` (a shorter video of a long record).
     """
-    from ._atomic import atomic_file
+    from ._atomic import atomic_file, refuse_overwriting_inputs
     from .readers import open_movie, pyav_available
     from .store import load_result
 
@@ -166,6 +166,7 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
     if kind == ".mp4" and not pyav_available():
         raise ParameterError('an MP4 (H.264) overlay needs PyAV: pip install "grainplug[video]", or give a name '
                              "ending in .webm", param="out")
+    refuse_overwriting_inputs([target], [path])  # an overlay named as the movie would replace it
     top = float((1 << int(res.info.bit_depth)) - 1) if res.info.bit_depth else 255.0
     p = res.params
     try:
@@ -173,7 +174,7 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
     except (GrainplugError, OSError) as exc:
         raise GrainplugError(f"cannot open the movie {path} ({exc}) — the overlay draws on the analysed movie, "
                              "put it back where it was") from None
-    with movie, atomic_file(target) as tmp:
+    with movie, atomic_file(target, inputs=[path]) as tmp:
         from .pipeline import window_start
 
         offset = window_start(movie, p)

@@ -9,6 +9,7 @@ import dataclasses
 import hashlib
 import json
 import logging
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -129,11 +130,29 @@ def calibrate_file(path: str | Path, *, pitch_mm: float, pattern: str = "auto") 
                            identity=image_identity(p))
 
 
-def save_calibration(cal: Calibration, path: str | Path) -> Path:
-    """Write ``calibration.json`` atomically (with the grainplug version); returns its path."""
+def calibration_figure_path(path: str | Path) -> Path:
+    """Where ``grainplug calibrate`` draws the points it found, beside the calibration file ``path``:
+    ``calibration.json`` -> ``calibration_points.png`` (a name no calibration photo is likely to have)."""
+    p = Path(path)
+    return p.with_name(f"{p.stem}_points.png")
+
+
+def _image_path(cal: Calibration) -> str | None:
+    """The calibration image's path as it was read (None when the calibration came from an array)."""
+    identity = cal.image if isinstance(cal.image, dict) else {}
+    path = identity.get("path")
+    return str(path) if path else None
+
+
+def save_calibration(cal: Calibration, path: str | Path, *, inputs: Iterable[str | Path] = ()) -> Path:
+    """Write ``calibration.json`` atomically (with the grainplug version); returns its path.
+
+    Refused (:class:`grainplug._atomic.OutputPlaceError`) when ``path`` is the calibration image or one of
+    ``inputs``: a calibration never replaces the photo it was measured on.
+    """
     dest = Path(path)
     data = {**cal.as_dict(), "grainplug_version": __version__}
-    with atomic_file(dest) as tmp:
+    with atomic_file(dest, inputs=[_image_path(cal), *inputs]) as tmp:
         tmp.write_text(json.dumps(data, indent=2) + "\n")
     return dest
 
@@ -164,9 +183,14 @@ def load_calibration(path: str | Path) -> Calibration:
     return dataclasses.replace(cal, source=str(p.resolve()))
 
 
-def draw_calibration(image: np.ndarray, cal: Calibration, path: str | Path) -> Path:
-    """The image with the points found and the scale, for the user to check (PNG, atomic)."""
+def draw_calibration(image: np.ndarray, cal: Calibration, path: str | Path, *,
+                     inputs: Iterable[str | Path] = ()) -> Path:
+    """The image with the points found and the scale, for the user to check (PNG, atomic; never written over
+    the calibration image or one of ``inputs``)."""
+    from .._atomic import refuse_overwriting_inputs
     from ..plotting._figure import new_figure
+
+    refuse_overwriting_inputs([path], [_image_path(cal), *inputs])  # before the figure is drawn
 
     img = np.asarray(image, dtype=np.float64)
     if img.ndim == 3:
@@ -185,6 +209,6 @@ def draw_calibration(image: np.ndarray, cal: Calibration, path: str | Path) -> P
                  f"tilt {cal.tilt_deg:+.2f}°, variation {100 * cal.scale_variation:.2g} %", fontsize=9)
     ax.set_axis_off()
     dest = Path(path)
-    with atomic_file(dest) as tmp:
+    with atomic_file(dest, inputs=[_image_path(cal), *inputs]) as tmp:
         fig.savefig(tmp, dpi=110, bbox_inches="tight")
     return dest

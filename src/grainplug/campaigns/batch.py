@@ -333,7 +333,9 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     from .._atomic import OutputPlaceError, check_output_place
 
     specs = read_manifest(manifest)
-    out = check_output_place(out_dir, inputs=[manifest, *(s.movie for s in specs)], replace=False)
+    inputs = [Path(manifest), *(f for s in specs for f in _spec_inputs(s))]
+    out = check_output_place(out_dir, inputs=inputs, replace=False)
+    _refuse_inputs_in_campaign(out, inputs)
     if workers < 1:
         raise ParameterError("must be at least 1", param="workers")
     client = _dask_client(scheduler) if scheduler else None  # refuse an unreachable scheduler before writing
@@ -559,6 +561,32 @@ def _pool_pass(specs: list[RunSpec], out: str, *, workers: int, done: Callable[[
         raise
     pool.shutdown(wait=True)
     return finished, False
+
+
+#: the files a campaign writes at its folder's top, replaced one by one at each batch (its figures too)
+CAMPAIGN_FILES = ("campaign.csv", "campaign.parquet", "campaign.schema.json", "fits.json", "report.html")
+#: suffixes of the campaign's figures (written at the folder's top)
+FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def _spec_inputs(spec: RunSpec) -> list[Path]:
+    """The files one run reads: its movie, calibration file and background."""
+    from ..outputs import input_files
+
+    return [Path(f) for f in input_files(spec.movie, spec.params)]
+
+
+def _refuse_inputs_in_campaign(out: Path, inputs: list[Path]) -> None:
+    """A campaign replaces ``runs/*`` whole and its own files at the top: no input may be among them."""
+    top = out.expanduser().resolve()
+    for src in inputs:
+        s = src.expanduser().resolve()
+        written = (s.parent == top and (s.name in CAMPAIGN_FILES or s.suffix.lower() in FIGURE_SUFFIXES))
+        if written or (top / "runs") in s.parents:
+            from .._atomic import OutputPlaceError
+
+            raise OutputPlaceError(f"{src} is where the campaign writes its own outputs in {out} — move it out of "
+                                   "the way, or give another --out (nothing was written)")
 
 
 def _stop(pool: ProcessPoolExecutor) -> None:

@@ -24,14 +24,17 @@ def main(argv: list[str] | None = None) -> int:
 def _main(args: list[str]) -> int:
     import click
 
-    from ..errors import GrainplugError, ParameterError
+    from ..errors import GrainplugError, MovieError, ParameterError
     from .app import cli
+    from .logs import CommandLog
     from .words import ALIASES, as_flags, option_flags
 
     debug = "--debug" in args
-    quiet = not ({"--debug", "--verbose", "-v"} & set(args))
+    verbose = bool({"--verbose", "-v"} & set(args))
+    quiet = not (debug or verbose)
+    logs = CommandLog(debug=debug, verbose=verbose)  # only grainplug speaks on stderr unless --debug
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), logs:
             if quiet:  # numpy's and libraries' warnings are not the user's business; --verbose shows them
                 warnings.simplefilter("ignore")
             cli.main(args=args, prog_name="grainplug", standalone_mode=False)
@@ -60,7 +63,9 @@ def _main(args: list[str]) -> int:
     except GrainplugError as exc:
         if debug:
             raise
-        click.echo(f"error: {as_flags(str(exc), option_flags(cli))}", err=True)
+        # what a library said of a file it could not read goes with grainplug's line about that file
+        text = logs.quote(str(exc)) if isinstance(exc, MovieError) else str(exc)
+        click.echo(f"error: {as_flags(text, option_flags(cli))}", err=True)
         return exc.exit_code
     except KeyboardInterrupt:
         click.echo("error: interrupted", err=True)
@@ -78,7 +83,7 @@ def _main(args: list[str]) -> int:
         if debug:
             raise
         click.echo(
-            f"error: unexpected {type(exc).__name__}: {exc} — rerun with --debug and report it",
+            f"error: unexpected {type(exc).__name__}: {logs.quote(str(exc))} — rerun with --debug and report it",
             err=True,
         )
         return 1

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -65,10 +64,8 @@ def cli(debug: bool, verbose: bool) -> None:
     Positions are in mm along the tube from the top of the field of view,
     increasing with the flow; celerities in m/s, positive downstream.
     """
-    # without --verbose or --debug, libraries' log lines stay quiet: what matters reaches the user
-    # as grainplug's own one-line warnings and errors
-    level = logging.DEBUG if debug else logging.INFO if verbose else logging.ERROR
-    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    # --debug and --verbose are read by grainplug.cli.main, which sets up logging for the command
+    # (grainplug.cli.logs): without --debug, no other library's log line reaches the user
 
 
 OVERWRITE_HELP = ("Replace --out if it holds an earlier result (the whole folder; refused if it holds anything "
@@ -193,7 +190,8 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
 @click.option("--pattern", type=click.Choice(["auto", "checkerboard", "dots", "graph", "ruler"]), default="auto",
               show_default=True, help="The pattern in the image (graph: graph paper; ruler: a ruler's ticks).")
 @click.option("--out", "out", type=click.Path(path_type=Path), default=Path("calibration.json"), show_default=True,
-              help="Where to write the calibration; a PNG of what was found is written beside it.")
+              help="Where to write the calibration; a PNG of what was found is written beside it "
+                   "(OUT's name with _points.png: calibration_points.png).")
 @click.option("--json", "as_json", is_flag=True, help="Print the calibration as JSON.")
 def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bool) -> None:
     """The scale (mm per pixel) from IMAGE of a checkerboard, a dot grid, graph paper or a ruler held at the
@@ -201,18 +199,27 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 
     IMAGE is a picture (PNG, TIFF, JPEG, BMP) or a short movie of the pattern taken with the
     camera and lens of the experiment (its first frames are averaged). Writes OUT (JSON, with the
-    image's fingerprint) and OUT with a .png suffix: the image with the points found. Use it with
-    `grainplug analyze MOVIE --calibration OUT`.
+    image's fingerprint) and OUT_points.png: the image with the points found. Neither may be IMAGE
+    itself. Use it with `grainplug analyze MOVIE --calibration OUT`.
     """
-    from ..calibration.files import calibrate_file, draw_calibration, read_calibration_image, save_calibration
+    from .._atomic import refuse_overwriting_inputs
+    from ..calibration.files import (
+        calibrate_file,
+        calibration_figure_path,
+        draw_calibration,
+        read_calibration_image,
+        save_calibration,
+    )
 
     if not (pitch_mm > 0 and pitch_mm < 1e4):
         raise ParameterError(f"--pitch-mm must be a length between 0 and 10 m, got {pitch_mm}")
     if out.suffix.lower() != ".json":
         raise ParameterError(f"--out must name a .json file, got {out}")
+    figure_path = calibration_figure_path(out)
+    refuse_overwriting_inputs([out, figure_path], [image])  # before anything is read or written
     cal = calibrate_file(image, pitch_mm=pitch_mm, pattern=pattern)
-    save_calibration(cal, out)
-    figure = draw_calibration(read_calibration_image(image), cal, out.with_suffix(".png"))
+    save_calibration(cal, out, inputs=[image])
+    figure = draw_calibration(read_calibration_image(image), cal, figure_path, inputs=[image])
     if as_json:
         _echo_json(cal.as_dict())
     else:
@@ -299,7 +306,9 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     from ..params import AnalysisParams
     from ..plotting.worker import FigureWorker
 
-    check_output_place(out, inputs=[movie], replace=True)  # before the analysis, not after it
+    # before the analysis, not after it: the folder is replaced whole, so it must hold none of the inputs
+    check_output_place(out, inputs=[p for p in (movie, calibration, background, config) if p is not None],
+                       replace=True)
     _refuse_existing(out, overwrite)
     # a setting of grainplug.toml gives way to the command line: --figure-formats over publication = true, and
     # --publication over figure_formats = "..."

@@ -72,6 +72,8 @@ def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float
 
     p = Path(path).expanduser()
     if not p.exists():
+        if p.is_symlink():
+            raise MovieError(f"{p} is a symbolic link to nothing (or a loop of links) — give the movie's own path")
         raise MovieError(f"no such file or folder: {p} — check the path")
     if p.is_dir():
         return ImageFolderMovie(p, glob=glob, fps=fps)

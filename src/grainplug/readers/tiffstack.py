@@ -43,6 +43,20 @@ class TiffStackMovie(Movie):
 
     def __init__(self, path: Path, *, fps: float | None = None) -> None:
         try:
+            self._open(path, fps=fps)
+        except MovieError:
+            raise
+        except Exception as exc:  # tifffile raises many types on a malformed file (RuntimeError: incompatible
+            # keyframe, for pages of another layout than the first's)
+            tif = getattr(self, "_tif", None)
+            if tif is not None:
+                tif.close()
+            raise MovieError(f"{path}: its pages cannot be read as one movie ({type(exc).__name__}: {exc}) — "
+                             "a movie's frames must all have one size, bit depth and layout: export them "
+                             "again") from None
+
+    def _open(self, path: Path, *, fps: float | None) -> None:
+        try:
             self._tif = tifffile.TiffFile(str(path))
         except (tifffile.TiffFileError, ValueError, OSError) as exc:
             with open(path, "rb") as fh:

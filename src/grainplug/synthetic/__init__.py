@@ -134,9 +134,14 @@ def synthesize(config: SynthConfig, out_dir: str | Path, *, fmt: str = "tiff",
     if fmt not in FORMATS:
         raise ParameterError(f"unknown format {fmt!r}: use one of {', '.join(FORMATS)}", param="fmt")
     require_writer(fmt)  # before anything is written
-    out = Path(out_dir)
+    from .._atomic import OutputPlaceError, check_output_place
+
+    out = check_output_place(out_dir, replace=False)  # a file, a loop of links: refused before anything is written
     created = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputPlaceError(f"cannot create {out}: {exc.strerror or exc} — choose another output folder") from None
     renderer = Renderer(config)
     path = movie_path(out, fmt, stem)
     meta = {"software": f"grainplug {__version__} synthetic", "seed": config.seed}
