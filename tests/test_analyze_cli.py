@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from test_cli_basics import assert_one_line_error, run
 
-from grainplug.result import EDGE_SCHEMA, TABLES_SCHEMA_VERSION, TRACK_SCHEMA
+from grainplug.summary import EDGE_SCHEMA, TABLES_SCHEMA_VERSION, TRACK_SCHEMA
 from grainplug.synthetic import SynthConfig, synthesize
 
 

@@ -39,7 +39,7 @@ def test_readme_python_examples_run(tmp_path, monkeypatch):
 
 
 def test_the_tables_documented_are_the_tables_written():
-    from grainplug.result import EDGE_SCHEMA, TRACK_SCHEMA
+    from grainplug.summary import EDGE_SCHEMA, TRACK_SCHEMA
 
     text = (ROOT / "docs" / "analysis.md").read_text()
     for name, schema in (("plug_edges.csv", EDGE_SCHEMA), ("tracks.csv", TRACK_SCHEMA)):

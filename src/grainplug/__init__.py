@@ -41,7 +41,7 @@ _EXPORTS = {
     "AnalysisParams": "grainplug.params",
     "FLOW_DIRECTIONS": "grainplug.params",
     "AnalysisResult": "grainplug.result",
-    "load_result": "grainplug.store",
+    "load_result": "grainplug.result",
     "open_movie": "grainplug.readers",
     "Movie": "grainplug.readers",
     "MovieInfo": "grainplug.readers",
@@ -53,7 +53,7 @@ _EXPORTS = {
     "simulate": "grainplug.simulation",
     "Corrections": "grainplug.corrections",
     "apply_corrections": "grainplug.corrections",
-    "remeasure": "grainplug.outputs",
+    "remeasure": "grainplug.workflows",
     "FigureOptions": "grainplug.plotting.options",
     "PUBLICATION": "grainplug.plotting.options",
     "SimulationParams": "grainplug.simulation",
@@ -108,7 +108,6 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the names as if imported eagerl
     from .params import FLOW_DIRECTIONS, AnalysisParams
     from .pipeline import analyze
     from .readers import Movie, MovieInfo, open_movie
-    from .result import AnalysisResult
+    from .result import AnalysisResult, load_result
     from .stability import ModelParams, analyze_stability, sweep
-    from .store import load_result
     from .synthetic import SynthConfig, synthesize

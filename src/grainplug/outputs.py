@@ -10,7 +10,6 @@ import csv
 import io
 import json
 import logging
-import os
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -19,8 +18,10 @@ import numpy as np
 
 from . import jsonio
 from ._atomic import atomic_directory
+from .plotting.files import FIGURE_FILES, draw_figures, figure_files, figures_of, save_figure  # noqa: F401 - re-exported
 from .plotting.options import FIGURE_FORMATS, PUBLICATION, FigureOptions  # noqa: F401 - PUBLICATION re-exported
 from .store import RESULT_FILE, write_result
+from .summary import EDGE_SCHEMA, TRACK_COLUMNS, track_rows
 
 if TYPE_CHECKING:
     from .params import AnalysisParams
@@ -34,16 +35,13 @@ FILES = {
     "edges": "plug_edges.csv",
     "tracks": "tracks.csv",
     "diagram": "diagram.npz",
-    "fig_diagram": "diagram.png",
-    "fig_spectrum": "spectrum.png",
-    "fig_frame": "frame.png",
+    **FIGURE_FILES,
     "result": RESULT_FILE,
 }
 
 
 def edges_table(res: AnalysisResult) -> str:
-    """CSV of the plug edges per frame (:data:`grainplug.result.EDGE_SCHEMA`)."""
-    from .result import EDGE_SCHEMA
+    """CSV of the plug edges per frame (:data:`grainplug.summary.EDGE_SCHEMA`)."""
 
     r = res.runs
     t = res.diagram.time_s[r.frame]
@@ -61,9 +59,8 @@ def edges_table(res: AnalysisResult) -> str:
 
 
 def tracks_table(res: AnalysisResult) -> str:
-    """CSV with one row per plug track (:func:`grainplug.result.track_rows`), empty where NaN; columns
-    and types in :data:`grainplug.result.TRACK_SCHEMA`."""
-    from .result import TRACK_COLUMNS, track_rows
+    """CSV with one row per plug track (:func:`grainplug.summary.track_rows`), empty where NaN; columns
+    and types in :data:`grainplug.summary.TRACK_SCHEMA`."""
 
     formats = {"first_time_s": "{:.6f}", "last_time_s": "{:.6f}", "celerity_m_s": "{:.6f}",
                "mean_length_mm": "{:.4f}", "median_length_mm": "{:.4f}"}
@@ -81,72 +78,6 @@ def tracks_table(res: AnalysisResult) -> str:
     for row in track_rows(res):
         w.writerow([cell(k, row[k]) for k in TRACK_COLUMNS])
     return buf.getvalue()
-
-
-def figures_of(res: AnalysisResult) -> list[str]:
-    """The figures a result has: the diagram, the annotated frame, the spectrum when it oscillates."""
-    keys = ["fig_diagram", "fig_frame"]
-    if res.motion is not None and res.motion.oscillation_frequency_hz:
-        keys.append("fig_spectrum")
-    return keys
-
-
-def save_figure(fig: object, folder: str | Path, name: str, options: FigureOptions | None = None) -> list[str]:
-    """Save ``fig`` as ``name`` (a ``.png`` name) in every format of ``options``; returns the file names."""
-    options = options or FigureOptions()
-    stem = Path(name).stem
-    names = []
-    # images drawn as the data's own pixels ("none"): so in SVG, whose viewers show them crisp; in PDF resampled
-    # at the figure's resolution instead, as PDF viewers (pdfium, Chrome's) smooth an image drawn larger
-    # than its pixels
-    unsampled = [im for ax in fig.axes for im in ax.get_images()  # type: ignore[attr-defined]
-                 if im.get_interpolation() == "none"]
-    for fmt in options.formats:
-        target = Path(folder) / f"{stem}.{fmt}"
-        for im in unsampled:
-            im.set_interpolation("nearest" if fmt == "pdf" else "none")
-        # PNG at zlib level 1: a fraction of the default's time, files ~15% larger
-        kw = {"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}
-        fig.savefig(target, dpi=options.dpi, format=fmt, **kw)  # type: ignore[attr-defined]
-        names.append(target.name)
-    for im in unsampled:
-        im.set_interpolation("none")
-    return names
-
-
-def figure_files(res: AnalysisResult, options: FigureOptions) -> dict[str, str]:
-    """Output key -> file name of every figure file ``options`` makes for ``res``."""
-    out = {}
-    for key in figures_of(res):
-        stem = Path(FILES[key]).stem
-        for fmt in options.formats:
-            out[key if fmt == "png" else f"{key}_{fmt}"] = f"{stem}.{fmt}"
-    return out
-
-
-def draw_figures(res: AnalysisResult, folder: str | Path, options: FigureOptions | None = None) -> list[Path]:
-    """Draw the figures of ``res`` into ``folder`` (in this process, no pyplot), in each format of ``options``."""
-    import contextlib
-
-    from .errors import ParameterError
-    from .plotting import plot_annotated_frame, plot_diagram, plot_spectrum
-
-    options = options or FigureOptions()
-    plots = {"fig_diagram": plot_diagram, "fig_frame": plot_annotated_frame, "fig_spectrum": plot_spectrum}
-    paths = []
-    with contextlib.ExitStack() as stack:
-        if options.style:
-            import matplotlib.style
-
-            try:
-                stack.enter_context(matplotlib.style.context(options.style))
-            except OSError:
-                raise ParameterError(f"{options.style!r} is neither the name of a matplotlib style "
-                                     "(matplotlib.style.available) nor a style file", param="style") from None
-        for key in figures_of(res):
-            names = save_figure(plots[key](res), folder, FILES[key], options)
-            paths.extend(Path(folder) / n for n in names)
-    return paths
 
 
 def input_files(movie: str | Path | None, p: AnalysisParams) -> list[str]:
@@ -229,34 +160,3 @@ def _output_key(name: str) -> str:
     if path.suffix.lstrip(".") in FIGURE_FORMATS and png in keys:
         return f"{keys[png]}_{path.suffix.lstrip('.')}"
     return path.stem
-
-
-def remeasure(folder: str | Path, *, figures: bool = True, report: bool = True) -> AnalysisResult:
-    """Reapply ``folder/corrections.json`` to the analysis saved in ``folder`` and rewrite its outputs.
-
-    The measures are recomputed from the detected tracks (the movie is not read); without a
-    corrections file, the detection is restored as it was. Returns the corrected result.
-
-    The folder is rewritten where it is, by its absolute path, so ``remeasure(".")`` from inside it
-    works (the process then finds itself in the new folder). What grainplug did not write there (a
-    user's notes) is kept in the new folder.
-    """
-    from .corrections import Corrections, apply_corrections
-    from .store import load_result, read_corrections
-
-    folder = Path(os.path.abspath(folder))  # "." names the folder by its name in its parent
-    res = load_result(folder)
-    corr = read_corrections(folder)
-    new = apply_corrections(res, corr if corr is not None else Corrections())
-    extra = {}
-    try:
-        old = json.loads((Path(folder) / FILES["summary"]).read_text())
-    except (OSError, ValueError):
-        old = {}
-    old = old if isinstance(old, dict) else {}
-    if isinstance(old.get("batch"), dict):
-        extra["batch"] = old["batch"]  # a campaign's run keeps its key
-    # the figures as they were written: their formats, resolution and style
-    write_outputs(new, folder, figures=figures, report=report, extra=extra,
-                  figure_options=FigureOptions.recorded(old), carry=True)
-    return new

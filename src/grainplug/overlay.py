@@ -145,7 +145,7 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
     """
     from ._atomic import atomic_file, refuse_overwriting_inputs
     from .readers import open_movie, pyav_available
-    from .store import load_result
+    from .result import load_result
 
     res = load_result(folder)
     if every < 1:

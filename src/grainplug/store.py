@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -21,24 +22,6 @@ from .errors import GrainplugError
 #: version of the layout of ``result.npz`` (2: corrections keep where their tracks were; 1 is read too)
 FORMAT_VERSION = 2
 RESULT_FILE = "result.npz"
-
-
-def _types() -> dict[str, type]:
-    from .calibration.background import Background
-    from .calibration.pattern import Calibration
-    from .calibration.tube import TubeGeometry
-    from .calibration.tube_model import BoreEstimate, WallMeasure
-    from .corrections import Corrections, Edit
-    from .diagram import Diagram, Normalized
-    from .measures import Lengths, Motion
-    from .params import AnalysisParams
-    from .plugs import Runs, Tracks
-    from .readers.base import MovieInfo
-    from .result import AnalysisResult
-
-    return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
-                                    Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate,
-                                    Background, Corrections, Edit)}
 
 
 def _encode(obj: Any, path: str, arrays: dict[str, np.ndarray]) -> Any:
@@ -94,8 +77,9 @@ def write_result(res: Any, path: str | Path) -> None:
         np.savez(fh, __tree__=np.array(json.dumps(meta)), **arrays)
 
 
-def read_result(path: str | Path) -> Any:
-    """Read an AnalysisResult written by :func:`write_result`."""
+def read_result(path: str | Path, types: Mapping[str, type]) -> Any:
+    """Read a result written by :func:`write_result`; ``types`` names the classes of its parts (the caller's:
+    :func:`grainplug.result.load_result` gives :class:`~grainplug.result.AnalysisResult`'s)."""
     p = Path(path)
     try:
         with np.load(p, allow_pickle=False) as data:
@@ -107,26 +91,16 @@ def read_result(path: str | Path) -> Any:
     if meta.get("format") != "grainplug-result" or meta.get("format_version", 0) > FORMAT_VERSION:
         raise GrainplugError(f"{p} was written by a newer grainplug (format {meta.get('format_version')}) "
                              "— upgrade grainplug to read it")
-    return _decode(meta["tree"], arrays, _types())
+    return _decode(meta["tree"], arrays, dict(types))
 
 
-def load_result(folder: str | Path) -> Any:
-    """Read back an analysis saved by :meth:`AnalysisResult.save` or ``grainplug analyze``.
+def result_file(folder: str | Path) -> Path:
+    """The ``result.npz`` of an analysis folder (or the file itself, or the folder of another of its files).
 
-    Parameters
-    ----------
-    folder : str or Path
-        The output folder (or its ``result.npz``).
-
-    Returns
-    -------
-    AnalysisResult
-        Equal, field by field, to the result that was saved.
-
-    Examples
-    --------
-    >>> res = gp.load_result("out/run1")   # doctest: +SKIP
-    >>> res.tracks.head()                  # doctest: +SKIP
+    Raises
+    ------
+    GrainplugError
+        When there is none, saying what to pass.
     """
     p = Path(folder).expanduser()
     f = p / RESULT_FILE if p.is_dir() else p
@@ -137,7 +111,7 @@ def load_result(folder: str | Path) -> Any:
                 if (p / "summary.json").exists() else "")
         raise GrainplugError(f"no {RESULT_FILE} in {p}{hint} — pass a folder written by result.save() "
                              "or `grainplug analyze`")
-    return read_result(f)
+    return f
 
 
 def read_corrections(folder: str | Path) -> Any:

@@ -33,7 +33,8 @@ from ..errors import CampaignInterrupted, GrainplugError, ParameterError
 from ..jsonio import dumps
 from ..outputs import FigureOptions, save_figure, write_outputs
 from ..pipeline import analyze, fingerprint
-from ..store import load_result, read_corrections
+from ..result import load_result
+from ..store import read_corrections
 from .fits import fit_line, summarize_lengths
 from .manifest import RunSpec, read_manifest, run_folder_name
 from .model_panel import ModelPanel, measured_from, model_panel

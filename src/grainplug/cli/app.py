@@ -343,7 +343,8 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
                             **_window_params(start, end))
     # the figures' worker starts now, before the analysis' own imports (numpy among them): it imports
     # matplotlib while they load, the tube is found and the frames stream
-    with FigureWorker(figure_options.formats) if not no_figures else contextlib.nullcontext() as figure_worker:
+    with (FigureWorker(figure_options.formats, preload=("grainplug.result",)) if not no_figures
+          else contextlib.nullcontext()) as figure_worker:
         from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
         from ..pipeline import analyze as run_analysis
@@ -718,7 +719,7 @@ def remeasure(folder: Path, no_figures: bool, as_json: bool) -> None:
     """
     from .._atomic import cwd_inside
     from ..corrections import replayed
-    from ..outputs import remeasure as run_remeasure
+    from ..workflows import remeasure as run_remeasure
 
     if not folder.is_dir():
         raise ParameterError(f"{folder} is not a folder: give the --out folder of an analysis")

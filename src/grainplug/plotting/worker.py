@@ -56,13 +56,16 @@ class FigureWorker:
 
     Use as a context manager; :meth:`submit` returns a function that waits for the
     figures. Any failure of the helper (no process allowed, a crash, a result that
-    cannot be sent) falls back to :func:`grainplug.outputs.draw_figures` in this process.
+    cannot be sent) falls back to :func:`grainplug.plotting.files.draw_figures` in this process.
 
     Parameters
     ----------
     formats : sequence of str
         The figure formats the job will ask for: the helper warms up their writers while
         it waits (the first PDF of a process costs ~0.1 s more than the next).
+    preload : sequence of str
+        Modules the job's objects are defined in (``"grainplug.result"``): the helper imports
+        them while it waits, so that unpickling the job costs nothing then.
 
     Examples
     --------
@@ -71,7 +74,7 @@ class FigureWorker:
     ...     write_outputs(res, "out", figure_worker=fw)
     """
 
-    def __init__(self, formats: Sequence[str] = ("png",)) -> None:
+    def __init__(self, formats: Sequence[str] = ("png",), *, preload: Sequence[str] = ()) -> None:
         import grainplug
 
         # the child's environment only: a headless backend, and this very grainplug on its path
@@ -84,7 +87,8 @@ class FigureWorker:
             self._proc = subprocess.Popen([sys.executable, "-m", "grainplug.plotting.worker"],
                                           stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                           stderr=subprocess.DEVNULL, env=env)
-            self._proc.stdin.write((",".join(formats) + "\n").encode())  # a few bytes: never blocks
+            # a few bytes: never blocks
+            self._proc.stdin.write((",".join(formats) + "|" + ",".join(preload) + "\n").encode())
             self._proc.stdin.flush()
         except OSError as exc:
             log.debug("figure worker not started (%s); figures are drawn in this process", exc)
@@ -97,7 +101,7 @@ class FigureWorker:
     def submit(self, res: AnalysisResult, folder: str | Path,
                options: FigureOptions | None = None) -> Callable[[], list[Path]]:
         """Start drawing the figures of ``res`` into ``folder``; call the result to wait for them."""
-        from ..outputs import draw_figures
+        from .files import draw_figures
 
         if not self.running:
             self.close()
@@ -134,7 +138,7 @@ class FigureWorker:
 
     def _fallback(self, exc: BaseException, res: AnalysisResult, folder: str | Path,
                   options: FigureOptions | None = None) -> Callable[[], list[Path]]:
-        from ..outputs import draw_figures
+        from .files import draw_figures
 
         log.warning("figure worker failed (%s: %s); drawing in this process", type(exc).__name__, exc)
         self.close()
@@ -164,14 +168,20 @@ class FigureWorker:
         self.close()
 
 
-def _warm_up(formats: Sequence[str] = ("png",)) -> None:
-    """Import what drawing needs and draw once what the figures draw (an image, markers,
-    lines, a legend, text at their sizes) in each of ``formats``, so that the caches are
-    filled before the job."""
+def _warm_up(formats: Sequence[str] = ("png",), preload: Sequence[str] = ()) -> None:
+    """Import what drawing needs (and the modules of ``preload``, which unpickling the job needs) and draw
+    once what the figures draw (an image, markers, lines, a legend, text at their sizes) in each of
+    ``formats``, so that the caches are filled before the job."""
+    import importlib
+
     import numpy as np
 
-    from .. import outputs, result  # noqa: F401 - unpickling the job needs them
+    from . import figures  # noqa: F401 - what draw_figures draws with
     from ._figure import new_figure
+
+    for name in preload:
+        if name.startswith("grainplug."):  # only this package's modules, named by the parent
+            importlib.import_module(name)
 
     fig, ax = new_figure(figsize=(2, 2))
     ax.imshow(np.linspace(0, 1, 64, dtype=np.float32).reshape(8, 8), cmap="gray", interpolation="nearest",
@@ -205,10 +215,11 @@ def main() -> int:
     sys.stdout = sys.stderr  # nothing but the reply goes to the parent's pipe
     _yield_to_the_analysis()
     try:
-        formats = sys.stdin.buffer.readline().decode("ascii", "replace").strip().split(",")
-        _warm_up([f for f in formats if f in ("png", "svg", "pdf")] or ["png"])
+        first, _, modules = sys.stdin.buffer.readline().decode("ascii", "replace").strip().partition("|")
+        formats = first.split(",")
+        _warm_up([f for f in formats if f in ("png", "svg", "pdf")] or ["png"], [m for m in modules.split(",") if m])
         res, folder, options = pickle.load(sys.stdin.buffer)
-        from ..outputs import draw_figures
+        from .files import draw_figures
 
         reply: tuple[str, object] = ("ok", [str(p) for p in draw_figures(res, folder, options)])
     except EOFError:  # the parent went away or needs no figures

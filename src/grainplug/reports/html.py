@@ -180,7 +180,7 @@ def _cards(res: AnalysisResult) -> str:
 
 
 def _plug_table(res: AnalysisResult) -> str:
-    from ..result import track_rows  # plain rows: pandas is not needed (nor imported) to write a report
+    from ..summary import track_rows  # plain rows: pandas is not needed (nor imported) to write a report
 
     rows = track_rows(res)
     if not rows:

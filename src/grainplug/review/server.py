@@ -56,8 +56,8 @@ from .._atomic import atomic_file
 from ..corrections import CORRECTIONS_FILE, Corrections, apply_corrections, replayed
 from ..errors import GrainplugError, ParameterError
 from ..jsonio import dumps
-from ..result import AnalysisResult
-from ..store import RESULT_FILE, load_result, read_corrections
+from ..result import AnalysisResult, load_result
+from ..store import RESULT_FILE, read_corrections
 
 log = logging.getLogger(__name__)
 
@@ -240,7 +240,7 @@ class ReviewSession:
     def state(self, name: str) -> dict[str, object]:
         run = self.run(name)
         res = run.result
-        from ..result import track_rows
+        from ..summary import track_rows
 
         s = res.summary
         st = replayed(res)  # what the corrections exclude and keep, as applied
@@ -344,7 +344,7 @@ class ReviewSession:
 
     def save(self, name: str, *, version: object = None) -> None:
         """Rewrite the run's outputs with the corrections (as ``grainplug remeasure``)."""
-        from ..outputs import remeasure
+        from ..workflows import remeasure
 
         run = self._check_version(name, version)
         with self._lock:
