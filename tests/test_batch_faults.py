@@ -26,7 +26,7 @@ import tifffile
 from grainplug._atomic import is_complete
 from grainplug.campaigns.batch import process_run
 from grainplug.campaigns.manifest import read_manifest
-from grainplug.pipeline import fingerprint
+from grainplug.provenance import fingerprint
 from grainplug.synthetic import SynthConfig, synthesize
 
 N_RUNS = 6

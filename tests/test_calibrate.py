@@ -215,7 +215,7 @@ def test_calibrate_refuses_camera_movies_of_other_things(sample):
     path = Path("/work/shared/camera-samples") / sample
     if not path.exists():
         pytest.skip("the camera samples are not on this machine")
-    from grainplug.calibration.files import calibrate_file
+    from grainplug.calibration_files import calibrate_file
 
     with pytest.raises(CalibrationError, match="no checkerboard, dot grid, graph paper or ruler was found"):
         calibrate_file(path, pitch_mm=1.0)
@@ -285,7 +285,7 @@ def test_a_16_bit_tiff_written_by_opencv_is_read(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: ")
     # when OpenCV cannot either, the message gives the install fix
-    import grainplug.calibration.files as files
+    import grainplug.calibration_files as files
 
     monkeypatch.setattr(files, "_opencv_picture", lambda path: None)
     assert main(["calibrate", str(tmp_path / "board16.tif"), "--pitch-mm", "2", "--out", str(out)]) == 2

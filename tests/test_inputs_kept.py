@@ -22,7 +22,7 @@ from PIL import Image
 
 import grainplug as gp
 from grainplug._atomic import OutputPlaceError
-from grainplug.calibration.files import draw_calibration
+from grainplug.calibration_files import draw_calibration
 from grainplug.synthetic import SynthConfig
 from grainplug.synthetic.render import Renderer
 

@@ -153,7 +153,7 @@ def test_two_grey_levels_too_close_to_tell_apart_are_not_called_one_phase():
     still 0.71 averaged. No plug is measured, but the statement no longer asserts a compact flow as if it were
     known: it says two levels are hinted at and what would separate them."""
     from grainplug.diagram import Diagram
-    from grainplug.pipeline import measure_diagram
+    from grainplug.measures.diagram import measure_diagram
 
     rng = np.random.default_rng(0)
     s, t = np.arange(400) * 0.2, np.arange(300) / 250

@@ -60,10 +60,10 @@ _EXPORTS = {
     "run_campaign": "grainplug.campaigns.batch",
     "calibrate_image": "grainplug.calibration.pattern",
     "Calibration": "grainplug.calibration.pattern",
-    "calibrate_file": "grainplug.calibration.files",
-    "load_calibration": "grainplug.calibration.files",
-    "save_calibration": "grainplug.calibration.files",
-    "read_background": "grainplug.calibration.files",
+    "calibrate_file": "grainplug.calibration_files",
+    "load_calibration": "grainplug.calibration_files",
+    "save_calibration": "grainplug.calibration_files",
+    "read_background": "grainplug.calibration_files",
     "Background": "grainplug.calibration.background",
     "GrainplugError": "grainplug.errors",
     "MovieError": "grainplug.errors",
@@ -101,8 +101,8 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # for type checkers and IDEs: the names as if imported eagerly
     from . import datasets, plotting, readers, stability, synthetic
     from .calibration.background import Background
-    from .calibration.files import calibrate_file, load_calibration, read_background, save_calibration
     from .calibration.pattern import Calibration, calibrate_image
+    from .calibration_files import calibrate_file, load_calibration, read_background, save_calibration
     from .campaigns.batch import run_campaign
     from .errors import GrainplugError, MovieError, ParameterError
     from .params import FLOW_DIRECTIONS, AnalysisParams

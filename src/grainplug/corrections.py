@@ -50,8 +50,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import ParameterError
-from .measures import measure_lengths, measure_motion
-from .measures.motion import NO_FOLLOWED_EDGE
+from .measures.diagram import measure_train
 from .plugs import Runs, Tracks
 
 if TYPE_CHECKING:
@@ -521,11 +520,9 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     # corrections that keep some (the detection finds runs only where the tube holds plugs and air)
     detected_plugs = len(runs) > 0
     has_plugs = detected_plugs and len(new_runs) > 0
-    if has_plugs:
-        motion = measure_motion(res.diagram.time_s, new_runs.top_mm, new_links.run_track, new_runs.frame,
-                                fps=res.info.fps, mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd)
-        lengths = measure_lengths(new_runs, new_links, scale_rel_sd=res.scale_rel_sd)
-        statement = "" if motion is not None else NO_FOLLOWED_EDGE
+    if has_plugs:  # the analysis' own measuring step, on the corrected tracks
+        motion, lengths, statement = measure_train(res.diagram.time_s, new_runs, new_links, fps=res.info.fps,
+                                                   mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd)
     elif detected_plugs:
         statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
     unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)

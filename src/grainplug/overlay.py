@@ -175,7 +175,7 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
         raise GrainplugError(f"cannot open the movie {path} ({exc}) — the overlay draws on the analysed movie, "
                              "put it back where it was") from None
     with movie, atomic_file(target, inputs=[path]) as tmp:
-        from .pipeline import window_start
+        from .readers.window import window_start
 
         offset = window_start(movie, p)
         n = res.diagram.n_frames

@@ -165,14 +165,6 @@ def visible_fraction(beta_deg: float, *, inner_radius: float, outer_radius: floa
     return float(x / a)
 
 
-def backlight_half_angle_deg(fraction: float, *, inner_radius: float, outer_radius: float,
-                             n_glass: float = BOROSILICATE_INDEX) -> float:
-    """The lamp's angular half-size that shows ``fraction`` of the bore (inverse of :func:`visible_fraction`)."""
-    a, b, n = float(inner_radius), float(outer_radius), float(n_glass)
-    f = min(max(float(fraction), 0.0), 1.0)
-    return float(deflection_deg(f * a, inner_radius=a, outer_radius=b, n_glass=n)) if f < 1 else float("nan")
-
-
 def radius_ratio_from_stripe(stripe_over_outer: float, *, n_glass: float = BOROSILICATE_INDEX) -> float:
     """Inner/outer radius ratio ``a / b`` of a tube whose stripe lies at ``stripe_over_outer`` of its outer radius.
 

@@ -32,7 +32,8 @@ from ..corrections import Corrections, apply_corrections
 from ..errors import CampaignInterrupted, GrainplugError, ParameterError
 from ..jsonio import dumps
 from ..outputs import FigureOptions, save_figure, write_outputs
-from ..pipeline import analyze, fingerprint
+from ..pipeline import analyze
+from ..provenance import fingerprint
 from ..result import load_result
 from ..store import read_corrections
 from .fits import fit_line, summarize_lengths
@@ -53,7 +54,7 @@ SUMMARY_COLUMNS = [
 def run_key(spec: RunSpec, *, identity: dict[str, object] | None = None) -> str:
     """Identity of a run's result: the movie's content, the parameters, the grainplug version.
 
-    The movie enters by its size and sampled content hash (:func:`grainplug.pipeline.fingerprint`),
+    The movie enters by its size and sampled content hash (:func:`grainplug.provenance.fingerprint`),
     not its path or modification time: a campaign copied to another drive is still done.
     """
     ident = identity if identity is not None else fingerprint(spec.movie)

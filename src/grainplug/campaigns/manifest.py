@@ -174,7 +174,7 @@ def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec
 
 
 def _background(value: str, base: Path, where: str) -> Background:
-    from ..calibration.files import read_background
+    from ..calibration_files import read_background
     from ..errors import GrainplugError
 
     path = Path(value).expanduser()
@@ -185,8 +185,8 @@ def _background(value: str, base: Path, where: str) -> Background:
 
 
 def _calibration(value: str, base: Path, where: str) -> Calibration:
-    from ..calibration.files import load_calibration
     from ..calibration.pattern import CalibrationError
+    from ..calibration_files import load_calibration
 
     path = Path(value).expanduser()
     try:

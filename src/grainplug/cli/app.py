@@ -145,7 +145,7 @@ def info(movie: Path, glob_: str | None, fps: float | None, allow_truncated: boo
         d["last_frame_shape"] = list(last.shape)
         # how an analysis times the frames, as the pipeline decides (a camera file's stamps, when they keep to a
         # constant rate, give that rate: fps_note)
-        from ..pipeline import timing_stamps
+        from ..readers.timing import timing_stamps
 
         by_stamps = timing_stamps(m, m.info) is not None
         d["frame_times"] = "the file's time stamps (unevenly spaced)" if by_stamps else "frame index / fps"
@@ -203,7 +203,7 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
     itself. Use it with `grainplug analyze MOVIE --calibration OUT`.
     """
     from .._atomic import refuse_overwriting_inputs
-    from ..calibration.files import (
+    from ..calibration_files import (
         calibrate_file,
         calibration_figure_path,
         draw_calibration,
@@ -327,12 +327,12 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
         raise ParameterError("give either --mm-per-px or --calibration (the scale), not both")
     cal = None
     if calibration is not None:
-        from ..calibration.files import load_calibration
+        from ..calibration_files import load_calibration
 
         cal = load_calibration(calibration)
     light = None
     if background is not None:
-        from ..calibration.files import read_background
+        from ..calibration_files import read_background
 
         light = read_background(background)
     diameter = 3.0 if tube_diameter_mm is None else tube_diameter_mm

@@ -21,7 +21,6 @@ from .base import TIFF_SIGNATURES, Movie, MovieInfo
 log = logging.getLogger(__name__)
 
 TIFF_SUFFIXES = (".tif", ".tiff")
-VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov", ".m4v", ".webm", ".mj2", ".nut")
 
 
 def open_movie(path: str | Path | object, *, glob: str | None = None, fps: float | None = None,

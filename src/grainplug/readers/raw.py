@@ -35,9 +35,6 @@ ENCODINGS = {
     "p12": 12,  # 2 pixels in 3 bytes, most significant bits first (Photron 12-bit, Phantom "P12L")
 }
 
-#: Bayer patterns, named by the 2 x 2 cell at the top left of the image as handed out
-BAYER_PATTERNS = ("RGGB", "GRBG", "GBRG", "BGGR")
-
 
 def _packed_view(raw: np.ndarray, n_pixels: int, group_bytes: int, group_pixels: int) -> tuple[list, np.ndarray]:
     """The byte lanes of packed samples and an empty ``uint16`` output for them."""

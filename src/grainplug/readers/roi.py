@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from ..band import Band
+from ..errors import ParameterError
 from .base import Movie
 
 
@@ -70,3 +71,14 @@ class RegionOfInterest(Movie):
 
     def _stop_prefetch(self) -> None:  # the movie's own read-ahead is the movie's to stop
         pass
+
+
+def region_of(movie: Movie, roi: tuple[int, int, int, int] | None) -> Movie:
+    """The region of interest ``roi`` of the movie (:class:`RegionOfInterest`), or the movie without one; a region
+    outside the frame is refused naming ``roi=``."""
+    if roi is None:
+        return movie
+    try:
+        return RegionOfInterest(movie, roi)
+    except ValueError as exc:
+        raise ParameterError(f"{exc} — give x0,y0,x1,y1 inside the frame", param="roi") from None

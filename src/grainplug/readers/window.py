@@ -11,10 +11,13 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 from collections.abc import Callable, Iterator
+from typing import Protocol
 
 import numpy as np
 
+from ..errors import ParameterError
 from .base import Movie, MovieInfo
 
 
@@ -91,3 +94,52 @@ class FrameWindow(Movie):
 
     def _stop_prefetch(self) -> None:  # the movie's own read-ahead is the movie's to stop
         pass
+
+class WindowRequest(Protocol):
+    """A window of a movie as asked for (an :class:`~grainplug.params.AnalysisParams` is one): frames or seconds,
+    either end or none; ``fps`` the frame rate given (None: the movie's)."""
+
+    start_frame: int | None
+    end_frame: int | None
+    start_s: float | None
+    end_s: float | None
+    fps: float | None
+
+
+def window_start(movie: Movie, params: WindowRequest) -> int:
+    """The movie frame that is frame 0 of an analysis made with ``params`` (its ``--start``; 0 without one)."""
+    if params.start_frame is not None:
+        return int(params.start_frame)
+    if params.start_s is not None:
+        return math.ceil(params.start_s * (params.fps or movie.info.fps) - 1e-6)
+    return 0
+
+
+def window_of(movie: Movie, params: WindowRequest) -> Movie:
+    """The frames to analyse: the movie, or the window ``params`` asks for (:class:`FrameWindow`); a window too
+    short to analyse, or in seconds without a frame rate, is refused naming the parameter."""
+    if all(v is None for v in (params.start_frame, params.end_frame, params.start_s, params.end_s)):
+        return movie
+    n = movie.info.n_frames
+    fps = params.fps or movie.info.fps
+    if (params.start_s is not None or params.end_s is not None) and not fps:
+        raise ParameterError("a window in seconds needs the frame rate — give fps, or the window in frames",
+                             param="start_s" if params.start_s is not None else "end_s")
+    start = window_start(movie, params)
+    stop = params.end_frame if params.end_frame is not None else (
+        math.ceil(params.end_s * fps - 1e-6) if params.end_s is not None else n)
+    notes = ()
+    # an end past the movie is said, not clamped silently (an end in the wrong unit would go unnoticed); in
+    # seconds, up to one frame past it is the movie's own duration rounded
+    if params.end_frame is not None and stop > n:
+        notes = (f"the window's end, frame {stop}, is past the movie's {n} frames: it was analysed to the movie's "
+                 "end — check the end and its unit (frames or seconds)",)
+    elif params.end_s is not None and stop > n + 1:
+        notes = (f"the window's end, {params.end_s:g} s, is past the movie's {n / fps:.4g} s: it was analysed to "
+                 "the movie's end — check the end and its unit (frames or seconds)",)
+    stop = min(stop, n)
+    if stop - start < 8:
+        raise ParameterError(f"the window holds {max(stop - start, 0)} of the movie's {n} frames (frames {start} to "
+                             f"{stop}); at least 8 are needed — move its start or its end",
+                             param="start_frame" if params.end_frame is None and params.end_s is None else "end_frame")
+    return movie if (start, stop) == (0, n) and not notes else FrameWindow(movie, start, stop, notes=notes)

@@ -229,7 +229,7 @@ class ReviewSession:
                 try:
                     p = run.result.params
                     run.movie = open_movie(path, fps=p.fps, glob=p.glob, allow_truncated=True)
-                    from ..pipeline import window_start
+                    from ..readers.window import window_start
 
                     run.offset = window_start(run.movie, p)
                 except (GrainplugError, OSError) as exc:

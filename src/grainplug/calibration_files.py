@@ -1,6 +1,7 @@
-"""Calibration files: read a calibration image, write and read ``calibration.json`` and its figure.
+"""Calibration files: read a calibration image or a background, write and read ``calibration.json`` and
+draw its figure.
 
-The only I/O of calibration: :mod:`grainplug.calibration.pattern` works on arrays.
+The only I/O of calibration: :mod:`grainplug.calibration` works on arrays and never sees a file.
 """
 
 from __future__ import annotations
@@ -14,11 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .._atomic import atomic_file
-from .._version import __version__
-from ..errors import MovieError
-from .background import Background, grey_background
-from .pattern import Calibration, CalibrationError, calibrate_image
+from ._atomic import atomic_file
+from ._version import __version__
+from .calibration.background import Background, grey_background
+from .calibration.pattern import Calibration, CalibrationError, calibrate_image
+from .errors import MovieError
 
 #: frames of a movie given as a calibration image that are averaged (less noise)
 MOVIE_FRAMES_AVERAGED = 10
@@ -44,7 +45,7 @@ def read_calibration_image(path: str | Path) -> np.ndarray:
     MovieError
         When the file cannot be read as an image or a movie.
     """
-    from ..readers import IMAGE_SUFFIXES, open_movie
+    from .readers import IMAGE_SUFFIXES, open_movie
 
     p = Path(path).expanduser()
     if not p.is_file():
@@ -109,7 +110,7 @@ def read_background(path: str | Path) -> Background:
     MovieError
         When the file cannot be read as an image or a movie.
     """
-    from ..readers import IMAGE_SUFFIXES, open_movie
+    from .readers import IMAGE_SUFFIXES, open_movie
 
     p = Path(path).expanduser()
     if not p.is_file():
@@ -185,29 +186,13 @@ def load_calibration(path: str | Path) -> Calibration:
 
 def draw_calibration(image: np.ndarray, cal: Calibration, path: str | Path, *,
                      inputs: Iterable[str | Path] = ()) -> Path:
-    """The image with the points found and the scale, for the user to check (PNG, atomic; never written over
-    the calibration image or one of ``inputs``)."""
-    from .._atomic import refuse_overwriting_inputs
-    from ..plotting._figure import new_figure
+    """The image with the points found and the scale (:func:`grainplug.plotting.calibration.plot_calibration`),
+    for the user to check: a PNG written atomically, never over the calibration image or one of ``inputs``."""
+    from ._atomic import refuse_overwriting_inputs
+    from .plotting.calibration import plot_calibration
 
     refuse_overwriting_inputs([path], [_image_path(cal), *inputs])  # before the figure is drawn
-
-    img = np.asarray(image, dtype=np.float64)
-    if img.ndim == 3:
-        img = img[..., :3].mean(axis=2)
-    h, w = img.shape
-    fig, ax = new_figure(figsize=(8.0, 8.0 * h / w + 0.6))
-    ax.imshow(img, cmap="gray", interpolation="nearest")
-    if cal.points_px:
-        pts = np.asarray(cal.points_px)
-        what = {"graph": "line crossings", "ruler": "ticks"}.get(cal.pattern, "points")
-        ax.plot(pts[:, 0], pts[:, 1], "+", color="tab:red", markersize=6, markeredgewidth=1.0,
-                label=f"{cal.n_points} {what} found")
-    ax.plot(*cal.centre_px, "o", color="tab:cyan", markersize=6, label="scale taken here")
-    ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(f"{cal.mm_per_px:.5g} mm/px ± {100 * cal.rel_sd:.2g} % ({cal.pattern}, pitch {cal.pitch_mm:g} mm), "
-                 f"tilt {cal.tilt_deg:+.2f}°, variation {100 * cal.scale_variation:.2g} %", fontsize=9)
-    ax.set_axis_off()
+    fig = plot_calibration(image, cal)
     dest = Path(path)
     with atomic_file(dest, inputs=[_image_path(cal), *inputs]) as tmp:
         fig.savefig(tmp, dpi=110, bbox_inches="tight")

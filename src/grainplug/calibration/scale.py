@@ -1,0 +1,200 @@
+"""The scale of an analysis (mm per pixel along the tube), decided once, with where it came from and how sure it is.
+
+Three sources, in this order: a scale the user gives, a calibration image of a pattern
+(:mod:`grainplug.calibration.pattern`) along the tube's axis, or the tube itself through its
+optical model (:mod:`grainplug.calibration.tube_model`). :func:`decide_scale` returns a frozen
+:class:`Scale`; the warnings say what is doubtful about it, each with the fix. Arrays and frozen
+dataclasses in, the same out: no file is read here.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+from .pattern import Calibration
+from .tube import TubeGeometry
+from .tube_model import AGREEMENT, BoreEstimate, WallMeasure, bore_from_model
+
+log = logging.getLogger(__name__)
+
+
+class TubeFacts(Protocol):
+    """What the user knows of the tube (an :class:`~grainplug.params.AnalysisParams` is one)."""
+
+    tube_diameter_mm: float
+    tube_outer_diameter_mm: float | None
+    glass_index: float
+
+
+@dataclass(frozen=True)
+class Scale:
+    """The scale of the frames along the tube.
+
+    Attributes
+    ----------
+    mm_per_px : float
+        mm spanned by one pixel along the tube's axis.
+    source : str
+        Where it came from, in words (``"user"``, a calibration image, the tube model...).
+    rel_sd : float
+        Its relative standard uncertainty (0 for a scale given).
+    warnings : tuple of str
+        What is doubtful about it, each with what to do.
+    bore : BoreEstimate or None
+        The tube model's estimates of the bore (None when the scale was given).
+    """
+
+    mm_per_px: float
+    source: str
+    rel_sd: float
+    warnings: tuple[str, ...] = ()
+    bore: BoreEstimate | None = None
+
+
+def decide_scale(tube: TubeGeometry, facts: TubeFacts, *, mm_per_px: float | None = None,
+                 calibration: Calibration | None = None, frame_shape: tuple[int, int]) -> Scale:
+    """The scale along the tube: ``mm_per_px`` when given, else the calibration's along the tube's axis,
+    else the tube's bore (:func:`grainplug.calibration.tube_model.bore_from_model`) over its diameter.
+
+    Parameters
+    ----------
+    tube : TubeGeometry
+        The tube found in the frames.
+    facts : TubeFacts
+        The tube's inner (and outer) diameter and its glass' refractive index.
+    mm_per_px : float, optional
+        A scale the user gives (checked against the tube once plugs are found).
+    calibration : Calibration, optional
+        A calibration image's scale.
+    frame_shape : (int, int)
+        The frames' ``(height, width)`` (a calibration of another size is doubted).
+    """
+    if mm_per_px:
+        return Scale(float(mm_per_px), "user", 0.0)
+    bore = bore_of(tube, facts)
+    from_tube = facts.tube_diameter_mm / bore.diameter_px
+    if calibration is None:
+        return Scale(from_tube, bore_source(bore, facts), bore.rel_sd, tuple(tube_scale_doubts(tube, bore, facts)),
+                     bore)
+    value, source, rel_sd, warnings = calibrated_scale(calibration, tube, frame_shape, from_tube,
+                                                       facts.tube_diameter_mm, bore)
+    return Scale(value, source, rel_sd, tuple(warnings), bore)
+
+
+#: the contents' change at a side of the frame the tube reaches, as a share of the most they change, above which the
+#: tube is cut by the frame (a whole tube: 0; the sample cut by a region of interest: 0.93)
+CUT_SIDE_SHARE = 0.3
+
+def bore_of(tube: TubeGeometry, facts: TubeFacts) -> BoreEstimate:
+    """The bore's width in pixels from the tube model (the walls' features and what the user knows)."""
+    nan = float("nan")
+    walls = tube.walls or WallMeasure(nan, nan, (nan, nan), (nan, nan))
+    bore = bore_from_model(walls, visible_diameter_px=tube.inner_diameter_px, back_lit=bool(tube.back_lit),
+                           inner_diameter_mm=facts.tube_diameter_mm,
+                           outer_diameter_mm=facts.tube_outer_diameter_mm, n_glass=facts.glass_index)
+    if tube.back_lit is None:  # nothing moved: the edges of the mean image, nothing to model
+        bore = BoreEstimate(tube.inner_diameter_px, "edges", {"edges": tube.inner_diameter_px}, rel_sd=0.1)
+    log.info("tube model: bore %.2f px by %s; estimates %s", bore.diameter_px, bore.method,
+             {k: round(v, 2) for k, v in bore.estimates_px.items()})
+    return bore
+
+def bore_source(bore: BoreEstimate, facts: TubeFacts) -> str:
+    """Where a scale from the tube came from, in words."""
+    d = f"bore {facts.tube_diameter_mm:g} mm = {bore.diameter_px:.2f} px"
+    glass = f"glass n = {facts.glass_index:g}"
+    if bore.method == "outer":
+        return (f"tube model: outer silhouette ({facts.tube_outer_diameter_mm:g} mm = "
+                f"{bore.diameter_px * facts.tube_outer_diameter_mm / facts.tube_diameter_mm:.2f} px), {d}")
+    if bore.method == "stripe + outer":
+        return f"tube model: refraction stripes and outer silhouette ({glass}), {d}"
+    if bore.method == "stripe":
+        shape = (f"outer diameter {facts.tube_outer_diameter_mm:g} mm" if facts.tube_outer_diameter_mm
+                 else "outer/inner diameter assumed 1.83")
+        return f"tube model: refraction stripes ({glass}, {shape}), {d}"
+    if bore.method == "contents":
+        return f"tube inner width seen through its contents ({d})"
+    return f"tube edges in the mean image ({d})"
+
+#: a bore narrower than this (px) is too few pixels for a scale within a few per cent
+NARROW_TUBE_PX = 15.0
+
+#: a bore wider than this share of the frame across the tube leaves no wall to see
+WIDE_TUBE_SHARE = 0.8
+
+def tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, facts: TubeFacts) -> list[str]:
+    """Why a scale from the tube may be off, with the fix (issue 16, item 4).
+
+    Silent only when two independent estimates of the bore (the outer silhouette and the
+    refraction stripes) agree within 3 %.
+    """
+    fix = "take a calibration image (grainplug calibrate) or give mm_per_px="
+    across = tube.canonical_shape[1]
+    out = list(bore.warnings)
+    est = bore.estimates_px
+    if tube.back_lit is None:
+        why = ("the tube is cut by the frame's edge" if tube.side_variation > CUT_SIDE_SHARE else
+               "its contents were not seen to change")
+        out.append(f"the scale comes from the tube's edges in the mean image ({bore.diameter_px:.1f} px): {why}, so "
+                   "neither the bore nor the walls' optics could be measured and the scale may be off by 10 % or "
+                   f"more — {fix}")
+    elif bore.method == "contents" and tube.back_lit:
+        out.append(f"the scale comes from the width over which the tube's contents are seen ({bore.diameter_px:.1f} "
+                   "px) and the walls showed neither refraction stripes nor an outer silhouette to correct it: a "
+                   "back-lit glass tube looks up to 35 % narrower than its bore (by the lamp's angular size), which "
+                   f"inflates every length and celerity by as much — {fix}")
+    elif bore.method == "contents":
+        out.append(f"the scale comes from the tube's inner width seen through its contents ({bore.diameter_px:.1f} px)"
+                   ", not cross-checked (in front light it read within 2-3 % on the renderers tried) — give "
+                   f"tube_outer_diameter_mm= to check it against the tube's outer silhouette, or {fix}")
+    elif not math.isfinite(bore.agreement):
+        out.append(f"the scale comes from the tube model alone ({bore.method}: bore {bore.diameter_px:.1f} px, "
+                   f"about ±{100 * bore.rel_sd:.2g} %, glass index {facts.glass_index:g} assumed), not cross-checked "
+                   "— give tube_outer_diameter_mm= to check it against the outer silhouette, or " + fix)
+    elif bore.agreement > AGREEMENT:
+        parts = ", ".join(f"{m} {v:.1f} px" for m, v in est.items() if m != "contents")
+        out.append(f"the tube model's estimates of the bore disagree by {100 * bore.agreement:.0f} % ({parts}): "
+                   "check tube_diameter_mm=, tube_outer_diameter_mm= and glass_index= — or " + fix)
+    if bore.diameter_px < NARROW_TUBE_PX:
+        out.append(f"the tube is only {bore.diameter_px:.1f} px wide: a scale from its width is uncertain by "
+                   f"{100 * bore.rel_sd:.2g} % (one standard deviation), and every length and celerity with it — "
+                   f"{fix}")
+    if bore.diameter_px > WIDE_TUBE_SHARE * across:
+        out.append(f"the tube fills {100 * bore.diameter_px / across:.0f} % of the frame's width: its walls may "
+                   f"be out of view and the scale from its width wrong — {fix}")
+    return out
+
+def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[int, int], from_tube: float,
+                      diameter_mm: float, bore: BoreEstimate) -> tuple[float, str, float, list[str]]:
+    """The calibration's scale along the tube's axis, its uncertainty, and what is doubtful.
+
+    The uncertainty combines the fit's with the scale's variation over the pattern
+    (the tube may lie anywhere in it: a uniform spread, ``variation / sqrt(12)``).
+    """
+    slope = math.tan(math.radians(tube.tilt_deg))
+    axis = (slope, 1.0) if tube.orientation == "vertical" else (1.0, slope)
+    mm_per_px = cal.mm_per_px_along(axis)
+    rel_sd = math.hypot(cal.rel_sd, cal.scale_variation / math.sqrt(12.0))
+    name = cal.image.get("name")
+    source = (f"calibration image{' ' + name if name else ''} ({cal.pattern}, {cal.n_points} points "
+              f"{cal.pitch_mm:g} mm apart, along the tube's axis)")
+    warnings = list(cal.warnings)
+    if tuple(cal.image_shape) != tuple(frame_shape):
+        warnings.append(f"the calibration image is {cal.image_shape[1]} x {cal.image_shape[0]} px but the movie's "
+                        f"frames are {frame_shape[1]} x {frame_shape[0]}: its scale holds only if the camera, lens, "
+                        "focus and distance did not change (a crop is fine)")
+    disagree = from_tube / mm_per_px - 1
+    if abs(disagree) > 0.03:
+        if disagree > 0:  # the bore reads narrower than the calibration says
+            advice = ("back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
+                      "the tube's plane, else check tube_diameter_mm= (and tube_outer_diameter_mm=)")
+        else:  # the bore reads wider: refraction does not do that
+            advice = ("the tube reads wider than the calibration implies, which refraction does not do — check "
+                      "that the pattern was at the tube's plane (not behind it), its pitch (pitch_mm=), and "
+                      "tube_diameter_mm=")
+        warnings.append(f"the tube's bore reads {bore.diameter_px:.1f} px ({bore.method}), {diameter_mm:g} mm by the "
+                        f"calibration being {diameter_mm / mm_per_px:.1f} px ({100 * disagree:+.0f} % in scale): "
+                        + advice)
+    return mm_per_px, source, rel_sd, warnings

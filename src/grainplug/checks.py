@@ -1,0 +1,256 @@
+"""What an analysis checks about itself: each function returns the warnings (sentences with the fix) that one
+doubt gives, or refuses what cannot be measured at all. Arrays and frozen dataclasses in, sentences out.
+
+The pipeline (:func:`grainplug.analyze`) calls them at the stage where what they judge is known; nothing
+here changes a measure.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .band import Band
+from .calibration.scale import CUT_SIDE_SHARE
+from .calibration.tube import TubeGeometry
+from .diagram import Diagram
+from .errors import ParameterError, non_finite_frames
+from .measures import Lengths, Motion
+from .measures.flow import GRAVITY_DOWN, Flow
+from .measures.grains import GrainMotion
+from .measures.tracks import edge_speed_mm_s
+from .params import AnalysisParams
+from .plugs import Runs, Tracks
+from .readers import MovieInfo
+
+#: speeds no plug or falling grain reaches in a gravity-driven pipe flow (m/s): free fall from
+#: rest over 2 m gives 6.3 m/s; the paper's plugs move at 0.04-0.1 m/s, its grains fall at 0.8 m/s
+IMPLAUSIBLE_SPEED_M_S = 10.0
+
+#: share of the tube's pixels at the sensor's top value above which a warning is given
+SATURATION_WARN = 0.01
+
+def check_movie(info: MovieInfo) -> None:
+    if not info.fps:
+        raise ParameterError(f"{info.path}: the frame rate is unknown (image folders, arrays and some TIFFs "
+                             "hold none) — give the camera's frame rate", param="fps")
+    if info.n_frames < 8:
+        raise ParameterError(f"{info.path} holds {info.n_frames} frame{'' if info.n_frames == 1 else 's'}; at least 8 "
+                             "are needed", param="source")
+
+#: another region whose frame-to-frame variation reaches this share of the tube's is reported
+OTHER_REGION_SHARE = 0.5
+
+def other_moving_regions(frames: list[np.ndarray], tube: TubeGeometry) -> list[str]:
+    """A warning when the sampled frames move as much somewhere else across the tube as in it (a second
+    tube in view): the analysis follows one tube only, and says which, and how to choose."""
+    if len(frames) < 4:
+        return []
+    vertical = tube.orientation == "vertical"
+    h = tube.canonical_shape[0]
+    step = max(1, h // 32)  # 32 lines along the tube are plenty for a profile across it
+    lines = [np.asarray(f)[::step] if vertical else np.asarray(f)[:, ::step] for f in frames]
+    # one channel (green, most of the luminance) is enough to see where the frames change
+    grey = np.stack([g[..., min(1, g.shape[2] - 1)] if g.ndim == 3 else g for g in lines]).astype(np.float32)
+    if not vertical:
+        grey = grey.transpose(0, 2, 1)
+    across = grey.std(axis=0).mean(axis=0)  # temporal variation per column across the tube
+    axis = tube.axis_x(np.array([0.0, h - 1.0]))
+    half = 1.5 * tube.inner_diameter_px + 3
+    cols = np.arange(across.size)
+    inside = (cols >= axis.min() - half) & (cols <= axis.max() + half)
+    if not inside.any() or inside.all():
+        return []
+    level = float(np.median(across[(cols >= axis.min() - 0.4 * tube.inner_diameter_px)
+                                   & (cols <= axis.max() + 0.4 * tube.inner_diameter_px)]))
+    # the still background's variation (noise, flicker): a tube whose frames change no more than it (plugs
+    # that hardly move in a very short record) gives nothing to compare with
+    floor = float(np.percentile(across[~inside], 10))
+    if level <= 2.0 * floor:
+        return []
+    hot = ~inside & (across > max(OTHER_REGION_SHARE * level, 2.0 * floor))
+    if level <= 0 or hot.sum() < max(3, 0.3 * tube.inner_diameter_px):
+        return []
+    where = cols[hot]
+    name = "x" if tube.orientation == "vertical" else "y"
+    return [f"the frames change as much around {name} = {int(where.min())}-{int(where.max())} px as in the tube "
+            f"analysed (at {name} = {float(axis.mean()):.0f} px): a second tube? Only this one is analysed — "
+            "give roi=(x0, y0, x1, y1) to choose"]
+
+def cut_by_the_frame(tube: TubeGeometry, params: AnalysisParams) -> list[str]:
+    """A warning when the tube's moving contents run up to a side of the frame: the tube is cut there."""
+    if tube.side_variation <= CUT_SIDE_SHARE:
+        return []
+    fix = ("widen roi= to hold the whole tube and its walls" if params.roi else
+           "frame the whole tube and its walls (or give roi= around a tube that is whole in view)")
+    return [f"the tube's contents change at a side of the frame {100 * tube.side_variation:.0f} % as much as "
+            "anywhere: the tube is cut by the frame's edge, so the tube found, its width, the scale from it and "
+            f"every measure may be wrong — {fix}"]
+
+#: the width over which a tube's contents are seen, against its bore: a back-lit tube looks up to 35 % narrower
+#: (by the lamp's size), never much wider
+SEEN_OVER_BORE = (0.6, 1.15)
+
+#: grains and air seen but no plug (or nothing moving): the tube is seen where the contents or the mean image's
+#: edges show it, inside the bore (0.59-0.99 of it in the synthetic and an independent renderer's cases); narrower
+#: than this share, the given scale is the doubt (a scale 10 times too fine makes every plug "shorter than
+#: min_plug_mm"). With one material only (sparse falling grains) the tube can be seen over a few pixels: no doubt.
+SEEN_OVER_BORE_NO_PLUGS = 0.3
+
+def given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs: bool,
+                        two_phase: bool = True) -> list[str]:
+    """A warning when the tube seen is far wider or narrower than a given scale makes its bore (a wrong
+    ``mm_per_px`` or tube diameter, or something in view that is not the tube)."""
+    if not params.mm_per_px:
+        return []
+    expected_px = params.tube_diameter_mm / float(params.mm_per_px)
+    ratio = tube.inner_diameter_px / expected_px
+    # nothing moved (back_lit None): the tube is seen by the mean image's edges, not its bore's contents; one
+    # material only (an empty tube with a few grains falling): seen over a few pixels, nothing to doubt by
+    low = (SEEN_OVER_BORE[0] if has_plugs and tube.back_lit is not None else
+           SEEN_OVER_BORE_NO_PLUGS if two_phase else 0.0)
+    if low <= ratio <= SEEN_OVER_BORE[1]:
+        return []
+    return [f"the tube's contents are seen over {tube.inner_diameter_px:.1f} px, but the given scale makes its "
+            f"{params.tube_diameter_mm:g} mm bore {expected_px:.1f} px ({ratio:.2g} times): check mm_per_px= "
+            "and tube_diameter_mm=, and that what was found is the tube"]
+
+def check_background(params: AnalysisParams, info: MovieInfo) -> None:
+    bg = params.background
+    if bg is not None and tuple(bg.image.shape[:2]) != (info.height, info.width):
+        raise ParameterError(f"the background is {bg.image.shape[1]} x {bg.image.shape[0]} px but the movie's frames "
+                             f"are {info.width} x {info.height}: take it with the movie's camera and settings",
+                             param="background")
+
+def check_finite(values: np.ndarray, info: MovieInfo) -> None:
+    """Float frames with NaN or infinite pixels in the tube (beyond the sampled frames, checked with the tube) are
+    refused: their band averages would read as a change of light."""
+    if np.dtype(info.dtype).kind != "f":
+        return
+    bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
+    if bad.size:
+        shown = ", ".join(str(k) for k in bad[:5]) + (", ..." if bad.size > 5 else "")
+        raise non_finite_frames(f"{bad.size} of the {len(values)} frames (frame{'s' if bad.size > 1 else ''} "
+                                f"{shown} of the analysis)")
+
+def saturated_share(frames: list[np.ndarray], band: Band, info: MovieInfo) -> float:
+    """Share of the tube's pixels (the band's, in the frames kept from the sample) at the top
+    value the camera can give (``2**bit_depth - 1``, any channel)."""
+    if not frames or np.dtype(info.dtype).kind == "f":  # float frames have no top value a camera clips at
+        return 0.0
+    top = (1 << min(info.bit_depth, 8 * np.dtype(info.dtype).itemsize)) - 1
+    hits = [np.asarray(f)[band.rows, band.cols] >= top for f in frames]
+    return float(np.mean([h.any(axis=-1).mean() if h.ndim == 3 else h.mean() for h in hits]))
+
+def implausible(motion: Motion | None, grains: GrainMotion | None, saturation: float) -> list[str]:
+    """Warnings for numbers that cannot be right, each with what to check."""
+    out = []
+    if motion is not None and motion.celerity_m_s is not None and abs(motion.celerity_m_s) > IMPLAUSIBLE_SPEED_M_S:
+        out.append(f"the plugs move at {motion.celerity_m_s:.3g} m/s, faster than grains can fall in a pipe: check "
+                   "the frame rate (fps=) and the scale (calibration= or mm_per_px=)")
+    if grains is not None and grains.speed_m_s is not None and abs(grains.speed_m_s) > IMPLAUSIBLE_SPEED_M_S:
+        out.append(f"the grains fall through the bubbles at {grains.speed_m_s:.3g} m/s, faster than free fall "
+                   "allows: check the frame rate (fps=) and the scale")
+    if saturation > SATURATION_WARN:
+        out.append(f"{100 * saturation:.1f} % of the tube's pixels are at the camera's top value (saturated): plug "
+                   "and bubble contrast is lost there — lower the exposure or the light")
+    return out
+
+#: positions whose grey level varies over the record less than this share of the tube's typical variation are still
+STILL_REGION_SHARE = 0.1
+
+def still_regions(diagram: Diagram, motion: Motion | None, lengths: Lengths | None) -> list[str]:
+    """A warning naming the stretches of the tube (1 mm or more) where nothing changes over the record while the
+    rest of it does: an opaque object over the tube (a clamp, a fitting, the tube's end), which cuts or merges the
+    plugs crossing it. Judged only where the train travelled a plug and a bubble over the record, so that every
+    place should have seen both (in a shorter record a long plug may cover a place throughout)."""
+    if (motion is None or motion.regime != "propagative" or lengths is None or lengths.plug_length_mm is None
+            or lengths.bubble_length_mm is None):
+        return []
+    travel_mm = abs(motion.celerity_m_s) * 1000.0 * float(diagram.time_s[-1] - diagram.time_s[0])
+    if travel_mm < lengths.plug_length_mm + lengths.bubble_length_mm:
+        return []
+    values = diagram.values
+    d = np.log(np.maximum(np.asarray(values[:: max(1, values.shape[0] // 1000)], np.float32), np.float32(1e-3)))
+    sd = d.std(axis=0)
+    typical = float(np.median(sd))
+    if not typical > 0.01:  # nothing moves anywhere (a jammed or empty record): no contrast to judge by
+        return []
+    step = np.diff(np.concatenate([[0], (sd < STILL_REGION_SHARE * typical).astype(np.int8), [0]]))
+    starts, stops = np.nonzero(step == 1)[0], np.nonzero(step == -1)[0]
+    pos, half = diagram.position_mm, 0.5 * diagram.mm_per_px
+    spans = [(pos[a] - half, pos[b - 1] + half) for a, b in zip(starts, stops, strict=True)
+             if (b - a) * diagram.mm_per_px >= 1.0]
+    if not spans:
+        return []
+    where = ", ".join(f"{lo:.1f}-{hi:.1f} mm" for lo, hi in spans[:4]) + (", ..." if len(spans) > 4 else "")
+    return [f"nothing changes at {where} (from the upstream end of the view) over the whole record while the rest "
+            "of the tube does: an object over the tube there (a clamp, a fitting, the tube's end)? Plugs crossing it "
+            "are cut or merged, and their lengths with them — leave it out of the region analysed (roi=, on one side "
+            "of it)"]
+
+#: a track that moves less than this share of what the plug train moves over its life stays put
+STILL_SHARE = 0.2
+
+#: ... judged only where the train moves at least this many pixels over the track's life
+STILL_MIN_TRAIN_PX = 5.0
+
+def still_objects(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion | None,
+                   mm_per_px: float) -> list[str]:
+    """A warning for the tracks that stay put while the plug train moves: a still object over the tube (a clamp,
+    a label, a fitting, the tube's end) taken for a plug, whose "length" enters the lengths."""
+    if motion is None or motion.regime != "propagative" or motion.celerity_m_s is None:
+        return []
+    speed = abs(motion.celerity_m_s) * 1000.0  # mm/s
+    still = []
+    for tid in range(len(links)):
+        sel = links.run_track == tid
+        if np.count_nonzero(sel) < 3:
+            continue
+        t = time_s[runs.frame[sel]]
+        span = float(t.max() - t.min())
+        top, bottom = runs.top_mm[sel], runs.bottom_mm[sel]
+        if speed * span < STILL_MIN_TRAIN_PX * mm_per_px:
+            continue
+        slope = edge_speed_mm_s(t, top, bottom)  # as the tracks table reads it
+        if np.isfinite(slope) and abs(slope) <= STILL_SHARE * speed:
+            seen = np.concatenate([top[np.isfinite(top)], bottom[np.isfinite(bottom)]])
+            still.append(f"plug {tid} at {seen.min():.0f}-{seen.max():.0f} mm for {span:.2g} s")
+    if not still:
+        return []
+    return [f"{'; '.join(still[:5])}{' and more' if len(still) > 5 else ''} (from the upstream end of the view): "
+            f"{'it stays' if len(still) == 1 else 'they stay'} put while the plugs move at "
+            f"{motion.celerity_m_s:+.3g} m/s — a still object over the tube (a clamp, a label, a fitting, the tube's "
+            "end)? Measured as plugs, they bias the lengths: exclude them (grainplug review, or Corrections in "
+            "Python) or leave them out with roi="]
+
+#: plugs just over ``min_plug_mm``: this share of the whole plugs seen within :data:`NEAR_THRESHOLD` of it ...
+NEAR_SHARE = 0.1
+
+#: ... above it (relative) is a train whose shorter plugs are dropped
+NEAR_THRESHOLD = 0.2
+
+def near_the_threshold(runs: Runs, motion: Motion | None, params: AnalysisParams) -> list[str]:
+    """A warning when many plugs of a measured train are just over ``min_plug_mm``: those just under it are
+    dropped (the bubbles about them merge across) and those at it come and go (their tracks split). Without a
+    train (clumps of falling grains cut at the threshold) lowering it would make plugs of the clumps: nothing said."""
+    if motion is None:
+        return []
+    whole = np.isfinite(runs.top_mm) & np.isfinite(runs.bottom_mm)
+    lengths = (runs.bottom_mm - runs.top_mm)[whole]
+    if lengths.size < 10:
+        return []
+    near = float(np.mean(lengths <= params.min_plug_mm * (1 + NEAR_THRESHOLD)))
+    if near < NEAR_SHARE:
+        return []
+    return [f"{100 * near:.0f} % of the plugs seen are within {100 * NEAR_THRESHOLD:.0f} % of min_plug_mm = "
+            f"{params.min_plug_mm:g} mm: shorter plugs are likely there, dropped (the bubbles about them are "
+            "measured as one) and plugs at the threshold come and go (their tracks split) — lower min_plug_mm="]
+
+def guessed_sign(flow: Flow, motion: Motion | None) -> list[str]:
+    """A warning when a celerity was measured along a flow direction only assumed (down a vertical tube): its
+    sign rests on the camera having been upright."""
+    if flow.source != GRAVITY_DOWN or motion is None or motion.celerity_m_s is None:
+        return []
+    return ["no grains were seen falling through the bubbles, so the flow is assumed to run down the image "
+            "(gravity down) and the celerity's sign rests on that: if the camera was not upright, give the flow "
+            "direction (flow_direction=)"]

@@ -1,0 +1,126 @@
+"""From a spatiotemporal diagram to the plugs' measures: normalise, find the plugs, link them into tracks,
+measure the train (celerity, oscillation, regime, lengths); or say why there is nothing to measure.
+
+One path for a movie's diagram (:func:`grainplug.analyze`), a simulation's
+(:mod:`grainplug.simulation.measure`) and a reviewer's corrected tracks
+(:func:`measure_train`, from :func:`grainplug.corrections.apply_corrections`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from ..diagram import Diagram, Normalized, normalize
+from ..diagram.normalize import CONFIRMED_ETA, LOW_SEPARATION_ETA, MIN_CLASS_FRACTION, MIN_SEPARATION_ETA
+from ..params import AnalysisParams
+from ..plugs import Runs, Tracks, find_runs, link, plug_mask
+from .lengths import Lengths, measure_lengths
+from .motion import NO_FOLLOWED_EDGE, Motion, measure_motion
+
+
+def find_plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams) -> tuple[Runs, Tracks]:
+    """Plugs in every frame (runs of grains along the tube), linked into tracks over time."""
+    ds = float(diagram.position_mm[1] - diagram.position_mm[0])
+    mask = plug_mask(norm.z, mm_per_sample=ds, min_plug_mm=params.min_plug_mm, min_gap_mm=params.min_gap_mm)
+    if not norm.two_phase:  # one material only: no plug to find
+        mask[:] = False
+    runs = find_runs(norm.z, mask, diagram.position_mm)
+    return runs, link(runs, diagram.n_frames)
+
+def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, background_level: float, *, fps: float,
+              mm_per_px: float, scale_rel_sd: float,
+              params: AnalysisParams) -> tuple[Motion | None, Lengths | None, str]:
+    """Celerity and oscillation of the plug train, plug and bubble lengths; or why there are none."""
+    if not norm.two_phase and weakly_two(norm):
+        averaged = ("" if norm.averaged_eta is None else
+                    f"; {norm.averaged_eta:.2f} averaged along the tube, {CONFIRMED_ETA:g} needed")
+        return None, None, (f"no plugs: the tube seems to hold a single phase ({single_phase(norm, background_level)})"
+                            f", but its grey levels hint at two, too close to tell apart (separation "
+                            f"{norm.separation_eta:.2f}, {MIN_SEPARATION_ETA:g} needed{averaged}): if there are plugs, "
+                            "raise the contrast between grains and air (lighting, exposure, a less compressed file); "
+                            "no celerity, length or frequency is measured")
+    if not norm.two_phase:
+        return None, None, (f"no plugs: the tube holds a single phase over the whole record "
+                            f"({single_phase(norm, background_level)}); "
+                            "no celerity, length or frequency is measured")
+    if len(runs) == 0:
+        view = float(diagram.position_mm[-1] - diagram.position_mm[0]) if len(diagram.position_mm) > 1 else 0.0
+        longer = f", longer than the {view:.0f} mm in view" if params.min_plug_mm >= view else ""
+        return None, None, (f"no plugs: grains and air are both seen, but no run of grains is at least "
+                            f"{params.min_plug_mm:g} mm long{longer} — lower min_plug_mm= "
+                            "(or min_gap_mm=), or check the scale; no celerity, length or frequency is measured")
+    return measure_train(diagram.time_s, runs, links, fps=fps, mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
+
+
+def measure_train(time_s: np.ndarray, runs: Runs, links: Tracks, *, fps: float, mm_per_px: float,
+                  scale_rel_sd: float) -> tuple[Motion | None, Lengths | None, str]:
+    """Celerity, oscillation and regime of a train of tracked plugs, their lengths and their bubbles' (the step
+    that :func:`measure_plugs` ends with and :func:`grainplug.corrections.apply_corrections` repeats on the
+    corrected tracks); the statement says why there is no motion, if so."""
+    # small least-squares problems: a BLAS thread pool would only add wake-up latency
+    with threadpool_limits(limits=1, user_api="blas"):
+        motion = measure_motion(time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
+                                mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
+        lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd)
+    statement = "" if motion is not None else NO_FOLLOWED_EDGE
+    return motion, lengths, statement
+
+@dataclass(frozen=True)
+class DiagramMeasures:
+    """What :func:`measure_diagram` finds in a spatiotemporal diagram."""
+
+    normalized: Normalized
+    runs: Runs
+    links: Tracks
+    motion: Motion | None
+    lengths: Lengths | None
+    statement: str
+
+def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, fps: float,
+                    background_level: float = 0.0, normalized: Normalized | None = None,
+                    scale_rel_sd: float = 0.0) -> DiagramMeasures:
+    """The analysis from the diagram on: plugs, tracks, celerity, regime, plug and bubble lengths.
+
+    The stages :func:`analyze` runs after streaming the movie, for a diagram from
+    elsewhere (a simulation, :mod:`grainplug.simulation.measure`). ``diagram.values``
+    are grey levels with grains dark, rows in time, positions increasing downstream.
+
+    ``normalized``: the diagram's contrast when it is already known (:func:`grainplug.analyze` normalises
+    before it decides the flow's direction); ``scale_rel_sd``: the scale's relative uncertainty, carried
+    into the intervals.
+    """
+    params = params or AnalysisParams()
+    if normalized is None:
+        normalized = normalize(diagram.values, background_level=background_level or None,
+                               confirm_px=confirm_px(params.min_plug_mm, diagram.mm_per_px))
+    runs, links = find_plugs(normalized, diagram, params)
+    motion, lengths, statement = measure_plugs(normalized, diagram, runs, links, background_level, fps=fps,
+                                               mm_per_px=diagram.mm_per_px, scale_rel_sd=scale_rel_sd, params=params)
+    return DiagramMeasures(normalized, runs, links, motion, lengths, statement)
+
+#: a separation that averaging along the tube lowers by more than this is of short things (falling grains), not plugs
+AVERAGED_LOSS = 0.05
+
+def weakly_two(norm: Normalized) -> bool:
+    """Whether the diagram's two grey levels, too close to be called plugs and bubbles, are still more than one
+    level with noise (a separation of 2/pi = 0.64), each hold a fair share of it, and do not part less once
+    averaged along the tube."""
+    return (norm.separation_eta >= LOW_SEPARATION_ETA
+            and MIN_CLASS_FRACTION <= norm.plug_fraction <= 1 - MIN_CLASS_FRACTION
+            and not (norm.averaged_eta is not None and norm.averaged_eta < norm.separation_eta - AVERAGED_LOSS))
+
+def confirm_px(min_plug_mm: float, mm_per_px: float) -> int:
+    """Positions along the tube over which a weak plug/bubble separation is looked for again: a third of the
+    shortest plug (:func:`grainplug.diagram.normalize`)."""
+    return max(1, int(round(min_plug_mm / 3 / mm_per_px)))
+
+def single_phase(norm: Normalized, background: float) -> str:
+    level = float(np.median([norm.plug_level, norm.bubble_level]))
+    if background <= 0:
+        return "compact flow or empty tube"
+    if 0.75 <= level / background <= 1.35:
+        return "empty tube or dilute flow"
+    return "compact flow by its grey level: grains fill the tube"
