@@ -121,9 +121,10 @@ def test_a_bad_time_stamp_outside_the_window_is_not_the_windows():
     does not (it was repeated for frames 10 to 200 of a 235-frame record)."""
     from grainplug.readers.array import ArrayMovie
     from grainplug.readers.cine import frames_named
+    from grainplug.warning_codes import coded
 
     movie = ArrayMovie(np.zeros((50, 16, 16), np.uint8), fps=100.0)
-    bad = f"{frames_named([40])} out of step with the others"
+    bad = coded("movie.frames_out_of_step", f"{frames_named([40])} out of step with the others")
     info = dataclasses.replace(movie.info, warnings=(bad,), details={"frames_with_bad_timestamp": [40]})
     movie.info = info
     assert bad not in FrameWindow(movie, 0, 30).info.warnings

@@ -21,6 +21,7 @@ from .measures.tracks import edge_speed_mm_s
 from .params import AnalysisParams
 from .plugs import Runs, Tracks
 from .readers import MovieInfo
+from .warning_codes import coded
 
 #: speeds no plug or falling grain reaches in a gravity-driven pipe flow (m/s): free fall from
 #: rest over 2 m gives 6.3 m/s; the paper's plugs move at 0.04-0.1 m/s, its grains fall at 0.8 m/s
@@ -72,9 +73,10 @@ def other_moving_regions(frames: list[np.ndarray], tube: TubeGeometry) -> list[s
         return []
     where = cols[hot]
     name = "x" if tube.orientation == "vertical" else "y"
-    return [f"the frames change as much around {name} = {int(where.min())}-{int(where.max())} px as in the tube "
-            f"analysed (at {name} = {float(axis.mean()):.0f} px): a second tube? Only this one is analysed — "
-            "give roi=(x0, y0, x1, y1) to choose"]
+    return [coded("tube.second_region",
+        f"the frames change as much around {name} = {int(where.min())}-{int(where.max())} px as in the tube "
+        f"analysed (at {name} = {float(axis.mean()):.0f} px): a second tube? Only this one is analysed — "
+        "give roi=(x0, y0, x1, y1) to choose")]
 
 def cut_by_the_frame(tube: TubeGeometry, params: AnalysisParams) -> list[str]:
     """A warning when the tube's moving contents run up to a side of the frame: the tube is cut there."""
@@ -82,9 +84,10 @@ def cut_by_the_frame(tube: TubeGeometry, params: AnalysisParams) -> list[str]:
         return []
     fix = ("widen roi= to hold the whole tube and its walls" if params.roi else
            "frame the whole tube and its walls (or give roi= around a tube that is whole in view)")
-    return [f"the tube's contents change at a side of the frame {100 * tube.side_variation:.0f} % as much as "
-            "anywhere: the tube is cut by the frame's edge, so the tube found, its width, the scale from it and "
-            f"every measure may be wrong — {fix}"]
+    return [coded("tube.cut_by_frame",
+        f"the tube's contents change at a side of the frame {100 * tube.side_variation:.0f} % as much as "
+        "anywhere: the tube is cut by the frame's edge, so the tube found, its width, the scale from it and "
+        f"every measure may be wrong — {fix}")]
 
 #: the width over which a tube's contents are seen, against its bore: a back-lit tube looks up to 35 % narrower
 #: (by the lamp's size), never much wider
@@ -110,9 +113,10 @@ def given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs:
            SEEN_OVER_BORE_NO_PLUGS if two_phase else 0.0)
     if low <= ratio <= SEEN_OVER_BORE[1]:
         return []
-    return [f"the tube's contents are seen over {tube.inner_diameter_px:.1f} px, but the given scale makes its "
-            f"{params.tube_diameter_mm:g} mm bore {expected_px:.1f} px ({ratio:.2g} times): check mm_per_px= "
-            "and tube_diameter_mm=, and that what was found is the tube"]
+    return [coded("scale.given_vs_tube",
+        f"the tube's contents are seen over {tube.inner_diameter_px:.1f} px, but the given scale makes its "
+        f"{params.tube_diameter_mm:g} mm bore {expected_px:.1f} px ({ratio:.2g} times): check mm_per_px= "
+        "and tube_diameter_mm=, and that what was found is the tube")]
 
 def check_background(params: AnalysisParams, info: MovieInfo) -> None:
     bg = params.background
@@ -145,14 +149,17 @@ def implausible(motion: Motion | None, grains: GrainMotion | None, saturation: f
     """Warnings for numbers that cannot be right, each with what to check."""
     out = []
     if motion is not None and motion.celerity_m_s is not None and abs(motion.celerity_m_s) > IMPLAUSIBLE_SPEED_M_S:
-        out.append(f"the plugs move at {motion.celerity_m_s:.3g} m/s, faster than grains can fall in a pipe: check "
-                   "the frame rate (fps=) and the scale (calibration= or mm_per_px=)")
+        out.append(coded("plugs.implausible_speed",
+            f"the plugs move at {motion.celerity_m_s:.3g} m/s, faster than grains can fall in a pipe: check "
+            "the frame rate (fps=) and the scale (calibration= or mm_per_px=)"))
     if grains is not None and grains.speed_m_s is not None and abs(grains.speed_m_s) > IMPLAUSIBLE_SPEED_M_S:
-        out.append(f"the grains fall through the bubbles at {grains.speed_m_s:.3g} m/s, faster than free fall "
-                   "allows: check the frame rate (fps=) and the scale")
+        out.append(coded("plugs.implausible_speed",
+            f"the grains fall through the bubbles at {grains.speed_m_s:.3g} m/s, faster than free fall "
+            "allows: check the frame rate (fps=) and the scale"))
     if saturation > SATURATION_WARN:
-        out.append(f"{100 * saturation:.1f} % of the tube's pixels are at the camera's top value (saturated): plug "
-                   "and bubble contrast is lost there — lower the exposure or the light")
+        out.append(coded("light.saturated",
+            f"{100 * saturation:.1f} % of the tube's pixels are at the camera's top value (saturated): plug "
+            "and bubble contrast is lost there — lower the exposure or the light"))
     return out
 
 #: positions whose grey level varies over the record less than this share of the tube's typical variation are still
@@ -183,10 +190,11 @@ def still_regions(diagram: Diagram, motion: Motion | None, lengths: Lengths | No
     if not spans:
         return []
     where = ", ".join(f"{lo:.1f}-{hi:.1f} mm" for lo, hi in spans[:4]) + (", ..." if len(spans) > 4 else "")
-    return [f"nothing changes at {where} (from the upstream end of the view) over the whole record while the rest "
-            "of the tube does: an object over the tube there (a clamp, a fitting, the tube's end)? Plugs crossing it "
-            "are cut or merged, and their lengths with them — leave it out of the region analysed (roi=, on one side "
-            "of it)"]
+    return [coded("still.region",
+        f"nothing changes at {where} (from the upstream end of the view) over the whole record while the rest "
+        "of the tube does: an object over the tube there (a clamp, a fitting, the tube's end)? Plugs crossing it "
+        "are cut or merged, and their lengths with them — leave it out of the region analysed (roi=, on one side "
+        "of it)")]
 
 #: a track that moves less than this share of what the plug train moves over its life stays put
 STILL_SHARE = 0.2
@@ -217,11 +225,12 @@ def still_objects(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion 
             still.append(f"plug {tid} at {seen.min():.0f}-{seen.max():.0f} mm for {span:.2g} s")
     if not still:
         return []
-    return [f"{'; '.join(still[:5])}{' and more' if len(still) > 5 else ''} (from the upstream end of the view): "
-            f"{'it stays' if len(still) == 1 else 'they stay'} put while the plugs move at "
-            f"{motion.celerity_m_s:+.3g} m/s — a still object over the tube (a clamp, a label, a fitting, the tube's "
-            "end)? Measured as plugs, they bias the lengths: exclude them (grainplug review, or Corrections in "
-            "Python) or leave them out with roi="]
+    return [coded("still.track",
+        f"{'; '.join(still[:5])}{' and more' if len(still) > 5 else ''} (from the upstream end of the view): "
+        f"{'it stays' if len(still) == 1 else 'they stay'} put while the plugs move at "
+        f"{motion.celerity_m_s:+.3g} m/s — a still object over the tube (a clamp, a label, a fitting, the tube's "
+        "end)? Measured as plugs, they bias the lengths: exclude them (grainplug review, or Corrections in "
+        "Python) or leave them out with roi=")]
 
 #: plugs just over ``min_plug_mm``: this share of the whole plugs seen within :data:`NEAR_THRESHOLD` of it ...
 NEAR_SHARE = 0.1
@@ -242,15 +251,17 @@ def near_the_threshold(runs: Runs, motion: Motion | None, params: AnalysisParams
     near = float(np.mean(lengths <= params.min_plug_mm * (1 + NEAR_THRESHOLD)))
     if near < NEAR_SHARE:
         return []
-    return [f"{100 * near:.0f} % of the plugs seen are within {100 * NEAR_THRESHOLD:.0f} % of min_plug_mm = "
-            f"{params.min_plug_mm:g} mm: shorter plugs are likely there, dropped (the bubbles about them are "
-            "measured as one) and plugs at the threshold come and go (their tracks split) — lower min_plug_mm="]
+    return [coded("plugs.near_min_length",
+        f"{100 * near:.0f} % of the plugs seen are within {100 * NEAR_THRESHOLD:.0f} % of min_plug_mm = "
+        f"{params.min_plug_mm:g} mm: shorter plugs are likely there, dropped (the bubbles about them are "
+        "measured as one) and plugs at the threshold come and go (their tracks split) — lower min_plug_mm=")]
 
 def guessed_sign(flow: Flow, motion: Motion | None) -> list[str]:
     """A warning when a celerity was measured along a flow direction only assumed (down a vertical tube): its
     sign rests on the camera having been upright."""
     if flow.source != GRAVITY_DOWN or motion is None or motion.celerity_m_s is None:
         return []
-    return ["no grains were seen falling through the bubbles, so the flow is assumed to run down the image "
-            "(gravity down) and the celerity's sign rests on that: if the camera was not upright, give the flow "
-            "direction (flow_direction=)"]
+    return [coded("flow.sign_assumed",
+        "no grains were seen falling through the bubbles, so the flow is assumed to run down the image "
+        "(gravity down) and the celerity's sign rests on that: if the camera was not upright, give the flow "
+        "direction (flow_direction=)")]

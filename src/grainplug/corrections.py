@@ -52,6 +52,7 @@ import numpy as np
 from .errors import ParameterError
 from .measures.diagram import measure_train
 from .plugs import Runs, Tracks
+from .warning_codes import code_of, coded
 
 if TYPE_CHECKING:
     from .diagram import Diagram
@@ -483,6 +484,13 @@ def _tracks_of(track: np.ndarray, frame: np.ndarray, began_ended: tuple[list[str
                   list(ended) + ["cut"] * (n - len(ended)))
 
 
+def _is(warning: str, code: str, legacy_prefix: str) -> bool:
+    """Whether ``warning`` is of ``code`` (a warning of a result saved before codes: by the sentence it began
+    with then)."""
+    found = code_of(warning)
+    return found == code or (found == "legacy.uncoded" and warning.startswith(legacy_prefix))
+
+
 def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: bool = False) -> AnalysisResult:
     """The result with ``corr`` applied to its detected tracks and every measure recomputed.
 
@@ -526,15 +534,19 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     elif detected_plugs:
         statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
     unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)
-    flagged = reanalysed or any(w.startswith(UNCHECKED) for w in res.warnings)
+    flagged = reanalysed or any(_is(w, "corrections.unchecked", UNCHECKED) for w in res.warnings)
     # those of an earlier replay go, and are said again if they still hold
-    warnings = [w for w in res.warnings if not w.startswith((NOT_APPLIED, UNCHECKED))]
-    warnings += [f"{NOT_APPLIED}: {note} — review the run again" for note in st.not_applied]
+    warnings = [w for w in res.warnings if not (_is(w, "corrections.not_applied", NOT_APPLIED)
+                                                or _is(w, "corrections.unchecked", UNCHECKED))]
+    warnings += [coded("corrections.not_applied", f"{NOT_APPLIED}: {note} — review the run again")
+                 for note in st.not_applied]
     if unchecked and flagged:
-        warnings.append(f"{UNCHECKED}: {unchecked} edit(s) in corrections.json name tracks of an earlier analysis "
-                        "of this run without where those tracks were, and the movie or the parameters have "
-                        "changed since — check them in `grainplug review` (edits made there again keep their "
-                        "tracks' place)")
+        warnings.append(coded(
+            "corrections.unchecked",
+            f"{UNCHECKED}: {unchecked} edit(s) in corrections.json name tracks of an earlier analysis "
+            "of this run without where those tracks were, and the movie or the parameters have "
+            "changed since — check them in `grainplug review` (edits made there again keep their "
+            "tracks' place)"))
     return dataclasses.replace(res, runs=new_runs, links=new_links, motion=motion, lengths=lengths,
                                has_plugs=has_plugs, statement=statement, detected=(runs, links),
                                corrections=corr, warnings=warnings)

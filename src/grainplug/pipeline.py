@@ -61,6 +61,7 @@ from .readers.roi import region_of
 from .readers.timing import frame_times, timing_stamps
 from .readers.window import first_movie_frame, window_of, window_start
 from .result import AnalysisResult
+from .warning_codes import all_coded
 
 log = logging.getLogger(__name__)
 
@@ -140,7 +141,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         check_finite(values, info)
         light_warnings: list[str] = []
         if params.background is not None:
-            values, light_warnings = flat_field(values, band, params.background)
+            values, light = flat_field(values, band, params.background)
+            light_warnings = all_coded("light.background", light)
         laps("stream_s")
         time_s, time_warnings = frame_times(movie, info, len(values))
         identity = movie_identity(movie)
@@ -170,7 +172,9 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *cut_by_the_frame(tube, params), *scale.warnings,
                   *given_scale_doubts(tube, params, has_plugs=has_plugs, two_phase=norm.two_phase), *light_warnings,
-                  *filter(None, [repair.describe(diagram.n_frames, first=first_movie_frame(info))]), *time_warnings,
+                  *all_coded("frames.repaired", filter(None, [repair.describe(diagram.n_frames,
+                                                                              first=first_movie_frame(info))])),
+                  *time_warnings,
                   *flow.warnings, *guessed_sign(flow, motion), *other_tubes,
                   *still_regions(diagram, motion, lengths),
                   *still_objects(runs, links, diagram.time_s, motion, mm_per_px),

@@ -18,9 +18,11 @@ from typing import Any
 import numpy as np
 
 from .errors import GrainplugError
+from .warning_codes import CODES, CodedWarning
 
-#: version of the layout of ``result.npz`` (2: corrections keep where their tracks were; 1 is read too)
-FORMAT_VERSION = 2
+#: version of the layout of ``result.npz`` (3: warnings keep their codes; 2: corrections keep where their tracks
+#: were; 1 and 2 are read too, their warnings as uncoded text)
+FORMAT_VERSION = 3
 RESULT_FILE = "result.npz"
 
 
@@ -28,6 +30,8 @@ def _encode(obj: Any, path: str, arrays: dict[str, np.ndarray]) -> Any:
     if isinstance(obj, np.ndarray):
         arrays[path] = obj
         return {"__array__": path}
+    if isinstance(obj, CodedWarning):
+        return {"__warning__": [obj.code, str(obj)]}
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         out = {"__type__": type(obj).__name__}
         for f in dataclasses.fields(obj):
@@ -56,6 +60,9 @@ def _decode(obj: Any, arrays: Any, types: dict[str, type]) -> Any:
         return obj
     if "__array__" in obj:
         return arrays[obj["__array__"]]
+    if "__warning__" in obj:
+        code, text = obj["__warning__"]
+        return CodedWarning(code, text) if code in CODES else str(text)  # a code of a newer version: the text
     if "__tuple__" in obj:
         return tuple(_decode(v, arrays, types) for v in obj["__tuple__"])
     if "__items__" in obj:

@@ -13,6 +13,7 @@ import numpy as np
 from ._version import __version__
 from .measures.tracks import edge_speed_mm_s
 from .params import runs_backwards
+from .warning_codes import codes_of
 
 if TYPE_CHECKING:
     from .calibration.tube import TubeGeometry
@@ -174,6 +175,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "flow_direction_source": res.flow_direction_source,
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
         "warnings": list(res.warnings),
+        "warning_codes": codes_of(res.warnings),
         **_corrections_fields(res),
         "corrections_applied": res.corrections.as_dict()["edits"] if res.corrections is not None else [],
         "view_length_mm": _r(float(res.diagram.position_mm[-1] + 0.5 * res.mm_per_px), 4),

@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
+from ..warning_codes import all_coded, coded
 from .pattern import Calibration
 from .tube import TubeGeometry
 from .tube_model import AGREEMENT, BoreEstimate, WallMeasure, bore_from_model
@@ -132,38 +133,45 @@ def tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, facts: TubeFacts) 
     """
     fix = "take a calibration image (grainplug calibrate) or give mm_per_px="
     across = tube.canonical_shape[1]
-    out = list(bore.warnings)
+    out = all_coded("scale.tube_model", bore.warnings)
     est = bore.estimates_px
     if tube.back_lit is None:
         why = ("the tube is cut by the frame's edge" if tube.side_variation > CUT_SIDE_SHARE else
                "its contents were not seen to change")
-        out.append(f"the scale comes from the tube's edges in the mean image ({bore.diameter_px:.1f} px): {why}, so "
-                   "neither the bore nor the walls' optics could be measured and the scale may be off by 10 % or "
-                   f"more — {fix}")
+        out.append(coded("scale.edges_only",
+            f"the scale comes from the tube's edges in the mean image ({bore.diameter_px:.1f} px): {why}, so "
+            "neither the bore nor the walls' optics could be measured and the scale may be off by 10 % or "
+            f"more — {fix}"))
     elif bore.method == "contents" and tube.back_lit:
-        out.append(f"the scale comes from the width over which the tube's contents are seen ({bore.diameter_px:.1f} "
-                   "px) and the walls showed neither refraction stripes nor an outer silhouette to correct it: a "
-                   "back-lit glass tube looks up to 35 % narrower than its bore (by the lamp's angular size), which "
-                   f"inflates every length and celerity by as much — {fix}")
+        out.append(coded("scale.contents_back_lit",
+            f"the scale comes from the width over which the tube's contents are seen ({bore.diameter_px:.1f} "
+            "px) and the walls showed neither refraction stripes nor an outer silhouette to correct it: a "
+            "back-lit glass tube looks up to 35 % narrower than its bore (by the lamp's angular size), which "
+            f"inflates every length and celerity by as much — {fix}"))
     elif bore.method == "contents":
-        out.append(f"the scale comes from the tube's inner width seen through its contents ({bore.diameter_px:.1f} px)"
-                   ", not cross-checked (in front light it read within 2-3 % on the renderers tried) — give "
-                   f"tube_outer_diameter_mm= to check it against the tube's outer silhouette, or {fix}")
+        out.append(coded("scale.contents_unchecked",
+            f"the scale comes from the tube's inner width seen through its contents ({bore.diameter_px:.1f} px)"
+            ", not cross-checked (in front light it read within 2-3 % on the renderers tried) — give "
+            f"tube_outer_diameter_mm= to check it against the tube's outer silhouette, or {fix}"))
     elif not math.isfinite(bore.agreement):
-        out.append(f"the scale comes from the tube model alone ({bore.method}: bore {bore.diameter_px:.1f} px, "
-                   f"about ±{100 * bore.rel_sd:.2g} %, glass index {facts.glass_index:g} assumed), not cross-checked "
-                   "— give tube_outer_diameter_mm= to check it against the outer silhouette, or " + fix)
+        out.append(coded("scale.model_alone",
+            f"the scale comes from the tube model alone ({bore.method}: bore {bore.diameter_px:.1f} px, "
+            f"about ±{100 * bore.rel_sd:.2g} %, glass index {facts.glass_index:g} assumed), not cross-checked "
+            "— give tube_outer_diameter_mm= to check it against the outer silhouette, or " + fix))
     elif bore.agreement > AGREEMENT:
         parts = ", ".join(f"{m} {v:.1f} px" for m, v in est.items() if m != "contents")
-        out.append(f"the tube model's estimates of the bore disagree by {100 * bore.agreement:.0f} % ({parts}): "
-                   "check tube_diameter_mm=, tube_outer_diameter_mm= and glass_index= — or " + fix)
+        out.append(coded("scale.model_disagrees",
+            f"the tube model's estimates of the bore disagree by {100 * bore.agreement:.0f} % ({parts}): "
+            "check tube_diameter_mm=, tube_outer_diameter_mm= and glass_index= — or " + fix))
     if bore.diameter_px < NARROW_TUBE_PX:
-        out.append(f"the tube is only {bore.diameter_px:.1f} px wide: a scale from its width is uncertain by "
-                   f"{100 * bore.rel_sd:.2g} % (one standard deviation), and every length and celerity with it — "
-                   f"{fix}")
+        out.append(coded("scale.tube_narrow",
+            f"the tube is only {bore.diameter_px:.1f} px wide: a scale from its width is uncertain by "
+            f"{100 * bore.rel_sd:.2g} % (one standard deviation), and every length and celerity with it — "
+            f"{fix}"))
     if bore.diameter_px > WIDE_TUBE_SHARE * across:
-        out.append(f"the tube fills {100 * bore.diameter_px / across:.0f} % of the frame's width: its walls may "
-                   f"be out of view and the scale from its width wrong — {fix}")
+        out.append(coded("scale.tube_wide",
+            f"the tube fills {100 * bore.diameter_px / across:.0f} % of the frame's width: its walls may "
+            f"be out of view and the scale from its width wrong — {fix}"))
     return out
 
 def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[int, int], from_tube: float,
@@ -180,11 +188,12 @@ def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[in
     name = cal.image.get("name")
     source = (f"calibration image{' ' + name if name else ''} ({cal.pattern}, {cal.n_points} points "
               f"{cal.pitch_mm:g} mm apart, along the tube's axis)")
-    warnings = list(cal.warnings)
+    warnings = all_coded("scale.calibration", cal.warnings)
     if tuple(cal.image_shape) != tuple(frame_shape):
-        warnings.append(f"the calibration image is {cal.image_shape[1]} x {cal.image_shape[0]} px but the movie's "
-                        f"frames are {frame_shape[1]} x {frame_shape[0]}: its scale holds only if the camera, lens, "
-                        "focus and distance did not change (a crop is fine)")
+        warnings.append(coded("scale.calibration_size",
+            f"the calibration image is {cal.image_shape[1]} x {cal.image_shape[0]} px but the movie's "
+            f"frames are {frame_shape[1]} x {frame_shape[0]}: its scale holds only if the camera, lens, "
+            "focus and distance did not change (a crop is fine)"))
     disagree = from_tube / mm_per_px - 1
     if abs(disagree) > 0.03:
         if disagree > 0:  # the bore reads narrower than the calibration says
@@ -194,7 +203,8 @@ def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[in
             advice = ("the tube reads wider than the calibration implies, which refraction does not do — check "
                       "that the pattern was at the tube's plane (not behind it), its pitch (pitch_mm=), and "
                       "tube_diameter_mm=")
-        warnings.append(f"the tube's bore reads {bore.diameter_px:.1f} px ({bore.method}), {diameter_mm:g} mm by the "
-                        f"calibration being {diameter_mm / mm_per_px:.1f} px ({100 * disagree:+.0f} % in scale): "
-                        + advice)
+        warnings.append(coded("scale.calibration_vs_tube",
+            f"the tube's bore reads {bore.diameter_px:.1f} px ({bore.method}), {diameter_mm:g} mm by the "
+            f"calibration being {diameter_mm / mm_per_px:.1f} px ({100 * disagree:+.0f} % in scale): "
+            + advice))
     return mm_per_px, source, rel_sd, warnings

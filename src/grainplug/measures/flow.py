@@ -11,6 +11,7 @@ import numpy as np
 from ..calibration.tube import TubeGeometry
 from ..diagram import Diagram, Normalized
 from ..params import opposite, runs_backwards
+from ..warning_codes import coded
 from .grains import GrainMotion, falling_grains
 
 log = logging.getLogger(__name__)
@@ -46,9 +47,10 @@ def resolve_flow(given: str | None, tube: TubeGeometry, grains: GrainMotion | No
     if given:
         warnings = ()
         if speed is not None and (speed < 0) != runs_backwards(given):
-            warnings = (f"the grains falling through the bubbles move against the given flow direction ({given}; "
-                        f"{abs(speed):.2f} m/s the other way): check the flow direction "
-                        "(flow_direction=)",)
+            warnings = (coded("flow.against_given",
+                              f"the grains falling through the bubbles move against the given flow direction "
+                              f"({given}; {abs(speed):.2f} m/s the other way): check the flow direction "
+                              "(flow_direction=)"),)
             log.warning(warnings[0])
         return Flow(given, "user", warnings)
     if speed is not None:
@@ -56,9 +58,9 @@ def resolve_flow(given: str | None, tube: TubeGeometry, grains: GrainMotion | No
         return Flow(direction, f"inferred from the grains falling through the bubbles ({abs(speed):.2f} m/s)")
     if tube.orientation == "vertical":
         return Flow(forward, GRAVITY_DOWN)
-    return Flow(forward, "assumed", (f"no grains seen falling through the bubbles: the flow is assumed to run "
-                                      f"{forward}; if it does not, give the flow direction "
-                                      "(flow_direction=)",))
+    return Flow(forward, "assumed", (coded("flow.assumed", f"no grains seen falling through the bubbles: the flow "
+                                           f"is assumed to run {forward}; if it does not, give the flow direction "
+                                           "(flow_direction=)"),))
 
 def orient(diagram: Diagram, norm: Normalized, grains: GrainMotion | None, tube: TubeGeometry,
             direction: str) -> tuple[Diagram, Normalized, GrainMotion | None]:

@@ -16,6 +16,7 @@ import numpy as np
 from .._system import READAHEAD_MEMORY_SHARE, ReadAhead, free_memory_bytes
 from ..band import Band
 from ..errors import MovieError
+from ..warning_codes import coded
 
 log = logging.getLogger(__name__)
 
@@ -33,10 +34,11 @@ def choose_fps(given: float | None, in_file: float | None) -> tuple[float | None
     if not given:
         return in_file, "file" if in_file else "none", []
     if in_file and abs(given / in_file - 1) > FPS_DISAGREEMENT:
-        return float(given), "user", [
+        return float(given), "user", [coded(
+            "movie.fps_disagrees",
             f"the frame rate given ({given:g} fps) is not the one the file records ({in_file:.6g} fps): the given "
             "one is used, and every time and speed scales with it — right for a video saved at a playback rate, "
-            "but check fps="]
+            "but check fps=")]
     return float(given), "user", []
 
 

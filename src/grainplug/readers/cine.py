@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MovieError
+from ..warning_codes import code_of, coded
 from .base import MovieInfo, choose_fps
 from .raw import RawFramesMovie, RawLayout, complete_frames
 
@@ -220,7 +221,7 @@ def _describe(path: Path, *, fps: float | None, allow_truncated: bool) -> tuple[
     depth = real_bpp if stored_bits == 16 and 8 < real_bpp <= 16 else stored_bits  # RealBPP: bits the sensor gave
     rate, rate_note, record, warnings_, stamp_facts = _frame_rate(setup, stamps, n)
     if fps is not None:  # the user chose the rate: the stamps-or-header choice is not made (choose_fps says so)
-        warnings_ = [w for w in warnings_ if not w.endswith(STAMPS_OVER_HEADER)]
+        warnings_ = [w for w in warnings_ if code_of(w) != "movie.fps_stamps"]
     if truncated:
         warnings_.insert(0, truncated)
     use_fps, source, fps_doubts = choose_fps(fps, rate)
@@ -243,8 +244,8 @@ def _describe(path: Path, *, fps: float | None, allow_truncated: bool) -> tuple[
         **stamp_facts,
     }
     if levels and not (0 <= levels.get("BlackLevel", 0) < levels.get("WhiteLevel", 1 << depth) <= (1 << depth)):
-        warnings_.append(f"the black/white levels {levels} are out of the {depth}-bit range — ignored (pixels are "
-                         "used as stored)")
+        warnings_.append(coded("movie.header_levels", f"the black/white levels {levels} are out of the {depth}-bit "
+                               "range — ignored (pixels are used as stored)"))
     info = MovieInfo(
         path=str(path), format=f"cine:{details['layout']}", width=width, height=height, n_frames=n, fps=use_fps,
         channels=3 if (rgb or bayer) else 1, bit_depth=depth, dtype="uint8" if stored_bits == 8 else "uint16",
@@ -295,9 +296,9 @@ def _frame_rate(setup: dict[str, object], stamps: np.ndarray | None,
     facts["timestamp_fps"] = None if stamp_fps is None else round(stamp_fps, 3)
     facts["timestamp_jitter"] = round(jitter, 6)
     if bad:
-        warnings_.append(f"{frames_named(bad)} out of step with the others — check "
-                         f"{'it' if len(bad) == 1 else 'them'} (a camera writes a bad stamp on a frame it did not "
-                         "record whole)")
+        warnings_.append(coded("movie.frames_out_of_step", f"{frames_named(bad)} out of step with the others — check "
+                               f"{'it' if len(bad) == 1 else 'them'} (a camera writes a bad stamp on a frame it did "
+                               "not record whole)"))
         facts["frames_with_bad_timestamp"] = bad
     if stamp_fps is None:
         return nominal, note, record if decimation > 1 else None, warnings_, facts
@@ -305,8 +306,8 @@ def _frame_rate(setup: dict[str, object], stamps: np.ndarray | None,
         note += f"; time stamps agree ({stamp_fps:.6g} fps)"
         return nominal, note, record if decimation > 1 else None, warnings_, facts
     if nominal:
-        warnings_.append(f"the frame time stamps say {stamp_fps:.6g} fps but the header says {nominal:g} fps — "
-                         + STAMPS_OVER_HEADER)
+        warnings_.append(coded("movie.fps_stamps", f"the frame time stamps say {stamp_fps:.6g} fps but the header "
+                               f"says {nominal:g} fps — " + STAMPS_OVER_HEADER))
     return stamp_fps, f"time stamps ({stamp_fps:.6g} fps)", record if decimation > 1 else None, warnings_, facts
 
 

@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MovieError
+from ..warning_codes import coded
 from .base import Movie, MovieInfo, choose_fps
 
 log = logging.getLogger(__name__)
@@ -65,9 +66,12 @@ FIX = 'install PyAV to read every bit: pip install "grainplug[video]"'
 def deep_warning(pixel_format: str, *, yuv: bool, reader: str) -> str:
     """The warning for a video whose samples are deeper than the 8 bits it is read with."""
     if yuv:  # PyAV converts YUV to 8-bit RGB too: the fix is another export
-        return (f"the video stores more than 8 bits per sample ({pixel_format}, YUV) but is read as 8 bits — "
-                "export the movie as 16-bit TIFF images or grey FFV1 to keep every bit")
-    return f"the video stores more than 8 bits per sample ({pixel_format}) but {reader} reads it as 8 bits — {FIX}"
+        return coded("movie.deep_read_shallow",
+                     f"the video stores more than 8 bits per sample ({pixel_format}, YUV) but is read as 8 bits — "
+                     "export the movie as 16-bit TIFF images or grey FFV1 to keep every bit")
+    return coded("movie.deep_read_shallow",
+                 f"the video stores more than 8 bits per sample ({pixel_format}) but {reader} reads it as 8 bits — "
+                 f"{FIX}")
 
 
 def _tag(value: float) -> bytes:

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MovieError
+from ..warning_codes import coded
 from .base import MovieInfo, choose_fps, map_file
 from .cine import STAMPS_OVER_HEADER, frames_named, stamp_rate
 from .raw import RawFramesMovie, RawLayout
@@ -85,7 +86,9 @@ class SeqMovie(RawFramesMovie):
                 raise MovieError(f"{path} is truncated: it holds {n} of the {n_listed} frames its header describes — "
                                  "copy the file again" + (f", or give allow_truncated=True to read "
                                                           f"the {n} complete frames" if n else ""))
-            truncated = f"the file is truncated: reading the first {n} of the {n_listed} frames its header describes"
+            truncated = coded("movie.truncated",
+                              f"the file is truncated: reading the first {n} of the {n_listed} frames its header "
+                              "describes")
         stamps = _stamps(path, header, true_size, image_bytes, n, micro=version >= 5)
         layout = RawLayout(offsets=offsets[:n], shape=shape, encoding=encoding, bgr=image_format == FORMAT_BGR)
         stamp_fps, jitter, bad = stamp_rate(stamps)
@@ -93,11 +96,11 @@ class SeqMovie(RawFramesMovie):
         rate, note = (stamp_fps, f"time stamps ({stamp_fps:.6g} fps)") if stamp_fps else (
             (suggested, "header's suggested rate") if suggested > 0 else (None, ""))
         if fps is None and stamp_fps and suggested > 0 and abs(stamp_fps / suggested - 1) > 0.01:
-            warnings_.append(f"the frame time stamps say {stamp_fps:.4g} fps but the header suggests {suggested:g} fps "
-                             "— " + STAMPS_OVER_HEADER)
+            warnings_.append(coded("movie.fps_stamps", f"the frame time stamps say {stamp_fps:.4g} fps but the "
+                                   f"header suggests {suggested:g} fps — " + STAMPS_OVER_HEADER))
         if bad:
-            warnings_.append(f"{frames_named(bad)} out of step with the others — frames may have been dropped "
-                             "while recording")
+            warnings_.append(coded("movie.frames_out_of_step", f"{frames_named(bad)} out of step with the others "
+                                   "— frames may have been dropped while recording"))
         use_fps, source, fps_doubts = choose_fps(fps, rate)
         warnings_.extend(fps_doubts)
         info = MovieInfo(

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MovieError
+from ..warning_codes import coded
 from .base import MovieInfo, choose_fps
 from .raw import RawFramesMovie, RawLayout, complete_frames
 
@@ -189,8 +190,9 @@ class MrawMovie(RawFramesMovie):
                                        described=n_frames)
         warnings_ = [truncated] if truncated else []
         if size > n_frames * frame_bytes:
-            warnings_.append(f"{data.name} holds {size - n_frames * frame_bytes} bytes more than the {n_frames} "
-                             f"frames its header describes — is {cih.name} the header of this file?")
+            warnings_.append(coded("movie.extra_bytes", f"{data.name} holds {size - n_frames * frame_bytes} bytes "
+                                   f"more than the {n_frames} frames its header describes — is {cih.name} the header "
+                                   "of this file?"))
         effective = _optional_int(meta, "EffectiveBit Depth", bits)
         side = meta.get("EffectiveBit Side", "Lower")
         depth = min(effective, bits) if side.lower() == "lower" else bits

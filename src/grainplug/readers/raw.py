@@ -22,6 +22,7 @@ import numpy as np
 
 from ..band import Band
 from ..errors import MovieError
+from ..warning_codes import coded
 from .band import profiles_from_blocks
 from .base import Movie, MovieInfo, map_file, read_file
 
@@ -266,7 +267,8 @@ def complete_frames(path: Path, layout: RawLayout, *, allow_truncated: bool, wha
         raise MovieError(f"{path} is truncated: it holds {whole} of the {n} frames its header describes — copy the "
                          f"file again, or give allow_truncated=True to read the {whole} "
                          "complete frames")
-    return whole, f"the file is truncated: reading the first {whole} of the {n} frames its header describes"
+    return whole, coded("movie.truncated",
+                         f"the file is truncated: reading the first {whole} of the {n} frames its header describes")
 
 
 class RawFramesMovie(Movie):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..warning_codes import coded
 from .base import Movie, MovieInfo
 
 #: how far (in frame periods) time stamps may stray from a constant rate and still be its rounding
@@ -44,7 +45,8 @@ def frame_times(movie: Movie, info: MovieInfo, n: int) -> tuple[np.ndarray, list
     if stamps is None or len(stamps) != n:
         return (np.arange(n) + movie.first_frame_index) / info.fps, []
     dt = np.diff(stamps)
-    return stamps, [f"the frames are not evenly spaced in time ({1000 * dt.min():.3g} to {1000 * dt.max():.3g} ms "
-                    "apart): the file's own time stamps are used, but a high-speed camera records at a constant "
-                    "rate — check how the file was made (re-encoded, frames dropped?), or give fps= to time the "
-                    "frames by their number"]
+    return stamps, [coded("time.uneven",
+        f"the frames are not evenly spaced in time ({1000 * dt.min():.3g} to {1000 * dt.max():.3g} ms "
+        "apart): the file's own time stamps are used, but a high-speed camera records at a constant "
+        "rate — check how the file was made (re-encoded, frames dropped?), or give fps= to time the "
+        "frames by their number")]

@@ -18,6 +18,7 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import ParameterError
+from ..warning_codes import code_of, coded
 from .base import Movie, MovieInfo
 
 
@@ -31,8 +32,6 @@ class FrameWindow(Movie):
     """Frames ``[start, stop)`` of ``movie`` (which stays open; closing the window does not close it)."""
 
     def __init__(self, movie: Movie, start: int, stop: int, *, notes: tuple[str, ...] = ()) -> None:
-        from .cine import frames_named
-
         n = movie.info.n_frames
         if not 0 <= start < stop <= n:
             raise ValueError(f"the window {start}..{stop} is not within the movie's {n} frames")
@@ -42,7 +41,7 @@ class FrameWindow(Movie):
         warnings = list(movie.info.warnings)
         bad = [int(k) for k in details.get("frames_with_bad_timestamp") or []]
         if bad and not any(self.start <= k < self.stop for k in bad):  # a bad stamp outside the window: not its own
-            warnings = [w for w in warnings if not w.startswith(frames_named(bad))]
+            warnings = [w for w in warnings if code_of(w) != "movie.frames_out_of_step"]
         info = dataclasses.replace(movie.info, n_frames=self.stop - self.start, details=details,
                                    warnings=(*warnings, *notes))
         super().__init__(movie.path, info)
@@ -132,11 +131,12 @@ def window_of(movie: Movie, params: WindowRequest) -> Movie:
     # an end past the movie is said, not clamped silently (an end in the wrong unit would go unnoticed); in
     # seconds, up to one frame past it is the movie's own duration rounded
     if params.end_frame is not None and stop > n:
-        notes = (f"the window's end, frame {stop}, is past the movie's {n} frames: it was analysed to the movie's "
-                 "end — check the end and its unit (frames or seconds)",)
+        notes = (coded("window.end_past_movie", f"the window's end, frame {stop}, is past the movie's {n} frames: it "
+                       "was analysed to the movie's end — check the end and its unit (frames or seconds)"),)
     elif params.end_s is not None and stop > n + 1:
-        notes = (f"the window's end, {params.end_s:g} s, is past the movie's {n / fps:.4g} s: it was analysed to "
-                 "the movie's end — check the end and its unit (frames or seconds)",)
+        notes = (coded("window.end_past_movie", f"the window's end, {params.end_s:g} s, is past the movie's "
+                       f"{n / fps:.4g} s: it was analysed to the movie's end — check the end and its unit (frames or "
+                       "seconds)"),)
     stop = min(stop, n)
     if stop - start < 8:
         raise ParameterError(f"the window holds {max(stop - start, 0)} of the movie's {n} frames (frames {start} to "
