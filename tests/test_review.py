@@ -36,7 +36,7 @@ def chromium_page(p: object, *args: str, errors: list[str] | None = None) -> Ite
     browser = p.chromium.launch(executable_path=CHROMIUM, headless=True,  # type: ignore[attr-defined]
                                 args=["--no-sandbox", "--disable-gpu", "--no-first-run", *args])
     try:
-        page = browser.new_page(viewport={"width": 1366, "height": 768})
+        page = browser.new_context(viewport={"width": 1366, "height": 768}).new_page()  # more pages: page.context
         if errors is not None:
             page.on("pageerror", lambda e: errors.append(str(e)))
         yield page

@@ -43,6 +43,7 @@ is on disk.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import hmac
@@ -52,6 +53,7 @@ import logging
 import os
 import re
 import secrets
+import socket
 import threading
 from dataclasses import dataclass
 from http import HTTPStatus
@@ -396,6 +398,8 @@ def _static(name: str) -> bytes:
 TOKEN_HEADER = "X-Grainplug-Token"
 #: a POST body larger than this is refused unread (an edit is a few hundred bytes)
 MAX_BODY = 64 * 1024
+#: how long a closed connection waits for what its client still sends (see :func:`_linger`), s
+LINGER_S = 1.0
 #: the page's own policy: its script and style files only, no inline script, never framed
 PAGE_POLICY = ("default-src 'self'; img-src 'self' data: blob:; script-src 'self'; style-src 'self'; "
                "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'")
@@ -458,7 +462,7 @@ class _Handler(BaseHTTPRequestHandler):
 
     # -- what http.server itself answers: malformed request lines, versions, unknown methods -------------------
     def log_message(self, fmt: str, *args: object) -> None:
-        log.debug("review: " + fmt, *args)
+        log.debug("review: %s", (fmt % args).replace(self.token, "<token>"))  # never the token in a log
 
     def parse_request(self) -> bool:
         ok = super().parse_request()
@@ -505,8 +509,8 @@ class _Handler(BaseHTTPRequestHandler):
 
     def _refuse(self, refused: _Refused) -> None:
         """A 4xx, and the connection closed (a body left unread is never taken for the next request)."""
-        log.info("review: refused %s %.200r: %s", self.command, self.path if hasattr(self, "path") else "",
-                 refused.message)
+        path = getattr(self, "path", "").partition("?")[0]  # never the token in a log
+        log.info("review: refused %s %.200r: %s", self.command, path, refused.message)
         self.close_connection = True
         headers = {"Connection": "close"}
         if refused.allow:
@@ -530,7 +534,7 @@ class _Handler(BaseHTTPRequestHandler):
             return self._json({"error": exc.message}, HTTPStatus.BAD_REQUEST)
         if isinstance(exc, GrainplugError):
             return self._json({"error": str(exc)}, HTTPStatus.NOT_FOUND)
-        log.error("review: %s %.200r failed", self.command, self.path, exc_info=exc)
+        log.error("review: %s %.200r failed", self.command, self.path.partition("?")[0], exc_info=exc)
         self._json({"error": f"internal error ({type(exc).__name__}): see the log of grainplug review"},
                    HTTPStatus.INTERNAL_SERVER_ERROR)
 
@@ -698,6 +702,17 @@ class _Handler(BaseHTTPRequestHandler):
         return body
 
 
+def _linger(sock: socket.socket) -> None:
+    """Half-close ``sock``, then read for a moment what the client still sends (the body of a refused request)
+    before it is closed: closed with unread input, the connection is reset, and the client may lose the answer."""
+    with contextlib.suppress(OSError):
+        sock.shutdown(socket.SHUT_WR)
+        sock.settimeout(LINGER_S)
+        left = 4 * MAX_BODY
+        while left > 0 and (chunk := sock.recv(min(65536, left))):
+            left -= len(chunk)
+
+
 class _Server(ThreadingHTTPServer):
     """A threading server that closes every connection when it stops (a browser keeps idle ones open)."""
 
@@ -715,6 +730,7 @@ class _Server(ThreadingHTTPServer):
         super().process_request(request, client_address)
 
     def shutdown_request(self, request: Any) -> None:
+        _linger(request)  # still in _open: close_connections ends it at once when the server stops
         with self._open_lock:
             self._open.discard(request)
         super().shutdown_request(request)
@@ -725,9 +741,6 @@ class _Server(ThreadingHTTPServer):
 
     def close_connections(self) -> None:
         """End every open connection: their handlers see the end of input and finish."""
-        import contextlib
-        import socket
-
         with self._open_lock:
             open_now = list(self._open)
         for sock in open_now:
