@@ -19,13 +19,24 @@ from grainplug.synthetic import SynthConfig, synthesize
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 
+def api(srv: ReviewServer, path: str, body: bytes | None = None) -> urllib.request.Request:
+    """A request of the page's API as the page's script makes it: with the server's token in its header."""
+    headers = dict(srv.headers, **({"Content-Type": "application/json"} if body is not None else {}))
+    return urllib.request.Request(srv.base_url + path, data=body, headers=headers)
+
+
+def get_json(srv: ReviewServer, path: str) -> object:
+    with urllib.request.urlopen(api(srv, path)) as r:
+        return json.loads(r.read())
+
+
 @contextlib.contextmanager
 def chromium_page(p: object, *args: str, errors: list[str] | None = None) -> Iterator[object]:
     """A page of a headless Chromium at 1366 x 768 (script errors gathered into ``errors``), closed after."""
     browser = p.chromium.launch(executable_path=CHROMIUM, headless=True,  # type: ignore[attr-defined]
                                 args=["--no-sandbox", "--disable-gpu", "--no-first-run", *args])
     try:
-        page = browser.new_page(viewport={"width": 1366, "height": 768})
+        page = browser.new_context(viewport={"width": 1366, "height": 768}).new_page()  # more pages: page.context
         if errors is not None:
             page.on("pageerror", lambda e: errors.append(str(e)))
         yield page
@@ -158,16 +169,14 @@ def test_a_moved_movie_is_said_and_the_rest_still_works(copy, tmp_path):
 
 def test_http_answers_errors_as_json(copy):
     with ReviewServer(copy) as srv:
-        with urllib.request.urlopen(srv.url + "api/runs") as r:
-            assert json.loads(r.read()) == {"runs": ["run1"]}
-        req = urllib.request.Request(srv.url + "api/run/run1/edit", data=b'{"action": "merge", "track": 1}',
-                                     headers={"Content-Type": "application/json"})
+        assert get_json(srv, "api/runs") == {"runs": ["run1"]}
+        req = api(srv, "api/run/run1/edit", b'{"action": "merge", "track": 1}')
         with pytest.raises(urllib.error.HTTPError) as err:
             urllib.request.urlopen(req)
         with err.value:  # an error response holds its connection until closed
             assert err.value.code == 400 and "merge needs other" in json.loads(err.value.read())["error"]
         with pytest.raises(urllib.error.HTTPError) as err:
-            urllib.request.urlopen(srv.url + "api/run/nope/state")
+            urllib.request.urlopen(api(srv, "api/run/nope/state"))
         with err.value:
             assert err.value.code == 400
 
@@ -219,8 +228,15 @@ def test_review_command_serves_until_ctrl_c(analysis):
         line = proc.stdout.readline()
         url = line.split()[1]
         assert url.startswith("http://127.0.0.1:")
-        with urllib.request.urlopen(url + "api/runs", timeout=10) as r:
+        base, _, token = url.partition("/?token=")
+        assert len(token) >= 43  # 32 random bytes
+        req = urllib.request.Request(base + "/api/runs", headers={"X-Grainplug-Token": token})
+        with urllib.request.urlopen(req, timeout=10) as r:
             assert json.loads(r.read()) == {"runs": ["run1"]}
+        with pytest.raises(urllib.error.HTTPError) as err:  # not without the token
+            urllib.request.urlopen(base + "/api/runs", timeout=10)
+        with err.value:
+            assert err.value.code == 403
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=20)
     finally:
@@ -416,8 +432,7 @@ def test_an_empty_track_box_is_no_track(copy):
     with ReviewServer(copy) as srv:
         for body in ('{"action": "merge", "track": "", "other": 1}', '{"action": "merge", "track": 0, "other": " "}',
                      '{"action": "exclude", "track": ""}'):
-            req = urllib.request.Request(srv.url + "api/run/run1/edit", data=body.encode(),
-                                         headers={"Content-Type": "application/json"})
+            req = api(srv, "api/run/run1/edit", body.encode())
             with pytest.raises(urllib.error.HTTPError) as err:
                 urllib.request.urlopen(req)
             with err.value:
@@ -451,7 +466,7 @@ def test_the_page_refuses_empty_boxes_and_stale_edits(copy, tmp_path):
         page.goto(srv.url)
         page.wait_for_selector("#tracks tbody tr", timeout=20_000)
         assert not page.is_visible("#frame")  # not the broken-image alt text
-        st = json.loads(urllib.request.urlopen(srv.url + "api/run/run1/state").read())
+        st = get_json(srv, "api/run/run1/state")
         page.fill("#merge-b", "1")
         page.click("#merge")
         assert 'the box "into" is empty' in page.inner_text("#error")
@@ -495,13 +510,13 @@ def test_the_page_shows_the_oscillation_and_every_track_s_number(tmp_path):
     with ReviewServer(tmp_path / "osc") as srv, sync_api.sync_playwright() as p, chromium_page(p) as page:
         page.goto(srv.url)
         page.wait_for_selector("#tracks tbody tr", timeout=20_000)
-        st = json.loads(urllib.request.urlopen(srv.url + "api/run/osc/state").read())["measures"]
+        st = get_json(srv, "api/run/osc/state")["measures"]
         assert st["regime"] == "oscillating" and st["oscillation_frequency_hz"]
         f = st["oscillation_frequency_hz"]
         assert float(page.get_attribute("#frequency", "data-value")) == pytest.approx(f)
         assert page.inner_text("#frequency") == f"{f:.2f}"
         assert page.inner_text("#amplitude") == f"{st['oscillation_amplitude_mm']:.2f}"
-        edges = json.loads(urllib.request.urlopen(srv.url + "api/run/osc/state").read())["edges"]
+        edges = get_json(srv, "api/run/osc/state")["edges"]
         assert any(all(z is None for z in e["top"]) for e in edges.values())  # the case is there
         labels = page.evaluate("() => { const out = []; const ctx = document.getElementById('diagram')"
                                ".getContext('2d'); const f = ctx.fillText.bind(ctx); ctx.fillText = (t, x, y) => "

@@ -765,7 +765,8 @@ def review(folder: Path, port: int, no_browser: bool) -> None:
 
     Edits are kept in FOLDER/corrections.json at once and the measures recomputed; "Write
     outputs" rewrites the run's files (as grainplug remeasure). Served on 127.0.0.1 only,
-    offline; Ctrl-C stops it.
+    offline; the printed address holds the page's access token (other users of the machine
+    can reach the port, not the page): open that address. Ctrl-C stops it.
     """
     import threading
     import webbrowser

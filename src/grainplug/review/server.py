@@ -3,7 +3,7 @@
 Notes
 -----
 The server is Python's own :class:`http.server.ThreadingHTTPServer`, bound to
-127.0.0.1. The page is one HTML file and one script shipped in the package, with no
+127.0.0.1. The page is one HTML file, one script and one stylesheet shipped in the package, with no
 JavaScript library and no CDN, so it works offline. Nothing to install, nothing fetched
 at run time, and nothing listening beyond this machine. Panel/Bokeh would bring a
 zoomable plot for free, but also ~50 MB of dependencies and a server of their own for a
@@ -12,7 +12,7 @@ page with one image, one table and a few buttons.
 Endpoints (``R`` is a run's name: its folder's name, a single analysis' or each of a
 campaign's runs):
 
-- ``GET /`` and ``/app.js``: the page;
+- ``GET /`` and ``/app.js``, ``/app.css``: the page (``/?token=...`` sets the token's cookie);
 - ``GET /api/runs``: the runs that can be reviewed;
 - ``GET /api/run/R/state``: measures, tracks, edges, corrections, the movie's status, and the
   ``version`` of the files they come from;
@@ -27,6 +27,13 @@ campaign's runs):
   with the ``version`` the page was shown is refused (409, with the state as it is now) when
   the files changed since: the page's edit named tracks of what it showed.
 
+Every request is checked before anything is read or written (:class:`_Handler`): its ``Host`` must be
+``127.0.0.1:PORT`` or ``localhost:PORT`` (DNS rebinding), it must come from no other page (``Origin``,
+``Sec-Fetch-Site``: CSRF), and it must carry the server's random token (:attr:`ReviewServer.token`: other users of
+the machine reach the port too) — in the ``X-Grainplug-Token`` header the page's script sends, or in the cookie the
+printed address (``/?token=...``) sets; a POST needs the header, and a JSON body of at most :data:`MAX_BODY` bytes.
+Refusals are a 4xx with one JSON error. See ``docs/security.md``.
+
 The session never writes over what it has not read: each request first compares
 ``corrections.json`` (its bytes) and ``result.npz`` (inode, size, time) with what it read,
 and reads them again when they changed (a hand edit, a colleague's copy, another review
@@ -36,11 +43,17 @@ is on disk.
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import hashlib
+import hmac
 import io
 import json
 import logging
 import os
+import re
+import secrets
+import socket
 import threading
 from dataclasses import dataclass
 from http import HTTPStatus
@@ -48,12 +61,12 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
 from pathlib import Path
 from typing import Any
-from urllib.parse import unquote
+from urllib.parse import parse_qs, unquote
 
 import numpy as np
 
 from .._atomic import atomic_file
-from ..corrections import CORRECTIONS_FILE, Corrections, apply_corrections, replayed
+from ..corrections import CORRECTIONS_FILE, Corrections, Edit, apply_corrections, replayed
 from ..errors import GrainplugError, ParameterError
 from ..jsonio import dumps
 from ..result import AnalysisResult, load_result
@@ -92,6 +105,10 @@ def _campaign_runs(folder: Path) -> set[str] | None:
         return None
     with open(table, newline="", encoding="utf-8") as fh:
         return {run_folder_name(str(row.get("run", ""))) for row in csv.DictReader(fh)}
+
+
+#: what an edit sent by the page may hold (its time is the server's)
+_EDIT_FIELDS = frozenset(f.name for f in dataclasses.fields(Edit)) - {"at"}
 
 
 class StaleReview(ParameterError):
@@ -330,6 +347,9 @@ class ReviewSession:
         """
         if not isinstance(edit, dict) or "action" not in edit:
             raise ParameterError("an edit is a JSON object with an \"action\"")
+        unknown = sorted(str(k) for k in edit if k not in _EDIT_FIELDS)  # "at", "on": not the page's to set
+        if unknown:
+            raise ParameterError(f"{edit['action']!s:.40}: unknown argument {', '.join(unknown)!s:.200}")
         # an empty box is no number: "merge needs other", not a merge into track 0
         args = {k: None if isinstance(v, str) and not v.strip() else v for k, v in edit.items() if k != "action"}
         run = self._check_version(name, version)  # the edit keeps the spans of its tracks in this analysis
@@ -374,95 +394,323 @@ def _static(name: str) -> bytes:
     return resources.files("grainplug.review").joinpath("static", name).read_bytes()
 
 
+#: the header the page sends its token in (``Authorization: token ...`` is taken too)
+TOKEN_HEADER = "X-Grainplug-Token"
+#: a POST body larger than this is refused unread (an edit is a few hundred bytes)
+MAX_BODY = 64 * 1024
+#: how long a closed connection waits for what its client still sends (see :func:`_linger`), s
+LINGER_S = 1.0
+#: the page's own policy: its script and style files only, no inline script, never framed
+PAGE_POLICY = ("default-src 'self'; img-src 'self' data: blob:; script-src 'self'; style-src 'self'; "
+               "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'")
+#: every other answer (JSON, PNG, the refusals) is data, never a document
+DATA_POLICY = "default-src 'none'; frame-ancestors 'none'; sandbox"
+_STATIC = {"app.js": "text/javascript; charset=utf-8", "app.css": "text/css; charset=utf-8"}
+_FRAME = re.compile(r"([0-9]{1,9})\.png", re.ASCII)
+_LENGTH = re.compile(r"[0-9]{1,19}", re.ASCII)
+_TOKEN_SLOT = b'<meta name="grainplug-token" content="">'
+_FORBIDDEN_PAGE = """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>grainplug review: no access</title></head>
+<body><h1>grainplug review</h1>
+<p>This address needs the review's access token. Open the address printed by
+<code>grainplug review</code> (it ends in <code>/?token=...</code>) in this browser.</p></body></html>
+"""
+
+
+class _Refused(Exception):
+    """A request answered with a 4xx and nothing else done (``page``: the refusal is the HTML page's)."""
+
+    def __init__(self, status: HTTPStatus, message: str, *, page: bool = False, allow: str = "") -> None:
+        super().__init__(message)
+        self.status, self.message, self.page, self.allow = status, message, page, allow
+
+
+def _bounded_int(text: str) -> int:
+    """A JSON integer of at most 15 digits (a track, a frame): larger ones are no such number, and overflow floats."""
+    if len(text.lstrip("-")) > 15:
+        raise ValueError(f"the number {text[:20]}... is too large")
+    return int(text)
+
+
+def _no_constant(name: str) -> object:
+    raise ValueError(f"{name} is not JSON (numbers must be finite)")
+
+
+def _same(given: str, token: bytes) -> bool:
+    """Whether ``given`` is the token, compared in constant time."""
+    return hmac.compare_digest(given.encode("utf-8", "surrogateescape"), token)
+
+
 class _Handler(BaseHTTPRequestHandler):
+    """The review's HTTP answers, each request checked first.
+
+    Every request must name this server in its ``Host`` (``127.0.0.1:PORT`` or ``localhost:PORT``: a DNS-rebound
+    name is refused), carry no foreign ``Origin`` nor come from another site's page (``Sec-Fetch-Site``), and carry
+    the server's token: in the ``X-Grainplug-Token`` header (every request of the page's script, and the only way for
+    a POST), in the cookie set at the first visit (the page's images), or in the ``?token=`` of the printed address
+    (GET only). A POST must be ``application/json`` of at most :data:`MAX_BODY` bytes with its ``Content-Length``.
+    Every refusal is a 4xx with one JSON error (the page's own: a short HTML page), and nothing is read or written.
+    """
+
     session: ReviewSession  # set on the subclass made by ReviewServer
+    token: str  # likewise: the server's token
     timeout = 60  # an idle connection is dropped after a minute
+    server_version = "grainplug-review"
 
+    def version_string(self) -> str:
+        return self.server_version  # not Python's version
+
+    # -- what http.server itself answers: malformed request lines, versions, unknown methods -------------------
     def log_message(self, fmt: str, *args: object) -> None:
-        log.debug("review: " + fmt, *args)
+        log.debug("review: %s", (fmt % args).replace(self.token, "<token>"))  # never the token in a log
 
-    def _send(self, body: bytes, ctype: str, status: int = 200) -> None:
+    def parse_request(self) -> bool:
+        ok = super().parse_request()
+        if ok and self.request_version == "HTTP/0.9":  # an answer to it would have no status line
+            self.send_error(HTTPStatus.BAD_REQUEST, "HTTP/0.9 requests are not answered: send HTTP/1.0 or 1.1")
+            return False
+        return ok
+
+    def send_error(self, code: int, message: str | None = None, explain: str | None = None) -> None:
+        """http.server's own refusals as one JSON error, always a 4xx: an unknown method is 405 (not 501),
+        an HTTP version beyond 1.x is 400 (not 505)."""
+        status = HTTPStatus(code)
+        if status == HTTPStatus.NOT_IMPLEMENTED:
+            self._refuse(_Refused(HTTPStatus.METHOD_NOT_ALLOWED, f"method {self.command!s:.40} is not allowed: "
+                                  "GET or POST", allow="GET, POST"))
+            return
+        if status >= 500:
+            status = HTTPStatus.BAD_REQUEST
+        self._refuse(_Refused(status, message or status.phrase))
+
+    # -- answers --------------------------------------------------------------------------------------------
+    def _send(self, body: bytes, ctype: str, status: int = 200, *, headers: dict[str, str] | None = None,
+              policy: str = DATA_POLICY) -> None:
+        if self.request_version == "HTTP/0.9":  # answered with a status line, as 1.0
+            self.request_version = "HTTP/1.0"
         self.send_response(status)
         self.send_header("Content-Type", ctype)
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "no-store")
+        self.send_header("X-Content-Type-Options", "nosniff")
+        self.send_header("X-Frame-Options", "DENY")
+        self.send_header("Content-Security-Policy", policy)
+        self.send_header("Referrer-Policy", "no-referrer")  # the first address holds the token
+        self.send_header("Cross-Origin-Resource-Policy", "same-origin")  # no other page shows a frame or PNG
+        self.send_header("Cross-Origin-Opener-Policy", "same-origin")
+        for key, value in (headers or {}).items():
+            self.send_header(key, value)
         self.end_headers()
-        self.wfile.write(body)
+        if self.command != "HEAD":
+            self.wfile.write(body)
 
-    def _json(self, data: object, status: int = 200) -> None:
-        self._send(dumps(data).encode(), "application/json", status)
+    def _json(self, data: object, status: int = 200, *, headers: dict[str, str] | None = None) -> None:
+        self._send(dumps(data).encode(), "application/json", status, headers=headers)
+
+    def _refuse(self, refused: _Refused) -> None:
+        """A 4xx, and the connection closed (a body left unread is never taken for the next request)."""
+        path = getattr(self, "path", "").partition("?")[0]  # never the token in a log
+        log.info("review: refused %s %.200r: %s", self.command, path, refused.message)
+        self.close_connection = True
+        headers = {"Connection": "close"}
+        if refused.allow:
+            headers["Allow"] = refused.allow
+        if refused.page:
+            self._send(_FORBIDDEN_PAGE.encode(), "text/html; charset=utf-8", refused.status, headers=headers)
+        else:
+            self._json({"error": refused.message}, refused.status, headers=headers)
 
     def _error(self, exc: Exception, name: str = "") -> None:
-        status = HTTPStatus.BAD_REQUEST if isinstance(exc, ParameterError) else HTTPStatus.INTERNAL_SERVER_ERROR
-        msg = exc.message if isinstance(exc, ParameterError) else str(exc)
-        body: dict[str, object] = {"error": msg}
+        """A request the session could not do: 400 (its parameters), 409 (made on files changed since: with the
+        state as it is now), 404 (what the run cannot show: its movie), 500 (a bug, logged)."""
         if isinstance(exc, StaleReview):  # the page shows what is on disk now
-            status = HTTPStatus.CONFLICT
+            body: dict[str, object] = {"error": exc.message}
             try:
                 body["state"] = self.session.state(name)
             except (GrainplugError, ValueError) as again:
-                body["error"] = f"{msg} ({again})"
-        self._json(body, status)
+                body["error"] = f"{exc.message} ({again})"
+            return self._json(body, HTTPStatus.CONFLICT)
+        if isinstance(exc, ParameterError):
+            return self._json({"error": exc.message}, HTTPStatus.BAD_REQUEST)
+        if isinstance(exc, GrainplugError):
+            return self._json({"error": str(exc)}, HTTPStatus.NOT_FOUND)
+        log.error("review: %s %.200r failed", self.command, self.path.partition("?")[0], exc_info=exc)
+        self._json({"error": f"internal error ({type(exc).__name__}): see the log of grainplug review"},
+                   HTTPStatus.INTERNAL_SERVER_ERROR)
 
-    def _route(self) -> tuple[str, str, list[str]]:
-        parts = [unquote(p) for p in self.path.split("?")[0].strip("/").split("/")]
-        if len(parts) >= 4 and parts[:2] == ["api", "run"]:
-            return "run", parts[2], parts[3:]
-        return "top", "", parts
+    # -- the checks, in order: Host, Origin, Sec-Fetch-Site, token -------------------------------------------
+    @property
+    def _port(self) -> int:
+        return int(self.server.server_address[1])
 
-    def do_GET(self) -> None:
+    def _one(self, name: str) -> str | None:
+        """The request's ``name`` header (None without one); refused when it is given more than once."""
+        values = self.headers.get_all(name) or []
+        if len(values) > 1:
+            raise _Refused(HTTPStatus.BAD_REQUEST, f"more than one {name} header")
+        return values[0].strip() if values else None
+
+    def _check_host(self) -> None:
+        """Refuse a request for another host name: a page whose name was rebound to 127.0.0.1 (DNS rebinding)."""
+        host = self._one("Host")
+        if host is None or host.lower() not in (f"127.0.0.1:{self._port}", f"localhost:{self._port}"):
+            raise _Refused(HTTPStatus.FORBIDDEN, f"this server answers requests for 127.0.0.1:{self._port} or "
+                           f"localhost:{self._port} only, not for host {host!s:.100}")
+
+    def _check_origin(self, page: bool) -> None:
+        """Refuse what another page sends or loads: a foreign ``Origin``, or (``Sec-Fetch-Site``) a request made by
+        another site's page (other ports of 127.0.0.1 included); a navigation to the page itself is let through
+        (the token still decides)."""
+        origin = self._one("Origin")
+        if origin is not None and origin not in (f"http://127.0.0.1:{self._port}", f"http://localhost:{self._port}"):
+            raise _Refused(HTTPStatus.FORBIDDEN, f"requests from another page ({origin:.100}) are refused")
+        site = (self._one("Sec-Fetch-Site") or "").lower()
+        navigate = (self._one("Sec-Fetch-Mode") or "").lower() == "navigate"
+        if site in ("cross-site", "same-site") and not (page and navigate and self.command == "GET"):
+            raise _Refused(HTTPStatus.FORBIDDEN, "requests from another site's page are refused")
+
+    def _header_token(self) -> str | None:
+        given = self._one(TOKEN_HEADER)
+        if given is not None:
+            return given
+        scheme, _, value = (self._one("Authorization") or "").partition(" ")
+        return value.strip() if scheme.lower() in ("token", "bearer") else None
+
+    def _cookie_name(self) -> str:
+        return f"grainplug-review-token-{self._port}"  # cookies are shared by the ports of a host
+
+    def _cookie_tokens(self) -> list[str]:
+        """Every value of the token cookie (a page of another port may have set one more of that name)."""
+        found = []
+        for header in self.headers.get_all("Cookie") or []:
+            for part in header.split(";"):
+                key, eq, value = part.strip().partition("=")
+                if eq and key == self._cookie_name():
+                    found.append(value.strip().strip('"'))
+        return found
+
+    def _authorise(self, query: str, page: bool) -> dict[str, str]:
+        """Refuse a request without the token; the headers to answer with (the cookie, set by the first visit)."""
+        token = self.token.encode()
+        given = self._header_token()
+        if given is not None and _same(given, token):
+            return {}
+        if self.command == "POST":  # a form or another page's fetch can send the cookie, never this header
+            raise _Refused(HTTPStatus.FORBIDDEN, f"a change needs the page's token in the {TOKEN_HEADER} header")
+        if any(_same(c, token) for c in self._cookie_tokens()):
+            return {}
         try:
-            kind, name, rest = self._route()
+            asked = parse_qs(query, keep_blank_values=True, max_num_fields=20).get("token", [])
+        except ValueError:
+            asked = []
+        if any(_same(a, token) for a in asked):
+            return {"Set-Cookie": f"{self._cookie_name()}={self.token}; Path=/; HttpOnly; SameSite=Strict"}
+        raise _Refused(HTTPStatus.FORBIDDEN, "no valid token: open the address printed by grainplug review "
+                       "(it ends in /?token=...)", page=page)
+
+    def _checked(self) -> tuple[list[str], dict[str, str]]:
+        """The request's path as parts (percent-decoded), once every check passed; the headers to answer with."""
+        self._check_host()
+        target, _, query = self.path.partition("?")
+        if not target.startswith("/"):
+            raise _Refused(HTTPStatus.BAD_REQUEST, f"bad request target {self.path:.100}")
+        parts = [unquote(p) for p in target.split("#")[0].strip("/").split("/")]
+        page = parts in ([""], ["index.html"])
+        self._check_origin(page)
+        return parts, self._authorise(query, page)
+
+    # -- the methods ------------------------------------------------------------------------------------------
+    def do_GET(self) -> None:
+        name = ""
+        try:
+            parts, headers = self._checked()
             s = self.session
-            if kind == "top":
-                if rest in ([""], ["index.html"]):
-                    return self._send(_static("index.html"), "text/html; charset=utf-8")
-                if rest == ["app.js"]:
-                    return self._send(_static("app.js"), "text/javascript; charset=utf-8")
-                if rest == ["api", "runs"]:
-                    return self._json({"runs": list(s.targets)})
-                if rest == ["favicon.ico"]:
-                    return self._send(b"", "image/x-icon", HTTPStatus.NO_CONTENT)
-            elif rest == ["state"]:
-                return self._json(s.state(name))
-            elif rest == ["version"]:
-                return self._json(s.version(name))
-            elif rest == ["diagram.png"]:
-                return self._send(s.diagram_png(name), "image/png")
-            elif len(rest) == 2 and rest[0] == "frame" and rest[1].endswith(".png"):
-                return self._send(s.frame_png(name, int(rest[1][:-4])), "image/png")
-            self._json({"error": f"no such page {self.path}"}, HTTPStatus.NOT_FOUND)
-        except (GrainplugError, ValueError) as exc:
-            self._error(exc)
-        except Exception as exc:  # a bug: answer, log, keep serving
-            log.exception("review: %s", self.path)
-            self._error(exc)
+            if parts in ([""], ["index.html"]):
+                html = _static("index.html").replace(
+                    _TOKEN_SLOT, f'<meta name="grainplug-token" content="{self.token}">'.encode())
+                return self._send(html, "text/html; charset=utf-8", headers=headers, policy=PAGE_POLICY)
+            if len(parts) == 1 and parts[0] in _STATIC:
+                return self._send(_static(parts[0]), _STATIC[parts[0]], headers=headers)
+            if parts == ["api", "runs"]:
+                return self._json({"runs": list(s.targets)}, headers=headers)
+            if parts == ["favicon.ico"]:
+                return self._send(b"", "image/x-icon", HTTPStatus.NO_CONTENT)
+            if len(parts) >= 4 and parts[:2] == ["api", "run"]:
+                name, rest = parts[2], parts[3:]
+                if rest == ["state"]:
+                    return self._json(s.state(name), headers=headers)
+                if rest == ["version"]:
+                    return self._json(s.version(name), headers=headers)
+                if rest == ["diagram.png"]:
+                    return self._send(s.diagram_png(name), "image/png", headers=headers)
+                frame = _FRAME.fullmatch(rest[1]) if len(rest) == 2 and rest[0] == "frame" else None
+                if frame is not None:
+                    return self._send(s.frame_png(name, int(frame.group(1))), "image/png", headers=headers)
+            raise _Refused(HTTPStatus.NOT_FOUND, f"no such page {self.path:.200}")
+        except _Refused as refused:
+            self._refuse(refused)
+        except Exception as exc:
+            self._error(exc, name)
 
     def do_POST(self) -> None:
-        kind = name = ""
+        name = ""
         try:
-            kind, name, rest = self._route()
-            if kind != "run":
-                return self._json({"error": "not found"}, HTTPStatus.NOT_FOUND)
-            n = int(self.headers.get("Content-Length") or 0)
-            body = json.loads(self.rfile.read(n) or b"{}")
-            if not isinstance(body, dict):
-                raise ParameterError("the request's body must be a JSON object")
+            parts, _ = self._checked()
+            if not (len(parts) == 4 and parts[:2] == ["api", "run"] and parts[3] in ("edit", "undo", "save")):
+                raise _Refused(HTTPStatus.NOT_FOUND, f"no such action {self.path:.200}")
+            name, action = parts[2], parts[3]
+            body = self._body()
             version = body.pop("version", None)
-            if rest == ["edit"]:
+            if action == "edit":
                 self.session.edit(name, body, version=version)
-            elif rest == ["undo"]:
+            elif action == "undo":
                 self.session.undo(name, version=version)
-            elif rest == ["save"]:
-                self.session.save(name, version=version)
             else:
-                return self._json({"error": "not found"}, HTTPStatus.NOT_FOUND)
+                self.session.save(name, version=version)
             self._json(self.session.state(name))
-        except (GrainplugError, ValueError) as exc:
-            self._error(exc, name if kind == "run" else "")
+        except _Refused as refused:
+            self._refuse(refused)
         except Exception as exc:
-            log.exception("review: %s", self.path)
-            self._error(exc)
+            self._error(exc, name)
+
+    def _body(self) -> dict[str, Any]:
+        """The POST's JSON object: ``application/json``, with a ``Content-Length`` of at most :data:`MAX_BODY`
+        (refused unread otherwise), strict JSON (no ``NaN``, no integer over 15 digits)."""
+        ctype = self._one("Content-Type") or ""
+        if ctype.split(";")[0].strip().lower() != "application/json":
+            raise _Refused(HTTPStatus.UNSUPPORTED_MEDIA_TYPE,
+                           f"a change is sent as application/json, not {ctype or 'without a Content-Type'!s:.100}")
+        if self.headers.get_all("Transfer-Encoding"):
+            raise _Refused(HTTPStatus.LENGTH_REQUIRED, "send the body with a Content-Length, not chunked")
+        length = self._one("Content-Length")
+        if length is None:
+            raise _Refused(HTTPStatus.LENGTH_REQUIRED, "a change needs its Content-Length")
+        if not _LENGTH.fullmatch(length):
+            raise _Refused(HTTPStatus.BAD_REQUEST, f"bad Content-Length {length:.40}")
+        n = int(length)
+        if n > MAX_BODY:
+            raise _Refused(HTTPStatus.REQUEST_ENTITY_TOO_LARGE, f"the body is over {MAX_BODY} bytes")
+        raw = self.rfile.read(n) if n else b"{}"
+        if len(raw) < n:
+            raise _Refused(HTTPStatus.BAD_REQUEST, "the body is shorter than its Content-Length")
+        try:
+            body = json.loads(raw.decode("utf-8"), parse_int=_bounded_int, parse_constant=_no_constant)
+        except (ValueError, RecursionError) as exc:
+            raise _Refused(HTTPStatus.BAD_REQUEST, f"the body is not JSON: {exc}") from None
+        if not isinstance(body, dict):
+            raise _Refused(HTTPStatus.BAD_REQUEST, "the request's body must be a JSON object")
+        return body
+
+
+def _linger(sock: socket.socket) -> None:
+    """Half-close ``sock``, then read for a moment what the client still sends (the body of a refused request)
+    before it is closed: closed with unread input, the connection is reset, and the client may lose the answer."""
+    with contextlib.suppress(OSError):
+        sock.shutdown(socket.SHUT_WR)
+        sock.settimeout(LINGER_S)
+        left = 4 * MAX_BODY
+        while left > 0 and (chunk := sock.recv(min(65536, left))):
+            left -= len(chunk)
 
 
 class _Server(ThreadingHTTPServer):
@@ -482,15 +730,17 @@ class _Server(ThreadingHTTPServer):
         super().process_request(request, client_address)
 
     def shutdown_request(self, request: Any) -> None:
+        _linger(request)  # still in _open: close_connections ends it at once when the server stops
         with self._open_lock:
             self._open.discard(request)
         super().shutdown_request(request)
 
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        """A connection that failed (the client gone mid-answer): logged, and the server goes on."""
+        log.debug("review: a connection from %s failed", client_address, exc_info=True)
+
     def close_connections(self) -> None:
         """End every open connection: their handlers see the end of input and finish."""
-        import contextlib
-        import socket
-
         with self._open_lock:
             open_now = list(self._open)
         for sock in open_now:
@@ -500,6 +750,9 @@ class _Server(ThreadingHTTPServer):
 
 class ReviewServer:
     """The review page served on ``127.0.0.1:port`` from a thread (a context manager: stops it).
+
+    Each server draws its own access token (:attr:`token`): every request must carry it, and the address to open,
+    :attr:`url`, holds it. See :class:`_Handler` for every check a request passes, and ``docs/security.md``.
 
     Parameters
     ----------
@@ -511,14 +764,27 @@ class ReviewServer:
 
     def __init__(self, folder: str | Path, *, port: int = 0) -> None:
         self.session = ReviewSession(folder)
-        handler = type("Handler", (_Handler,), {"session": self.session})
+        self.token = secrets.token_urlsafe(32)  # 32 random bytes
+        handler = type("Handler", (_Handler,), {"session": self.session, "token": self.token})
         self.httpd = _Server(("127.0.0.1", port), handler)
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="grainplug-review", daemon=False)
 
     @property
-    def url(self) -> str:
+    def base_url(self) -> str:
+        """The server's address without its token (``http://127.0.0.1:PORT/``): what the page's requests are
+        relative to; opened as is, it is refused."""
         host, port = self.httpd.server_address[:2]
         return f"http://{host}:{port}/"
+
+    @property
+    def url(self) -> str:
+        """The address to open: :attr:`base_url` with the token (``http://127.0.0.1:PORT/?token=...``)."""
+        return f"{self.base_url}?token={self.token}"
+
+    @property
+    def headers(self) -> dict[str, str]:
+        """The header that authorises a request made from a script (``{"X-Grainplug-Token": token}``)."""
+        return {TOKEN_HEADER: self.token}
 
     def __enter__(self) -> ReviewServer:
         self._thread.start()

@@ -1,15 +1,22 @@
 "use strict";
 // grainplug review: the diagram (canvas), the frame under a click, the tracks and the corrections.
+// Whatever the server sends (run names, warnings, corrections, errors) is shown as text, never parsed as HTML:
+// the page is built with createElement and textContent only.
 const $ = (id) => document.getElementById(id);
+// the server's token, written in the page by the server: sent with every request of this script (the images
+// carry the cookie set by the first visit); the address bar drops it, so it is not left in sight or in a link
+const TOKEN = document.querySelector('meta[name="grainplug-token"]').content;
+if (location.search) history.replaceState(null, "", location.pathname);
 let run = null, state = null, img = null, view = null, frame = null, selected = null, playing = null;
 let npStart = null, busy = 0;
 const api = (path) => `api/run/${encodeURIComponent(run)}/${path}`;
 const fmt = (x, d) => (x === null || x === undefined) ? "—" : Number(x).toFixed(d);
 
 async function getJSON(url, body) {
-  const opts = body === undefined ? {} : {method: "POST", headers: {"Content-Type": "application/json"},
-                                          body: JSON.stringify(body)};
-  const r = await fetch(url, opts);
+  const headers = {"X-Grainplug-Token": TOKEN};
+  const opts = body === undefined ? {headers} : {method: "POST", body: JSON.stringify(body),
+                                                 headers: Object.assign(headers, {"Content-Type": "application/json"})};
+  const r = await fetch(url, Object.assign(opts, {credentials: "same-origin", cache: "no-store"}));
   const data = await r.json();
   if (!r.ok) {
     const err = new Error(data.error || r.statusText);
@@ -17,6 +24,15 @@ async function getJSON(url, body) {
     throw err;
   }
   return data;
+}
+
+// an element with its text (never HTML) and, optionally, attributes and children
+function el(tag, text, attrs, ...children) {
+  const e = document.createElement(tag);
+  if (text !== undefined && text !== null) e.textContent = String(text);
+  for (const [k, v] of Object.entries(attrs || {})) e.setAttribute(k, String(v));
+  e.append(...children);
+  return e;
 }
 
 function say(text) { $("error").textContent = text; }
@@ -84,32 +100,37 @@ async function load(name) {
 function show(s) {
   state = s;
   const m = s.measures;
-  $("measures").innerHTML = `regime <b id="regime">${m.regime}</b> · celerity <b id="celerity" data-value="${m.celerity_m_s}">${fmt(m.celerity_m_s, 4)}</b> m/s`
-    + ` · plug <b>${fmt(m.plug_length_mm, 2)}</b> mm · bubble <b>${fmt(m.bubble_length_mm, 2)}</b> mm`
-    + ` · ${m.n_plugs} plugs`
-    + ((m.oscillation_frequency_hz ?? null) !== null || m.regime === "oscillating"
-      ? ` · oscillation <b id="frequency" data-value="${m.oscillation_frequency_hz}">${fmt(m.oscillation_frequency_hz, 2)}</b> Hz`
-        + `, amplitude <b id="amplitude">${fmt(m.oscillation_amplitude_mm, 2)}</b> mm` : "");
+  const parts = ["regime ", el("b", m.regime, {id: "regime"}),
+    " · celerity ", el("b", fmt(m.celerity_m_s, 4), {id: "celerity", "data-value": m.celerity_m_s}), " m/s",
+    " · plug ", el("b", fmt(m.plug_length_mm, 2)), " mm · bubble ", el("b", fmt(m.bubble_length_mm, 2)), " mm",
+    ` · ${m.n_plugs} plugs`];
+  if ((m.oscillation_frequency_hz ?? null) !== null || m.regime === "oscillating") {
+    parts.push(" · oscillation ", el("b", fmt(m.oscillation_frequency_hz, 2),
+                                     {id: "frequency", "data-value": m.oscillation_frequency_hz}),
+               " Hz, amplitude ", el("b", fmt(m.oscillation_amplitude_mm, 2), {id: "amplitude"}), " mm");
+  }
+  $("measures").replaceChildren(...parts);
   const tb = $("tracks").querySelector("tbody");
-  tb.innerHTML = "";
+  tb.replaceChildren();
   for (const t of s.tracks) {
     const tr = document.createElement("tr");
     tr.dataset.track = t.plug_id;
     if (t.excluded) tr.classList.add("excluded");
     if (t.plug_id === selected) tr.classList.add("selected");
-    tr.innerHTML = `<td>${t.plug_id}</td><td>${fmt(t.first_time_s, 3)}</td><td>${fmt(t.last_time_s, 3)}</td>`
-      + `<td>${t.n_frames ?? "—"}</td><td>${fmt(t.celerity_m_s, 4)}</td><td>${fmt(t.median_length_mm, 2)}</td>`
-      + `<td><button class="toggle">${t.excluded ? "restore" : "exclude"}</button></td>`;
-    tr.querySelector(".toggle").onclick = (ev) => {
+    const toggle = el("button", t.excluded ? "restore" : "exclude", {class: "toggle"});
+    tr.append(el("td", t.plug_id), el("td", fmt(t.first_time_s, 3)), el("td", fmt(t.last_time_s, 3)),
+              el("td", t.n_frames ?? "—"), el("td", fmt(t.celerity_m_s, 4)), el("td", fmt(t.median_length_mm, 2)),
+              el("td", null, {}, toggle));
+    toggle.onclick = (ev) => {
       ev.stopPropagation();
       post("edit", {action: t.excluded ? "restore" : "exclude", track: t.plug_id});
     };
     tr.onclick = () => { selected = t.plug_id; show(state); };
     tb.appendChild(tr);
   }
-  $("corrections").innerHTML = s.corrections.map((c) => `<li>${c.text} <small>${c.at}</small></li>`).join("")
-    || "<li>none</li>";
-  $("warnings").innerHTML = s.warnings.map((w) => `<li>${w}</li>`).join("") + (s.statement ? `<li>${s.statement}</li>` : "");
+  const corrections = s.corrections.map((c) => el("li", `${c.text} `, {}, el("small", c.at)));
+  $("corrections").replaceChildren(...(corrections.length ? corrections : [el("li", "none")]));
+  $("warnings").replaceChildren(...s.warnings.map((w) => el("li", w)), ...(s.statement ? [el("li", s.statement)] : []));
   $("movie-status").textContent = s.movie === "ok" ? "" : s.movie;
   draw();
 }
@@ -307,7 +328,7 @@ function setup() {
 (async () => {
   setup();
   const runs = (await getJSON("api/runs")).runs;
-  $("run").innerHTML = runs.map((r) => `<option>${r}</option>`).join("");
+  $("run").replaceChildren(...runs.map((r) => new Option(r, r)));
   if (runs.length < 2) $("run").disabled = true;
   await load(runs[0]);
   setInterval(poll, 2000);
