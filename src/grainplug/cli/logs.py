@@ -3,7 +3,8 @@
 Libraries log on their own (tifffile's ``ERROR tifffile: <TiffPages @8> invalid page offset``, PyAV's
 ``libav.*``, dask's ``distributed.*``, numba). Without ``--debug`` none of their lines is printed: what
 they said of the failure is kept (:attr:`CommandLog.heard`) and added to grainplug's one ``error:`` line
-where it helps. ``--verbose`` shows grainplug's own log; ``--debug`` shows everything.
+where it helps. grainplug's own log shows its errors only; ``--verbose`` shows it from INFO on,
+``--debug`` shows everything.
 
 The set-up lasts for one command (a context manager): the handler it adds and the levels it changes
 are put back when the command ends, so calling :func:`grainplug.cli.main` twice in one process (a
@@ -73,7 +74,9 @@ class CommandLog:
 
     def __init__(self, *, debug: bool = False, verbose: bool = False) -> None:
         self.debug = debug
-        self.level = logging.DEBUG if debug else logging.INFO if verbose else logging.WARNING
+        # grainplug's own log lines only with --verbose or --debug, and its errors: what the user must know reaches
+        # them as the command's own `warning:` and `error:` lines
+        self.level = logging.DEBUG if debug else logging.INFO if verbose else logging.ERROR
         self._lines: deque[str] = deque(maxlen=HEARD_MAX)
         self._handlers: list[logging.Handler] = []
         self._saved: list[tuple[logging.Logger, int, bool]] = []
