@@ -31,8 +31,10 @@ from .._version import __version__
 from ..corrections import Corrections, apply_corrections
 from ..errors import CampaignInterrupted, GrainplugError, ParameterError
 from ..jsonio import dumps
-from ..outputs import FigureOptions, save_figure, write_outputs
+from ..outputs import write_outputs
 from ..pipeline import analyze, fingerprint
+from ..plotting.files import save_figure
+from ..plotting.options import FigureOptions
 from ..store import load_result, read_corrections
 from .fits import fit_line, summarize_lengths
 from .manifest import RunSpec, read_manifest, run_folder_name

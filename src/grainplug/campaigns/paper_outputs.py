@@ -10,7 +10,8 @@ from .. import datasets
 from .._atomic import atomic_directory
 from .._version import __version__
 from ..jsonio import dumps
-from ..outputs import FigureOptions, save_figure
+from ..plotting.files import save_figure
+from ..plotting.options import FigureOptions
 from .model_panel import panel_html
 from .paper import D_MM, PaperReproduction, reproduction_text
 

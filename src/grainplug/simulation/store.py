@@ -53,7 +53,7 @@ def save_simulation(res: SimulationResult, out_dir: str | Path, summary: dict[st
     """Write ``fields.nc``, ``summary.json`` (and ``diagram.png``, in the formats of ``figure_options``)
     into ``out_dir`` atomically."""
     from ..jsonio import dumps
-    from ..outputs import save_figure
+    from ..plotting.files import save_figure
 
     written: dict[str, Path] = {}
     with atomic_directory(out_dir, written, replace=True) as tmp:
