@@ -513,7 +513,7 @@ def test_the_summary_is_strict_json_when_a_measure_is_undefined(tmp_path, capsys
 
 def test_a_run_too_short_for_its_unstable_waves_says_so():
     """Linear theory says waves grow, the run ends before they show: a warning with the duration that would do."""
-    from grainplug.simulation.run import simulate_and_measure
+    from grainplug.simulation import simulate_and_measure
 
     sim = SimulationParams(length_D=60.0, n_cells=64, duration_tc=20.0, output_interval_tc=5.0, noise=1e-9)
     _, summary = simulate_and_measure(FROZEN, sim, rng=np.random.default_rng(0))

@@ -24,7 +24,7 @@ from .._version import __version__
 if TYPE_CHECKING:
     import xarray as xr
 
-    from .run import SimulationResult
+    from .state import SimulationResult
 
 FIELDS_FILE, SUMMARY_FILE, DIAGRAM_FILE = "fields.nc", "summary.json", "diagram.png"
 
