@@ -1005,7 +1005,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
                           "(killed, or out of memory); their runs were started again — if it repeats, use fewer "
                           "--workers", highlight=False, soft_wrap=True)
     if as_json:
-        from ..campaigns.batch import fit_selection
+        from ..campaigns.fits import fit_selection
 
         _print_run_warnings(camp, out)  # on stderr, as analyze --json prints its warnings
         _echo_json({"grainplug_version": __version__, "fits": camp.fits,
@@ -1016,7 +1016,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         again = f", {camp.n_remeasured} of them measured again with their new corrections" if camp.n_remeasured else ""
         reused = f" ({camp.n_reused} reused from an earlier batch{again})" if camp.n_reused else ""
         click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused)
-        from ..campaigns.batch import ALL_RUNS, fit_selection
+        from ..campaigns.fits import ALL_RUNS, fit_selection
 
         _print_run_warnings(camp, out)
         for run, why in fit_selection(t)[1].items():
