@@ -337,7 +337,7 @@ def test_runs_without_a_measured_direction_are_left_out_of_the_celerity_fit(tmp_
     celerity fit, and said to be; its plug length still counts. A well-measured drift about 0 (f: 0.0002 +-
     0.001 m/s) is a measure and stays. A run without a mass flow rate is left out of every fit; a misnamed
     mass-flow column is said; no column at all is a campaign without fits, by choice."""
-    from grainplug.campaigns.batch import ALL_RUNS, campaign_fits, fit_selection
+    from grainplug.campaigns.fits import ALL_RUNS, campaign_fits, fit_selection
     from grainplug.campaigns.report import campaign_report
 
     m = np.array([10.0, 20.0, 30.0, 25.0, np.nan, 0.02])

@@ -459,6 +459,69 @@ def test_simulate_command_writes_fields_summary_and_figure(tmp_path, capsys):
     assert (out / "diagram.png").stat().st_size > 10_000
 
 
+def _study(seed: int = 3):
+    """A short run of the unstable frozen-friction set-up, studied."""
+    from grainplug.simulation import run_study
+
+    sim = SimulationParams(length_D=60.0, n_cells=64, duration_tc=20.0, output_interval_tc=1.0, noise=1e-6)
+    return run_study(FROZEN, sim, rng=np.random.default_rng(seed), seed=seed)
+
+
+def test_a_study_saves_its_fields_summary_and_figure(tmp_path):
+    """``SimulationStudy.save`` writes what ``grainplug simulate`` writes: the fields as NetCDF (float32, the run's
+    own values), the study's summary as strict JSON (with the seed) and the diagram; without figures, no
+    diagram; in the formats asked for; a second save replaces the folder whole."""
+    import xarray as xr
+
+    from grainplug.jsonio import dumps
+
+    study = _study()
+    out = tmp_path / "study"
+    written = study.save(out)
+    assert set(written) == {"fields.nc", "summary.json", "diagram.png"}
+    assert {f.name for f in out.iterdir() if not f.name.startswith(".")} == set(written)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary == json.loads(dumps(study.summary))
+    assert summary["seed"] == 3 and summary["warnings"] == list(study.warnings)
+    assert summary["linear"]["most_unstable_lambda_D"] == pytest.approx(42.6, abs=0.1)
+    with xr.open_dataset(out / "fields.nc", engine="scipy") as ds:
+        np.testing.assert_array_equal(ds["c"].values, study.result.c.astype(np.float32))
+        assert ds["c"].shape == (21, 64)
+    assert (out / "diagram.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    written = study.save(out, figures=False)
+    assert set(written) == {"fields.nc", "summary.json"} and not (out / "diagram.png").exists()
+    written = study.save(out, figure_options={"formats": ("png", "svg")})
+    assert (out / "diagram.svg").read_text().lstrip().startswith("<?xml")
+    with pytest.raises(ParameterError, match="dpi, formats and style"):
+        study.save(out, figure_options={"colour": "red"})
+
+
+def test_a_study_plots_its_run_and_is_its_pair_result_summary():
+    """``SimulationStudy.plot`` returns the run's figure (the compactness diagram, the dense segments and peak
+    compactness) without pyplot; ``simulate_and_measure`` is ``(study.result, study.summary)``."""
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import QuadMesh
+    from matplotlib.figure import Figure
+
+    from grainplug.simulation import SimulationStudy, simulate_and_measure
+
+    study = _study()
+    assert isinstance(study, SimulationStudy)
+    fig = study.plot()
+    assert isinstance(fig, Figure) and not plt.get_fignums()
+    [mesh] = [c for c in fig.axes[0].collections if isinstance(c, QuadMesh)]
+    np.testing.assert_array_equal(np.asarray(mesh.get_array()).reshape(64, 21), study.result.c.T)
+    [waves] = [ax for ax in fig.axes if ax.get_title(loc="left") == "(b) waves"]
+    [counts] = waves.get_lines()  # the number of dense segments over time
+    np.testing.assert_array_equal(counts.get_ydata(), segment_counts(study.result))
+    assert "SimulationStudy periodic L=60 D, 64 cells" in repr(study)
+    res, summary = simulate_and_measure(FROZEN, study.result.params, rng=np.random.default_rng(3))
+    np.testing.assert_array_equal(res.c, study.result.c)
+    expected = {**study.summary, "run": {**study.summary["run"], "wall_s": summary["run"]["wall_s"]}}
+    del expected["seed"]  # recorded only when the study is told it
+    assert json.dumps(summary, default=str) == json.dumps(expected, default=str)
+
+
 @pytest.mark.parametrize(("args", "needle"), [
     (["--cells", "4"], "--cells"),
     (["--boundary", "closed"], "--boundary"),
@@ -513,7 +576,7 @@ def test_the_summary_is_strict_json_when_a_measure_is_undefined(tmp_path, capsys
 
 def test_a_run_too_short_for_its_unstable_waves_says_so():
     """Linear theory says waves grow, the run ends before they show: a warning with the duration that would do."""
-    from grainplug.simulation.run import simulate_and_measure
+    from grainplug.simulation import simulate_and_measure
 
     sim = SimulationParams(length_D=60.0, n_cells=64, duration_tc=20.0, output_interval_tc=5.0, noise=1e-9)
     _, summary = simulate_and_measure(FROZEN, sim, rng=np.random.default_rng(0))

@@ -10,6 +10,7 @@ import pandas as pd
 from ..reports import images, page, provenance, table
 from ..reports.html import _SORT_JS as SORT_JS
 from ..reports.html import number
+from .fits import ALL_RUNS, fit_selection
 from .model_panel import ModelPanel, panel_html
 
 #: table columns: (column of the campaign table, header, decimals or None for text)
@@ -85,8 +86,6 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
         fit_rows.append([g, slope, slope_se, icpt, icpt_se, number(c.get("r2"), 3), number(c.get("n")),
                          number(ln.get("mean_mm"), 2), "—" if one else number(ln.get("sd_mm"), 2),
                          number(ln.get("mean_over_diameter"), 2)])
-    from .batch import ALL_RUNS, fit_selection
-
     notes = [f"<li><b>{html.escape(run) or 'fits'}</b>: {html.escape(why)}</li>"
              for run, why in fit_selection(tab)[1].items() if run == ALL_RUNS or not why.endswith("no plugs measured")]
     for _, r in tab.iterrows():

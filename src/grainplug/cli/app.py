@@ -618,8 +618,7 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
     """
     import numpy as np
 
-    from ..simulation import SimulationParams, simulate_and_measure
-    from ..simulation.store import save_simulation
+    from ..simulation import SimulationParams, run_study
 
     p = _model_params(**model)
     sim = SimulationParams(boundary=boundary, length_D=length_D, n_cells=n_cells, duration_tc=duration_tc,
@@ -637,20 +636,10 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
         # the compiled kernel is built on the first run after an install (~15 s), before the first output
         first = "simulating (compiles once after install, ~15 s)"
         task = bar.add_task(first, total=duration_tc)
-        res, summary = simulate_and_measure(p, sim, rng=np.random.default_rng(seed),
-                                            progress=lambda t, total: bar.update(task, completed=t,
-                                                                                 description="simulating"))
-    summary["seed"] = seed
-    import matplotlib.pyplot as plt
-
-    from ..plotting.simulation import plot_simulation
-
-    fig = plot_simulation(res)
-    try:
-        options = _figure_options(None, None, publication, None)
-        save_simulation(res, out_dir, summary, figure=fig, figure_options=options)
-    finally:
-        plt.close(fig)
+        study = run_study(p, sim, rng=np.random.default_rng(seed), seed=seed,
+                          progress=lambda t, total: bar.update(task, completed=t, description="simulating"))
+    study.save(out_dir, figure_options=_figure_options(None, None, publication, None))
+    summary = study.summary
     if as_json:
         _echo_json(summary)
         return
@@ -1018,7 +1007,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
                           "(killed, or out of memory); their runs were started again — if it repeats, use fewer "
                           "--workers", highlight=False, soft_wrap=True)
     if as_json:
-        from ..campaigns.batch import fit_selection
+        from ..campaigns.fits import fit_selection
 
         _print_run_warnings(camp, out)  # on stderr, as analyze --json prints its warnings
         _echo_json({"grainplug_version": __version__, "fits": camp.fits,
@@ -1029,7 +1018,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         again = f", {camp.n_remeasured} of them measured again with their new corrections" if camp.n_remeasured else ""
         reused = f" ({camp.n_reused} reused from an earlier batch{again})" if camp.n_reused else ""
         click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused)
-        from ..campaigns.batch import ALL_RUNS, fit_selection
+        from ..campaigns.fits import ALL_RUNS, fit_selection
 
         _print_run_warnings(camp, out)
         for run, why in fit_selection(t)[1].items():

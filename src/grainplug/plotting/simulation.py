@@ -11,13 +11,13 @@ from ._figure import new_figure, pt
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from ..simulation import SimulationResult
+    from ..simulation.state import SimulationResult
 
 
 def plot_simulation(res: SimulationResult, *, max_rows: int = 1500) -> Figure:
     """(a) compactness over position and time (flow downward), (b) dense segments and peak compactness."""
-    from ..simulation import RANDOM_CLOSE_PACKING, segment_counts
-    from ..simulation.run import MIN_WAVE_RANGE_C
+    from ..simulation.state import MIN_WAVE_RANGE_C, RANDOM_CLOSE_PACKING
+    from ..simulation.waves import segment_counts
 
     p = res.model
     fig, axes = new_figure(1, 2, figsize=(9, 5.5), constrained_layout=True,

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..diagram import Diagram
 from ..pipeline import DiagramMeasures, measure_diagram
-from .run import SimulationResult
+from .state import SimulationResult
 
 #: grey level of an empty bore and its fall per unit compactness
 LIGHT, PER_C = 200.0, 250.0

@@ -24,7 +24,7 @@ from .._version import __version__
 if TYPE_CHECKING:
     import xarray as xr
 
-    from .run import SimulationResult
+    from .state import SimulationResult
 
 FIELDS_FILE, SUMMARY_FILE, DIAGRAM_FILE = "fields.nc", "summary.json", "diagram.png"
 
@@ -53,7 +53,7 @@ def save_simulation(res: SimulationResult, out_dir: str | Path, summary: dict[st
     """Write ``fields.nc``, ``summary.json`` (and ``diagram.png``, in the formats of ``figure_options``)
     into ``out_dir`` atomically."""
     from ..jsonio import dumps
-    from ..outputs import save_figure
+    from ..plotting.files import save_figure
 
     written: dict[str, Path] = {}
     with atomic_directory(out_dir, written, replace=True) as tmp:

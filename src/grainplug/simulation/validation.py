@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..stability.model import system_matrices
-from .run import SimulationResult
+from .state import SimulationResult
 
 
 @dataclass(frozen=True)

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .run import INLET_CELLS, MIN_WAVE_RANGE_C, SimulationResult
+from .state import INLET_CELLS, MIN_WAVE_RANGE_C, SimulationResult
 
-__all__ = ["INLET_CELLS", "MIN_WAVE_RANGE_C", "WaveState", "wave_state"]
+__all__ = ["INLET_CELLS", "MIN_WAVE_RANGE_C", "WaveState", "segment_counts", "wave_state"]
 
 
 @dataclass(frozen=True)
@@ -143,3 +143,21 @@ def wave_state(res: SimulationResult) -> WaveState:
                      wavelength_D=L / n if periodic and n else float("nan"),
                      front_speed=speed, threshold_c=thr,
                      c_min=lo, c_max=hi)
+
+
+def segment_counts(res: SimulationResult, *, threshold: float | None = None) -> np.ndarray:
+    """Number of dense segments (``c`` above ``threshold``, default halfway between min and max) at each output;
+    none while the final range is under :data:`MIN_WAVE_RANGE_C`, and not an open pipe's fed inlet cells alone
+    (:data:`INLET_CELLS`), as :func:`~grainplug.simulation.waves.wave_state` counts them."""
+    c = res.c
+    lo, hi = float(c[-1].min()), float(c[-1].max())
+    if hi - lo < MIN_WAVE_RANGE_C:
+        return np.zeros(len(c), int)
+    thr = 0.5 * (lo + hi) if threshold is None else threshold
+    dense = c > thr
+    if res.params.boundary == "periodic":
+        starts = dense & ~np.roll(dense, 1, axis=1)
+    else:
+        starts = dense & ~np.concatenate([np.zeros((len(c), 1), bool), dense[:, :-1]], axis=1)
+        starts[:, 0] &= dense[:, : INLET_CELLS + 1].all(axis=1)  # the fed cells alone are no segment
+    return starts.sum(axis=1)
