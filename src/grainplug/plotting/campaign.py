@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..campaigns.fits import LinearFit
 from ._figure import new_figure, pt
 from .palette import GROUPS
+
+if TYPE_CHECKING:
+    from ..campaigns.fits import LinearFit
 
 MARKERS = ("o", "^", "D", "v", "s", "P", "X")
 LINES = ("-", "--", "-.", ":")

@@ -5,7 +5,7 @@ Notes
 The compactness ``c(z, t)`` becomes the grey levels a back-lit camera would give,
 ``I = 200 - 250 c`` (grains dark; the mapping is fixed, not stretched to the run's
 range), sampled at ``px_per_D`` positions per pipe diameter with the run's real
-scale (``D`` in mm, ``t_c`` in s). :func:`grainplug.pipeline.measure_diagram`, the
+scale (``D`` in mm, ``t_c`` in s). :func:`grainplug.measures.diagram.measure_diagram`, the
 stages :func:`grainplug.analyze` runs after reading a movie, then finds the plugs,
 links them over time and measures celerity, regime, frequency, plug and bubble
 lengths. Positions are from the top of the box, increasing with the flow; celerity
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..diagram import Diagram
-from ..pipeline import DiagramMeasures, measure_diagram
+from ..measures.diagram import DiagramMeasures, measure_diagram
 from .state import SimulationResult
 
 #: grey level of an empty bore and its fall per unit compactness

@@ -32,8 +32,8 @@ import numpy as np
 from .._version import __version__
 from ..stability.params import ModelParams
 from .run import simulate
-from .state import SimulationParams, SimulationResult
-from .waves import WaveState, wave_state
+from .state import MIN_WAVE_RANGE_C, RANDOM_CLOSE_PACKING, SimulationParams, SimulationResult
+from .waves import WaveState, segment_counts, wave_state
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -139,7 +139,8 @@ class SimulationStudy:
         """
         from ..plotting.simulation import plot_simulation
 
-        return plot_simulation(self.result, max_rows=max_rows)
+        return plot_simulation(self.result, segment_counts(self.result), close_packing=RANDOM_CLOSE_PACKING,
+                               min_range_c=MIN_WAVE_RANGE_C, max_rows=max_rows)
 
     def save(self, out_dir: str | Path, *, figures: bool = True,
              figure_options: FigureOptions | Mapping[str, object] | None = None) -> dict[str, Path]:
