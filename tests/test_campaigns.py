@@ -258,7 +258,7 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
 def test_batch_prints_each_runs_warnings(campaign_dir, tmp_path, capsys, monkeypatch):
     """A run's warnings reach the terminal as analyze's do (they were only in campaign.csv and the report: a
     frame rate ten times off went unsaid), at most MAX_RUN_WARNINGS lines and a count of the rest."""
-    from grainplug.cli import app
+    from grainplug.cli import campaigns as app
 
     (campaign_dir / "fast.csv").write_text("run,movie,mm_per_px,fps\na,a/movie.avi,0.185,5000\n"
                                            "b,b/movie.avi,0.185,5000\n")

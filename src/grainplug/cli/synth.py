@@ -10,7 +10,7 @@ import click
 from ..errors import ParameterError
 from ..params import FLOW_DIRECTIONS
 from ..synthetic import FORMATS, REGIMES, SynthConfig, synthesize
-from .app import _echo_json, err_console
+from .common import echo_json, err_console
 from .types import FINITE, Number
 
 
@@ -98,7 +98,7 @@ def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwar
     with err_console.status(f"rendering {cfg.n_frames} frames"):
         result = synthesize(cfg, out, fmt=fmt)
     if as_json:
-        _echo_json(result.truth)
+        echo_json(result.truth)
     else:
         click.echo(f"wrote {result.movie} and {result.truth_json.name}")
 

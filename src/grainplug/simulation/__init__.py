@@ -9,13 +9,36 @@ The modules, each importing only those before it: :mod:`.state` (the data:
 (:mod:`.waves`, :mod:`.measure`, :mod:`.validation`), the time loop (:mod:`.run`,
 :func:`simulate`), the study that runs and measures (:mod:`.study`,
 :class:`SimulationStudy`); :mod:`.store` writes a run.
+
+The names load on first use: ``grainplug.simulation.state`` (the parameters, which the command line takes its
+defaults from) without the integrator and the linear analysis.
 """
 
-from .equations import Closure
-from .run import simulate
-from .state import RANDOM_CLOSE_PACKING, SimulationParams, SimulationResult
-from .study import SimulationStudy, run_study, simulate_and_measure
-from .waves import segment_counts
+from __future__ import annotations
 
-__all__ = ["RANDOM_CLOSE_PACKING", "Closure", "SimulationParams", "SimulationResult", "SimulationStudy", "run_study",
-           "segment_counts", "simulate", "simulate_and_measure"]
+import importlib
+from typing import TYPE_CHECKING
+
+_WHERE = {"Closure": "equations", "simulate": "run", "RANDOM_CLOSE_PACKING": "state", "SimulationParams": "state",
+          "SimulationResult": "state", "SimulationStudy": "study", "run_study": "study",
+          "simulate_and_measure": "study", "segment_counts": "waves"}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str) -> object:
+    if name in _WHERE:
+        return getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_WHERE])
+
+
+if TYPE_CHECKING:
+    from .equations import Closure
+    from .run import simulate
+    from .state import RANDOM_CLOSE_PACKING, SimulationParams, SimulationResult
+    from .study import SimulationStudy, run_study, simulate_and_measure
+    from .waves import segment_counts

@@ -2,12 +2,38 @@
 
 See docs/stability.md for the equations, what the printed model gives with the
 paper's parameters, and the ``frozen-friction`` variant.
+
+The names load on first use (``grainplug.stability.params``, the model's parameters, without
+numpy and scipy: the command line takes its defaults from there).
 """
 
-from .analysis import Mode, StabilityResult, analyze_stability, max_growth, sweep
-from .model import dispersion_coefficients, normal_mode_matrix, roots, system_matrices
-from .params import BASE_VELOCITIES, FRICTION_LAWS, P_ATM_PA, VARIANTS, ModelParams
+from __future__ import annotations
 
-__all__ = ["BASE_VELOCITIES", "FRICTION_LAWS", "P_ATM_PA", "VARIANTS", "Mode", "ModelParams", "StabilityResult",
-           "analyze_stability", "dispersion_coefficients", "max_growth", "normal_mode_matrix", "roots", "sweep",
-           "system_matrices"]
+import importlib
+from typing import TYPE_CHECKING
+
+_WHERE = {
+    "Mode": "analysis", "StabilityResult": "analysis", "analyze_stability": "analysis", "max_growth": "analysis",
+    "sweep": "analysis",
+    "dispersion_coefficients": "model", "normal_mode_matrix": "model", "roots": "model", "system_matrices": "model",
+    "BASE_VELOCITIES": "params", "FRICTION_LAWS": "params", "P_ATM_PA": "params", "VARIANTS": "params",
+    "ModelParams": "params",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str) -> object:
+    if name in _WHERE:
+        return getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_WHERE])
+
+
+if TYPE_CHECKING:
+    from .analysis import Mode, StabilityResult, analyze_stability, max_growth, sweep
+    from .model import dispersion_coefficients, normal_mode_matrix, roots, system_matrices
+    from .params import BASE_VELOCITIES, FRICTION_LAWS, P_ATM_PA, VARIANTS, ModelParams

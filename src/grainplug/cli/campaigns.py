@@ -1,0 +1,177 @@
+"""The campaigns' commands: batch, paper (loaded only when one of them is named)."""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+from rich.markup import escape
+
+from .._version import __version__
+from .common import (
+    OVERWRITE_HELP,
+    PUBLICATION_HELP,
+    echo_json,
+    err_console,
+    figure_options_of,
+    refuse_existing,
+    say_warning,
+)
+from .types import Number
+
+if TYPE_CHECKING:
+    from ..campaigns.batch import Campaign
+
+
+#: the most run warnings ``batch`` prints; the rest are counted, and all are in campaign.csv and the report
+MAX_RUN_WARNINGS = 20
+
+
+def _print_run_warnings(camp: Campaign, out: Path) -> None:
+    """Each run's warnings, as ``analyze`` prints them (``warning: run X: ...``), at most
+    :data:`MAX_RUN_WARNINGS` lines."""
+    lines = camp.run_warnings
+    for run, w in lines[:MAX_RUN_WARNINGS]:
+        say_warning(w, f"run {run}: ")
+    if len(lines) > MAX_RUN_WARNINGS:
+        err_console.print(f"[yellow]warning:[/] {len(lines) - MAX_RUN_WARNINGS} more run warnings: see the warnings "
+                          f"column of {escape(str(out / 'campaign.csv'))} and the report", highlight=False,
+                          soft_wrap=True)
+
+
+# ---------------------------------------------------------------------------
+@click.command()
+@click.option("--out", "out", type=click.Path(path_type=Path), required=True,
+              help="Folder for paper.json, reproduction.md, figures and report.html.")
+@click.option("--no-figures", is_flag=True, help="Skip figures and report.")
+@click.option("--json", "as_json", is_flag=True, help="Print fits, lengths, stability and checks as JSON.")
+@click.option("--no-simulations", is_flag=True,
+              help="Compare the measurements with the linear theory only (skip the ~4 s of nonlinear runs).")
+@click.option("--publication", is_flag=True, help=PUBLICATION_HELP)
+@click.option("--overwrite", is_flag=True, help=OVERWRITE_HELP)
+def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publication: bool,
+          overwrite: bool) -> None:
+    """Reproduce the paper's numbers and figures from its own Tables 1 and 2, and put the model's
+    predictions (linear and simulated) beside the measurements."""
+    from .._atomic import check_output_place
+    from ..campaigns.paper import reproduce
+    from ..campaigns.paper_outputs import write_paper
+
+    check_output_place(out)
+    refuse_existing(out, overwrite)
+    doing = "reproducing the paper" + ("" if no_simulations else " (its simulations compile once after install, ~15 s)")
+    with err_console.status(doing) if err_console.is_terminal else contextlib.nullcontext():
+        rep = reproduce(simulate=not no_simulations)
+    write_paper(rep, out, figures=not no_figures,
+                figure_options=figure_options_of(None, None, publication, None))
+    if as_json:
+        echo_json({"grainplug_version": __version__, **rep.as_dict()})
+        return
+    click.echo("plug celerity against the mass flow rate ṁ (g/s), fitted as v_p = a + b ṁ:")
+    for g, f in rep.fits.items():
+        click.echo(f"  {g:18s} a = {f.intercept:+.4f} m/s, b = {f.slope:+.5f} (m/s)/(g/s)   (R² {f.r2:.3f}, n {f.n})")
+    n_ok = sum(c.agrees for c in rep.checks)
+    click.echo(f"checks: {n_ok} of {len(rep.checks)} statements agree with the tables and models; "
+               f"see {out / 'reproduction.md'}")
+    for c in rep.checks:
+        if not c.agrees:
+            click.echo(f"  disagrees: {c.claim} — {c.note}")
+    if rep.model_panel is not None:
+        click.echo("model against experiment:")
+        for sentence in rep.model_panel.verdict:
+            click.echo(f"  {sentence}")
+
+
+# ---------------------------------------------------------------------------
+@click.command()
+@click.argument("manifest", type=click.Path(path_type=Path))
+@click.option("--out", "out", type=click.Path(path_type=Path), required=True,
+              help="Folder for campaign.csv/.parquet, fits.json, figures, report.html and runs/.")
+@click.option("--workers", type=Number(1, 1024, integer=True), default=1, show_default=True,
+              help="Runs analysed in parallel on this machine.")
+@click.option("--scheduler", default=None, help="Address of a Dask distributed scheduler (tcp://host:8786).")
+@click.option("--no-figures", is_flag=True, help="Skip figures and HTML reports.")
+@click.option("--verify", is_flag=True,
+              help="Reuse a finished run only if every byte of its movie is unchanged (reads every movie whole).")
+@click.option("--json", "as_json", is_flag=True, help="Print the fits as JSON.")
+@click.option("--no-simulations", is_flag=True,
+              help="In the report, compare with the model's linear theory only (skip ~4 s of simulations).")
+@click.option("--publication", is_flag=True, help=PUBLICATION_HELP)
+def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_figures: bool, verify: bool,
+          as_json: bool, no_simulations: bool, publication: bool) -> None:
+    """Analyse every run of MANIFEST (CSV or TOML), then tabulate, fit and report.
+
+    One row per run: movie (relative to the manifest), fps, mm_per_px or tube_diameter_mm,
+    flow_direction, mass_flow_rate_g_s, humidity_pct, surface, group, and any metadata.
+    Runs already analysed with the same movie (size and sampled content; every byte with
+    --verify) and parameters are reused. Ctrl-C stops at once; every run is then done or not
+    started, and the same command finishes the campaign.
+    """
+    from rich.progress import BarColumn, Progress, TextColumn
+
+    from ..campaigns import run_campaign
+    from ..errors import CampaignInterrupted, Interrupted
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} runs"),
+                  console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
+        task = bar.add_task("campaign", total=None)
+
+        def progress(done: int, total: int, run: str) -> None:
+            last = done == total and not no_simulations  # then the tables, fits and the model's simulations
+            bar.update(task, completed=done, total=total,
+                       description="fits and model (the simulations compile once after install, ~15 s)" if last
+                       else f"run {escape(run)}")
+
+        try:
+            camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,
+                                verify=verify, simulate=not no_simulations, progress=progress,
+                                figure_options=figure_options_of(None, None, publication, None))
+        except CampaignInterrupted as exc:  # before click's own handler, which prints a blank line
+            raise Interrupted(str(exc)) from None
+    t = camp.table
+    if camp.stale_runs:
+        names = ", ".join(camp.stale_runs[:5]) + (", ..." if len(camp.stale_runs) > 5 else "")
+        err_console.print(f"[yellow]warning:[/] {len(camp.stale_runs)} run folder(s) under {escape(str(out / 'runs'))} "
+                          f"are no longer in the manifest ({escape(names)}): kept, but left out of the campaign — "
+                          "delete them if they are not needed", highlight=False, soft_wrap=True)
+    if camp.worker_deaths:
+        err_console.print(f"[yellow]warning:[/] {camp.worker_deaths} worker process(es) died during the batch "
+                          "(killed, or out of memory); their runs were started again — if it repeats, use fewer "
+                          "--workers", highlight=False, soft_wrap=True)
+    if as_json:
+        from ..campaigns.fits import fit_selection
+
+        _print_run_warnings(camp, out)  # on stderr, as analyze --json prints its warnings
+        echo_json({"grainplug_version": __version__, "fits": camp.fits,
+                    "runs": t[["run", "status"]].to_dict(orient="records"), "n_reused": camp.n_reused,
+                    "n_remeasured": camp.n_remeasured, "left_out_of_fits": fit_selection(t)[1]})
+    else:
+        counts = t.status.value_counts().to_dict()
+        again = f", {camp.n_remeasured} of them measured again with their new corrections" if camp.n_remeasured else ""
+        reused = f" ({camp.n_reused} reused from an earlier batch{again})" if camp.n_reused else ""
+        click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused)
+        from ..campaigns.fits import ALL_RUNS, fit_selection
+
+        _print_run_warnings(camp, out)
+        for run, why in fit_selection(t)[1].items():
+            if run == ALL_RUNS or not why.endswith("no plugs measured"):
+                say_warning(why, f"run {run}: " if run else "fits: ")
+        fits = {g: f["celerity"] for g, f in camp.fits.items() if f.get("celerity")}
+        if fits:
+            click.echo("plug celerity against the mass flow rate ṁ (g/s), fitted as v_p = a + b ṁ:")
+        for g, c in fits.items():
+            click.echo(f"  {g:22s} a = {c['intercept_m_s']:+.4g} m/s, b = {c['slope_m_s_per_g_s']:+.4g} (m/s)/(g/s)"
+                       f"   (R² {c['r2']:.3f}, n {c['n']})")
+        click.echo(f"outputs in {out}")
+    if camp.n_failed:
+        from ..errors import PartialCampaignError
+
+        for row in t[t.status == "failed"].itertuples():
+            err_console.print(f"[red]failed:[/] run {escape(str(row.run))}: {escape(str(row.error))}",
+                              highlight=False, soft_wrap=True)
+        others = "the others are done" if camp.n_failed < len(t) else "none is done"
+        raise PartialCampaignError(
+            f"{camp.n_failed} of {len(t)} runs failed, each named above ({others}; see {out / 'campaign.csv'})"
+        )
