@@ -8,7 +8,7 @@ code with its meaning and fix; ``docs/analysis.md`` shows the same table (a test
 
 The codes are ``area.kind``: ``movie.*`` (what a file says of itself), ``window.*``, ``tube.*``,
 ``scale.*``, ``light.*``, ``frames.*``, ``time.*``, ``flow.*``, ``plugs.*``, ``still.*``,
-``corrections.*``. A warning read back from an older ``result.npz`` (saved as plain text) has the
+``corrections.*``, ``manifest.*``. A warning read back from an older ``result.npz`` (saved as plain text) has the
 code ``legacy.uncoded``.
 """
 
@@ -95,6 +95,9 @@ CODES: dict[str, tuple[str, str]] = {
                                 "review the run again"),
     "corrections.unchecked": ("edits name tracks of an earlier analysis without where they were",
                               "check them in grainplug review"),
+    # a campaign's manifest
+    "manifest.column_unknown": ("a manifest's column looks like a known one misspelt: kept as metadata",
+                                "name the column as grainplug knows it"),
     # read back from a result saved before codes
     "legacy.uncoded": ("a warning read from a result.npz written before warnings had codes",
                        "analyse the movie again for coded warnings"),

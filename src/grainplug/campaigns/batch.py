@@ -38,6 +38,7 @@ from ..plotting.options import FigureOptions
 from ..provenance import fingerprint
 from ..result import load_result
 from ..store import read_corrections
+from ..warning_codes import codes_of
 from .fits import campaign_fits, fit_line, fit_selection, wide_and_still
 from .manifest import RunSpec, read_manifest, run_folder_name
 from .model_panel import ModelPanel, measured_from, model_panel
@@ -145,6 +146,7 @@ def _flat(summary: dict) -> dict[str, object]:
                input_bytes=(summary.get("input") or {}).get("bytes"),
                grainplug_version=summary.get("grainplug_version"),
                warnings=" | ".join(summary.get("warnings") or []) or None,
+               warning_codes=" | ".join(summary.get("warning_codes") or []) or None,
                n_corrections=len(summary.get("corrections") or []))
     return out
 
@@ -284,6 +286,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         if s.warnings:
             rec = records[s.run]
             rec["warnings"] = " | ".join([*s.warnings, *filter(None, [rec.get("warnings")])])
+            rec["warning_codes"] = " | ".join([*codes_of(s.warnings), *filter(None, [rec.get("warning_codes")])])
     n_reused = sum(bool(records[s.run].get("reused")) for s in specs)
     n_remeasured = sum(bool(records[s.run].get("remeasured")) for s in specs)
     table = typed(pd.DataFrame([{k: v for k, v in records[s.run].items() if k not in ("reused", "remeasured")}

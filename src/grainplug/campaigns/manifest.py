@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import ParameterError
 from ..params import AnalysisParams
+from ..warning_codes import coded
 
 if TYPE_CHECKING:
     from ..calibration.background import Background
@@ -134,8 +135,9 @@ def _misspelt(columns: object) -> list[str]:
             close = difflib.get_close_matches(name, KNOWN_COLUMNS, n=1, cutoff=0.8)
             meant = close[0] if close and close[0] not in name and name not in close[0] else None
         if meant:
-            out.append(f"column {column!r} is not one grainplug knows: it was kept as metadata and the run analysed "
-                       f"without it — if it means {meant!r}, name it so")
+            out.append(coded("manifest.column_unknown",
+                f"column {column!r} is not one grainplug knows: it was kept as metadata and the run analysed "
+                f"without it — if it means {meant!r}, name it so"))
     return out
 
 

@@ -57,6 +57,8 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "input_bytes": ("Int64", "size of the movie, bytes"),
     "grainplug_version": ("string", "the version that analysed the run"),
     "warnings": ("string", "the run's warnings, separated by ' | '"),
+    "warning_codes": ("string", "the code of each of the run's warnings, in the same order, separated by ' | ' "
+                                "(docs/analysis.md lists them)"),
     "n_corrections": ("Int64", "a reviewer's corrections applied (corrections.json)"),
 }
 

@@ -23,7 +23,17 @@ _WHERE = {"Closure": "equations", "simulate": "run", "RANDOM_CLOSE_PACKING": "st
           "SimulationResult": "state", "SimulationStudy": "study", "run_study": "study",
           "simulate_and_measure": "study", "segment_counts": "waves"}
 
-__all__ = sorted(_WHERE)
+__all__ = [
+    "RANDOM_CLOSE_PACKING",
+    "Closure",
+    "SimulationParams",
+    "SimulationResult",
+    "SimulationStudy",
+    "run_study",
+    "segment_counts",
+    "simulate",
+    "simulate_and_measure",
+]
 
 
 def __getattr__(name: str) -> object:

@@ -20,7 +20,22 @@ _WHERE = {
     "ModelParams": "params",
 }
 
-__all__ = sorted(_WHERE)
+__all__ = [
+    "BASE_VELOCITIES",
+    "FRICTION_LAWS",
+    "P_ATM_PA",
+    "VARIANTS",
+    "Mode",
+    "ModelParams",
+    "StabilityResult",
+    "analyze_stability",
+    "dispersion_coefficients",
+    "max_growth",
+    "normal_mode_matrix",
+    "roots",
+    "sweep",
+    "system_matrices",
+]
 
 
 def __getattr__(name: str) -> object:
