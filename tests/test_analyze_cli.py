@@ -91,12 +91,27 @@ def test_folder_needs_fps(tmp_path, capsys):
     (["--mm-per-px", "-1"], ["mm-per-px"]),
     (["--tube-diameter-mm", "0"], ["tube-diameter"]),
     (["--fps", "0"], ["fps"]),
-    (["--mm-per-px", "0.2", "--tube-diameter-mm", "3"], ["either"]),
     (["--threads", "0"], ["threads"]),
 ])
 def test_bad_parameters(tmp_path, capsys, movie, args, words):
     code, _, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "o", *args)
     assert_one_line_error(code, err, *words)
+
+
+def test_a_typed_scale_takes_the_tubes_diameter_too(tmp_path, capsys, movie):
+    """A lab with a 4 mm tube that types its scale gets lambda/D with 4 mm (it was refused, and without the
+    flag D = 3 mm was used silently); grainplug.toml takes the pair as well."""
+    code, stdout, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "o", "--mm-per-px", "0.185",
+                            "--tube-diameter-mm", "4", "--no-figures", "--json")
+    assert code == 0, err
+    s = json.loads(stdout)
+    assert s["tube_diameter_mm"] == 4.0 and s["mm_per_px"] == pytest.approx(0.185)
+    assert s["plug_length_over_diameter"] == pytest.approx(s["plug_length_mm"] / 4.0, rel=1e-3)
+    (tmp_path / "grainplug.toml").write_text("[analyze]\nmm_per_px = 0.185\ntube_diameter_mm = 4\n")
+    code, stdout, err = run(capsys, "analyze", movie.movie, "--out", tmp_path / "o2", "--config",
+                            tmp_path / "grainplug.toml", "--no-figures", "--json")
+    assert code == 0, err
+    assert json.loads(stdout)["tube_diameter_mm"] == 4.0
 
 
 def test_missing_and_corrupt(tmp_path, capsys):

@@ -161,7 +161,8 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.option("--mm-per-px", type=param_number("mm_per_px"), default=None,
               help="Scale; by default measured from the tube.")
 @click.option("--tube-diameter-mm", type=param_number("tube_diameter_mm"), default=None,
-              help="Inner diameter of the tube, for the scale measured from the tube "
+              help="Inner diameter of the tube: the scale measured from the tube, or with --mm-per-px the "
+                   "plug length in diameters (λ/D) and the check of the given scale "
                    f"[default: {default_of(AnalysisParams, 'tube_diameter_mm'):g}].")
 @click.option("--tube-outer-diameter-mm", type=param_number("tube_outer_diameter_mm"), default=None,
               help="Outer diameter of the tube: the scale then comes from its outer silhouette (any lighting).")
@@ -232,9 +233,6 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
             publication = False
     figure_options = figure_options_of(dpi, figure_formats, publication, style)
     roi_px = roi_option(roi)
-    if mm_per_px is not None and tube_diameter_mm is not None:
-        raise ParameterError("give either --mm-per-px (the scale) or --tube-diameter-mm (scale from the tube), "
-                             "not both")
     if mm_per_px is not None and calibration is not None:
         raise ParameterError("give either --mm-per-px or --calibration (the scale), not both")
     diameter = {} if tube_diameter_mm is None else {"tube_diameter_mm": tube_diameter_mm}
