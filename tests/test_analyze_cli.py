@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from test_cli_basics import assert_one_line_error, run
+from warned import of_code
 
 from grainplug.summary import EDGE_SCHEMA, TABLES_SCHEMA_VERSION, TRACK_SCHEMA
 from grainplug.synthetic import SynthConfig, synthesize
@@ -145,7 +146,8 @@ def test_flow_direction_assumed_without_grains(tmp_path, capsys):
     assert code == 0, err
     s = json.loads(out)
     assert s["flow_direction"] == "right" and s["flow_direction_source"] == "assumed"
-    assert any("assumed" in w for w in s["warnings"])
+    [said] = of_code(s, "flow.assumed")
+    assert "assumed to run right" in said, s["warnings"]
     code, out, err = run(capsys, "analyze", res.movie, "--out", tmp_path / "o2", "--json", "--flow-direction", "left")
     assert code == 0, err
     s = json.loads(out)
@@ -158,7 +160,8 @@ def test_given_direction_against_the_grains_is_flagged(tmp_path, capsys):
     assert code == 0, err
     s = json.loads(out)
     assert s["flow_direction"] == "down" and s["warnings"]
-    assert any("against the given flow direction" in w for w in s["warnings"])
+    [said] = of_code(s, "flow.against_given")
+    assert "direction (down; " in said, s["warnings"]
 
 
 def test_threads_do_not_change_the_result(tmp_path, capsys):

@@ -178,8 +178,11 @@ def test_result_displays_briefly(result):
     assert f"{result.celerity_m_s:+.4f}" in text
     page = result._repr_html_()
     assert "celerity" in page and "data:image/png;base64," in page and len(page) < 200_000
-    warned = dataclasses.replace(result, warnings=["check the scale"])
-    assert "check the scale" in repr(warned) and "check the scale" in warned._repr_html_()
+    from grainplug.warning_codes import coded
+
+    warned = dataclasses.replace(result, warnings=[coded("scale.model_alone", "check the scale")])
+    assert "warning: check the scale" in repr(warned) and "<li>check the scale</li>" in warned._repr_html_()
+    assert "CodedWarning" not in repr(warned) + warned._repr_html_()  # the sentence, not the object
     # its parts print their numbers, not their arrays; the headline numbers are attributes
     assert len(repr(result.motion)) < 600 and "celerity_m_s" in repr(result.motion)
     assert result.regime == result.motion.regime and result.bubble_length_mm == result.lengths.bubble_length_mm

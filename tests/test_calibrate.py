@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import tifffile
+from warned import of_code
 
 import grainplug as gp
 from grainplug.calibration.pattern import Calibration, CalibrationError, index_lattice
@@ -130,14 +131,15 @@ def test_doubtful_calibrations_are_said(plug_movie):
     frames, tube_scale = plug_movie
     wrong = uniform_calibration(tube_scale * 1.2, shape=(1024, 1280))  # another image size, 20 % off the tube
     res = gp.analyze(frames, fps=500.0, calibration=wrong)
-    text = " ".join(res.warnings)
-    assert "the calibration image is 1280 x 1024 px but the movie's frames are 48 x 300" in text
-    assert "the tube's bore reads" in text and "(-17 % in scale)" in text
+    [size] = of_code(res, "scale.calibration_size")
+    assert "1280 x 1024 px" in size and "48 x 300" in size, res.warnings
+    [said] = of_code(res, "scale.calibration_vs_tube")
+    assert "(-17 % in scale)" in said, res.warnings
     # a coarser calibration: the tube reads wider than it implies, which refraction does not explain
-    assert "reads wider than the calibration implies" in text and "look narrower" not in text
+    assert "reads wider than the calibration implies" in said and "look narrower" not in said
     finer = gp.analyze(frames, fps=500.0, calibration=uniform_calibration(tube_scale / 1.1))
-    text = " ".join(finer.warnings)
-    assert "(+10 % in scale)" in text and "back-lit tubes look narrower than their bore" in text
+    [said] = of_code(finer, "scale.calibration_vs_tube")
+    assert "(+10 % in scale)" in said and "back-lit tubes look narrower than their bore" in said, finer.warnings
     with pytest.raises(gp.ParameterError, match="either a calibration or mm_per_px"):
         gp.AnalysisParams(mm_per_px=0.1, calibration=wrong)
 

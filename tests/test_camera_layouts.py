@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from camera_writers import mosaic, write_cine, write_mraw, write_seq
 from test_reader_formats import check_contract
+from warned import codes, of_code
 
 import grainplug as gp
 from grainplug.band import Band
@@ -92,7 +93,8 @@ def test_cine_saved_frame_rate(tmp_path, decimation, stamp_fps, want_fps, warned
         info = movie.info
     assert info.fps == pytest.approx(want_fps, rel=1e-5)  # the writer's float stamps resolve 0.2 us
     assert info.record_fps == (2000.0 if decimation > 1 else None)
-    assert any("time stamps say" in w for w in info.warnings) is warned
+    assert ("movie.fps_stamps" in codes(info)) is warned, info.warnings
+    assert all(f"time stamps say {stamp_fps:.6g} fps" in w for w in of_code(info, "movie.fps_stamps"))
 
 
 def test_old_cine_setup_block_without_the_new_fields(tmp_path):
@@ -243,7 +245,8 @@ def test_seq_with_dropped_frames_says_so(tmp_path):
     path = write_seq(tmp_path / "m.seq", random_frames(8, 4, 4, 8), stamps_s=stamps, suggested_fps=100.0)
     with open_movie(path) as movie:
         assert movie.info.fps == pytest.approx(100.0, rel=1e-3)
-        assert any("frame 4's time stamp is out of step" in w for w in movie.info.warnings)
+        [said] = of_code(movie.info, "movie.frames_out_of_step")
+        assert said.startswith("frame 4's time stamp is"), movie.info.warnings
 
 
 # -- damaged files ------------------------------------------------------------------------------
@@ -260,7 +263,8 @@ def test_truncated_cine_is_refused_or_read_in_part(tmp_path, capsys):
     with pytest.raises(MovieError, match=r"is truncated: it holds 9 of the 10 frames .* allow_truncated=True"):
         open_movie(path)
     with open_movie(path, allow_truncated=True) as movie:
-        assert movie.info.n_frames == 9 and "truncated" in movie.info.warnings[0]
+        assert movie.info.n_frames == 9 and of_code(movie.info, "movie.truncated") == [movie.info.warnings[0]]
+        assert "the first 9 of the 10 frames" in movie.info.warnings[0]
         np.testing.assert_array_equal(movie.read(8), frames[8])
     assert main(["info", str(path)]) != 0
     err = capsys.readouterr().err
@@ -313,7 +317,8 @@ def test_photron_header_of_another_recording(tmp_path):
     header = write_mraw(tmp_path / "b", random_frames(2, 8, 8, 16), bits=16)
     (tmp_path / "a.mraw").replace(tmp_path / "b.mraw")  # b's header, a's (larger) data
     with open_movie(header) as movie:
-        assert any("is b.cih the header of this file?" in w for w in movie.info.warnings)
+        [said] = of_code(movie.info, "movie.extra_bytes")
+        assert said.startswith("b.mraw holds ") and "b.cih" in said, movie.info.warnings
     header = write_mraw(tmp_path / "c", random_frames(4, 8, 8, 16), bits=16)
     write_mraw(tmp_path / "d", random_frames(2, 8, 8, 16), bits=16)
     (tmp_path / "d.mraw").replace(tmp_path / "c.mraw")  # c's header, d's (smaller) data
@@ -333,5 +338,6 @@ def test_a_movie_warning_reaches_the_command_line_the_summary_and_the_report(tmp
     err = capsys.readouterr().err
     assert "warning: the file is truncated: reading the first 119 of the 120 frames" in err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert summary["n_frames"] == 119 and any("truncated" in w for w in summary["warnings"])
+    [said] = of_code(summary, "movie.truncated")
+    assert summary["n_frames"] == 119 and "the first 119 of the 120 frames" in said
     assert "the file is truncated: reading the first 119" in (tmp_path / "out" / "report.html").read_text()

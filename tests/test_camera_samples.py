@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from warned import of_code
 
 from grainplug.band import Band
 from grainplug.cli import main
@@ -105,7 +106,8 @@ def test_packed_cine_last_frame_is_kept_as_stored_with_a_warning_on_its_time_sta
         info = movie.info
     assert np.all(last == 1012)
     assert info.details["frames_with_bad_timestamp"] == [234]
-    assert any("frame 234's time stamp is out of step" in w for w in info.warnings)
+    [said] = of_code(info, "movie.frames_out_of_step")
+    assert said.startswith("frame 234's time stamp is"), info.warnings
 
 
 def test_seq_rate_is_the_time_stamps_with_a_warning_on_the_header():
@@ -113,13 +115,15 @@ def test_seq_rate_is_the_time_stamps_with_a_warning_on_the_header():
         info = movie.info
     assert 29.0 < info.fps < 31.0 and info.fps_note.startswith("time stamps")
     assert info.details["suggested_fps"] == 10.0
-    assert any("header suggests 10 fps" in w for w in info.warnings)
+    [said] = of_code(info, "movie.fps_stamps")
+    assert f"say {info.fps:.4g} fps" in said and "header suggests 10 fps" in said, info.warnings
     # given a rate, the file's stamps-or-header choice is not made: one warning (given against recorded), not
     # a second one saying the stamps are used
     with open_movie(SAMPLES / "pims/sample_norpix6.seq", fps=10) as movie:
         info = movie.info
-    said = [w for w in info.warnings if "fps" in w]
-    assert info.fps == 10 and len(said) == 1 and said[0].startswith("the frame rate given (10 fps)"), said
+    said = of_code(info, "movie.fps_disagrees", "movie.fps_stamps")
+    assert info.fps == 10 and said == of_code(info, "movie.fps_disagrees"), info.warnings
+    assert len(said) == 1 and said[0].startswith("the frame rate given (10 fps)"), said
 
 
 @pytest.mark.parametrize(("name", "fps", "note"), [
@@ -190,7 +194,7 @@ def test_a_narrow_tube_warning_says_how_uncertain_the_scale_is():
     import grainplug as gp
 
     res = gp.analyze(SAMPLES / "pyidi/data_small_cine.cine")
-    [said] = [w for w in res.warnings if "px wide: a scale from its width" in w]
+    [said] = of_code(res, "scale.tube_narrow")
     assert f"uncertain by {100 * res.scale_rel_sd:.2g} % (one standard deviation)" in said
 
 

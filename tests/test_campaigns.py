@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from test_cli_basics import assert_one_line_error, run
+from warned import of_code
 
 from grainplug import datasets
 from grainplug.campaigns import fit_line, read_manifest, run_campaign
@@ -169,11 +170,15 @@ def test_a_column_that_looks_misspelt_is_warned_about(campaign_dir, tmp_path, ca
                                            "a,a/movie.avi,0.185,x,3\n")
     [spec] = read_manifest(campaign_dir / "typo.csv")
     assert spec.meta["mm_per_pix"] == "0.185" and spec.params.mm_per_px is None
-    assert [w.split("'")[-2] for w in spec.warnings] == ["mm_per_px", "tube_diameter_mm"]
+    assert [w.split("'")[-2] for w in of_code(spec, "manifest.column_unknown")] == ["mm_per_px", "tube_diameter_mm"]
+    assert len(spec.warnings) == 2
     code, _, err = run(capsys, "batch", campaign_dir / "typo.csv", "--out", tmp_path / "o", "--no-figures",
                        "--no-simulations")
     assert code == 0 and "warning: run a: column 'mm_per_pix' is not one grainplug knows" in err
-    assert "if it means 'mm_per_px'" in pd.read_csv(tmp_path / "o" / "campaign.csv").warnings[0]
+    table = pd.read_csv(tmp_path / "o" / "campaign.csv")
+    said = table.warnings[0].split(" | ")  # the manifest's doubts first, then the run's own
+    assert table.warning_codes[0].split(" | ")[:2] == ["manifest.column_unknown"] * 2
+    assert len(table.warning_codes[0].split(" | ")) == len(said) and "if it means 'mm_per_px'" in said[0]
     # from Python the campaign says it too, with the runs that failed
     (campaign_dir / "gone.csv").write_text("run,movie,mm_per_pix\na,a/movie.avi,0.185\nb,nowhere.avi,0.185\n")
     camp = run_campaign(campaign_dir / "gone.csv", tmp_path / "p", figures=False, simulate=False)

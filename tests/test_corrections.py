@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from warned import codes, of_code
 
 import grainplug as gp
 from grainplug.cli import main
@@ -127,7 +128,8 @@ def test_two_plugs_seen_together_are_not_merged(result):
         Corrections().add("merge", track=a, other=b, on=result)
     by_hand = apply_corrections(result, Corrections().add("merge", track=a, other=b))  # no trace: replayed by number
     assert _measures(by_hand) == _measures(result)
-    assert any("two plugs at once are not one plug" in w for w in by_hand.warnings)
+    [note] = of_code(by_hand, "corrections.not_applied")
+    assert f"tracks {a} and {b} are both seen in" in note, by_hand.warnings
 
 
 def test_start_here_then_end_here_keep_the_frames_between(result):
@@ -150,7 +152,8 @@ def test_start_here_then_end_here_keep_the_frames_between(result):
     assert _measures(whole) == _measures(result)
     crossed = apply_corrections(result, two.corrections.add("window", start_s=0.9 * t_end))
     assert _measures(crossed) == _measures(two)
-    assert any("would end the window" in w for w in crossed.warnings)
+    [note] = of_code(crossed, "corrections.not_applied")
+    assert f"it would end the window ({b:g} s) before it starts ({0.9 * t_end:g} s)" in note, crossed.warnings
 
 
 def test_a_run_emptied_by_its_corrections_comes_back_when_they_go(result, tmp_path, capsys):
@@ -316,8 +319,7 @@ def test_batch_says_when_edits_without_traces_meet_a_new_analysis_until_they_go(
                                      "edits": [{"action": "exclude", "track": 0, "at": ""}]}))
 
     def warned() -> list[str]:
-        return [w for w in json.loads((out / "runs" / "a" / "summary.json").read_text())["warnings"]
-                if "replayed by track number" in w]
+        return of_code(json.loads((out / "runs" / "a" / "summary.json").read_text()), "corrections.unchecked")
 
     gp.run_campaign(manifest, out, figures=False)  # same analysis: measured again, nothing to check
     assert warned() == []
@@ -346,21 +348,21 @@ def test_an_edit_replayed_on_another_analysis_never_falls_on_another_plug(movie,
     trace = corr.edits[0].track_trace
     assert trace[0][0] == pytest.approx(rows.first_time_s[short])
     same = apply_corrections(gp.analyze(movie.movie), corr)  # the same analysis again: the edit applies
-    assert short not in set(same.links.run_track) and not [w for w in same.warnings if "no longer fits" in w]
+    assert short not in set(same.links.run_track) and "corrections.not_applied" not in codes(same)
     # a larger --min-plug-mm drops the shorter plug: the tracker gives its number to another plug
     fewer = gp.analyze(movie.movie, min_plug_mm=float(rows.median_length_mm[short]) + 1)
     assert short in set(fewer.links.run_track), "the number is not reused: the test shows nothing"
     applied = apply_corrections(fewer, corr)
     assert len(applied.runs) == len(fewer.runs)  # nothing excluded: that number is another plug here
-    [note] = [w for w in applied.warnings if "no longer fits" in w]
+    [note] = of_code(applied, "corrections.not_applied")
     assert f"excluded track {short}" in note and "was not applied" in note
     again = apply_corrections(applied, corr)  # replaying again does not repeat the warning
-    assert sum("no longer fits" in w for w in again.warnings) == 1
+    assert of_code(again, "corrections.not_applied") == [note]
     # another window of the same movie: the plug that entered late is excluded there too
     late = int(rows.first_time_s.idxmax())
     corr_late = Corrections().add("exclude", track=late, on=result)
     window = apply_corrections(gp.analyze(movie.movie, start_frame=100), corr_late)
-    assert late not in set(window.links.run_track) and not [w for w in window.warnings if "no longer fits" in w]
+    assert late not in set(window.links.run_track) and "corrections.not_applied" not in codes(window)
     # the file keeps the traces (format 2) and reads back; format 1 files (no traces) are replayed as they are
     back = Corrections.from_dict(json.loads(json.dumps(corr.as_dict())))
     assert back == corr and corr.as_dict()["format_version"] == 2
@@ -382,14 +384,14 @@ def test_edits_replayed_on_another_window_keep_their_plug_and_their_time(movie, 
     assert corr.edits[0].frame_time_s == pytest.approx(t_split)
     later = gp.analyze(movie.movie, start_frame=20)
     after = apply_corrections(later, corr)
-    assert not [w for w in after.warnings if "no longer fits" in w]
+    assert "corrections.not_applied" not in codes(after), after.warnings
     new_id = int(after.links.run_track.max())
     new_first = after.diagram.time_s[after.runs.frame[after.links.run_track == new_id]].min()
     assert new_first == pytest.approx(t_split)  # cut at 0.52 s, not at the window's frame 130
     middle = gp.analyze(movie.movie, start_frame=84, end_frame=156)  # between the ends of every track
     ex = Corrections().add("exclude", track=tid, on=result)
     kept = apply_corrections(middle, ex)
-    assert not [w for w in kept.warnings if "no longer fits" in w]
+    assert "corrections.not_applied" not in codes(kept), kept.warnings
     assert len(kept.runs) < len(middle.runs)  # the plug was found and excluded there too
     # a track emptied by a split at its first frame can still be restored from the page
     first = int(result.runs.frame[result.links.run_track == tid].min())
@@ -408,14 +410,15 @@ def test_edits_that_name_nothing_are_said_not_applied(result):
     corr = Corrections().add("exclude", track=n_tracks + 5).add("split", track=0, frame=10**6)
     res = apply_corrections(result, corr)
     assert _measures(res) == _measures(result)
-    notes = [w for w in res.warnings if w.startswith("a correction no longer fits this analysis")]
+    notes = of_code(res, "corrections.not_applied")
     assert len(notes) == 2, res.warnings
     assert f"there is no track {n_tracks + 5}" in notes[0]
     assert "frame 1000000 is outside this analysis" in notes[1]
     assert res.summary["corrections"] == []  # none applied (the file's edits stay in corrections_applied)
     late = apply_corrections(result, corr.add("window", start_s=t_end + 5.0))
     assert not late.has_plugs and late.summary["corrections"] == [f"kept the frames from {t_end + 5.0:g} s on"]
-    assert any("holds none of this record" in w and "no plugs are left" in w for w in late.warnings)
+    said = of_code(late, "corrections.not_applied")  # the two above, and the window that holds none
+    assert len(said) == 3 and "edit 3, " in said[2] and "holds none of this record" in said[2], late.warnings
 
 
 def test_a_restore_may_name_a_track_a_split_emptied(result):
@@ -425,7 +428,7 @@ def test_a_restore_may_name_a_track_a_split_emptied(result):
     tid, first = int(t.plug_id), int(t.first_frame)
     corr = Corrections().add("exclude", track=tid).add("split", track=tid, frame=first).add("restore", track=tid)
     res = apply_corrections(result, corr)
-    assert not [w for w in res.warnings if w.startswith("a correction no longer fits")], res.warnings
+    assert "corrections.not_applied" not in codes(res), res.warnings
     assert len(res.summary["corrections"]) == 3 and len(res.runs) == len(result.runs)
 
 
@@ -537,4 +540,5 @@ def test_remeasure_says_the_edits_it_did_not_apply(result, tmp_path, capsys):
     captured = capsys.readouterr()
     assert "1 applied" in captured.out and "it holds none of the record: no plugs are left" in captured.out
     summary = json.loads((out / "summary.json").read_text())
-    assert any("was applied but holds none" in w for w in summary["warnings"])
+    [said] = of_code(summary, "corrections.not_applied")
+    assert "was applied but holds none" in said, summary["warnings"]

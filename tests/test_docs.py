@@ -60,3 +60,34 @@ def test_the_corrections_file_documented_is_read():
     corr = Corrections.from_dict(json.loads(blocks[0]))
     assert [e.describe() for e in corr.edits] == [
         "kept the frames from 0.2 s on", "excluded track 4", "split track 2 at analysed frame 150"]
+
+
+def test_the_warning_codes_documented_are_the_codes():
+    """docs/analysis.md's table of warning codes is grainplug.warning_codes.CODES: every code, in order, with its
+    meaning and fix."""
+    from grainplug.warning_codes import CODES
+
+    text = (ROOT / "docs" / "analysis.md").read_text()
+    section = text.split("## Warning codes\n", 1)[1].split("\n## ", 1)[0]
+    rows = [line.strip().strip("|").split("|") for line in section.splitlines() if line.startswith("| `")]
+    assert [tuple(cell.strip() for cell in row) for row in rows] == [
+        (f"`{code}`", meaning, fix) for code, (meaning, fix) in CODES.items()]
+
+
+#: codes of CODES that no warning site gives, and why
+NOT_GIVEN_AT_A_SITE = {
+    "legacy.uncoded": "code_of's answer for a warning read from a result.npz saved before codes",
+    "movie.other": "a catch-all for what a camera file says of itself; no reader uses it yet",
+}
+
+
+def test_every_warning_code_is_given_somewhere_and_every_code_given_is_known():
+    """Each code is given by a ``coded("code", ...)`` or ``all_coded("code", ...)`` in src/ (a code no warning
+    carries is a row of the table that means nothing), and each code given there is in CODES (a misspelt one
+    would fail only when its warning is made)."""
+    from grainplug.warning_codes import CODES
+
+    given = {m for path in (ROOT / "src" / "grainplug").rglob("*.py") if path.name != "warning_codes.py"  # its example
+             for m in re.findall(r"\b(?:all_)?coded\(\s*\"([^\"]+)\"", path.read_text())}
+    assert given <= set(CODES), sorted(given - set(CODES))
+    assert set(CODES) - given == set(NOT_GIVEN_AT_A_SITE), sorted(set(CODES) - given)

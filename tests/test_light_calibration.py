@@ -12,6 +12,7 @@ import json
 import numpy as np
 import pytest
 import tifffile
+from warned import of_code
 
 import grainplug as gp
 from grainplug.campaigns.manifest import read_manifest
@@ -89,7 +90,8 @@ def test_background_from_the_command_line(tmp_path, movies, capsys):
 def test_a_dark_background_is_said(movies):
     dark = gp.Background(np.zeros((H, W), np.float32) + np.linspace(0, 1, H, dtype=np.float32)[:, None] ** 8, {}, 1)
     res = gp.analyze(movies["dirty"], fps=500.0, mm_per_px=CFG.mm_per_px, background=dark)
-    assert any("the background is dark over" in w for w in res.warnings), res.warnings
+    [said] = of_code(res, "light.background")
+    assert said.startswith("the background is dark over "), res.warnings
 
 
 def test_manifest_background_column(tmp_path, movies):

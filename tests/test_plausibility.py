@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from warned import codes, of_code
 
 import grainplug as gp
 from grainplug.synthetic import SynthConfig
@@ -18,21 +19,23 @@ def frames() -> np.ndarray:
 
 def test_a_sound_movie_has_no_plausibility_warning(frames):
     res = gp.analyze(frames, fps=500.0)
-    assert not any("faster than" in w or "saturated" in w for w in res.warnings), res.warnings
+    assert not codes(res) & {"plugs.implausible_speed", "light.saturated"}, res.warnings
 
 
 def test_a_wrong_frame_rate_makes_speeds_absurd_and_is_said(frames):
     res = gp.analyze(frames, fps=500_000.0)  # a thousand times too fast
-    text = " ".join(res.warnings)
-    assert "faster than grains can fall in a pipe: check the frame rate (fps=)" in text, res.warnings
+    said = of_code(res, "plugs.implausible_speed")
+    assert said and all("check the frame rate (fps=)" in w for w in said), res.warnings
+    assert any(f"the plugs move at {res.celerity_m_s:.3g} m/s" in w for w in said), res.warnings  # not the grains' only
 
 
 def test_a_scale_from_the_tube_is_flagged_and_its_doubts_named(frames):
     res = gp.analyze(frames, fps=500.0)
     # the synthetic tube's walls are not a real tube's optics: the model's estimate is not cross-checked
-    assert any("the scale comes from the tube model alone" in w and "tube_outer_diameter_mm=" in w
-               and "mm_per_px=" in w for w in res.warnings), res.warnings
-    assert not any("the scale comes from" in w for w in gp.analyze(frames, fps=500.0, mm_per_px=0.185).warnings)
+    [said] = of_code(res, "scale.model_alone")
+    assert "tube_outer_diameter_mm=" in said and "mm_per_px=" in said, res.warnings
+    given = gp.analyze(frames, fps=500.0, mm_per_px=0.185)
+    assert not [c for c in codes(given) if c.startswith("scale.")], given.warnings
 
 
 @pytest.mark.parametrize("width", [64, 44, 36, 30])
@@ -46,13 +49,14 @@ def test_a_strip_cropped_close_to_the_tube_is_measured_lengthwise(frames, width)
 
 def test_a_tube_that_fills_the_frame_is_said(frames):
     strip = gp.analyze(np.ascontiguousarray(frames[:, :, 24:42]), fps=500.0)  # the bore fills 90 % of 18 px
-    assert any("of the frame's width" in w for w in strip.warnings), strip.warnings
+    [said] = of_code(strip, "scale.tube_wide")
+    assert f"fills {100 * strip.bore.diameter_px / 18:.0f} % of the frame's width" in said, strip.warnings
 
 
 def test_a_saturated_tube_is_said(frames):
     bright = np.clip(frames.astype(np.int32) * 3, 0, 255).astype(np.uint8)
     res = gp.analyze(bright, fps=500.0)
-    assert any("of the tube's pixels are at the camera's top value (saturated)" in w for w in res.warnings)
+    assert of_code(res, "light.saturated"), res.warnings
 
 
 @pytest.mark.parametrize(("mm_per_px", "doubted"), [(0.185, False), (0.19, False), (0.06, True), (0.5, True)])
@@ -60,8 +64,9 @@ def test_a_given_scale_far_from_the_tube_seen_is_said(frames, mm_per_px, doubted
     """Given --mm-per-px, the tube found (16 px) is checked against the bore it makes: 0.06 mm/px (a 50 px bore)
     and 0.5 mm/px (6 px) are doubted, the true 0.185 and a 3 % error are not (the tube model's own job)."""
     res = gp.analyze(frames, fps=500.0, mm_per_px=mm_per_px)
-    said = [w for w in res.warnings if "the given scale makes its 3 mm bore" in w]
+    said = of_code(res, "scale.given_vs_tube")
     assert bool(said) == doubted, res.warnings
+    assert all("the given scale makes its 3 mm bore" in w for w in said)
     assert all("mm_per_px=" in w for w in said)
 
 
@@ -71,7 +76,7 @@ def test_a_scale_so_fine_that_no_plug_is_left_is_doubted(frames, mm_per_px):
     which used to come without a warning because the check of the given scale was off whenever no plug was found."""
     res = gp.analyze(frames, fps=500.0, mm_per_px=mm_per_px)
     assert not res.has_plugs
-    said = [w for w in res.warnings if "the given scale makes its 3 mm bore" in w]
+    said = of_code(res, "scale.given_vs_tube")
     assert len(said) == 1 and "check mm_per_px=" in said[0], res.warnings
     assert "check the scale" in res.statement
 
@@ -86,15 +91,17 @@ def test_the_command_line_names_its_flags_and_the_library_its_keywords(frames, t
     from grainplug.cli import main
 
     res = gp.analyze(frames, fps=500_000.0)
-    assert any("(fps=)" in w for w in res.warnings) and not any("--" in w for w in res.warnings)
+    said = of_code(res, "plugs.implausible_speed")
+    assert said and all("(fps=)" in w for w in said), res.warnings
+    assert not any("--" in w for w in res.warnings)
     path = tmp_path / "m.tif"
     tifffile.imwrite(path, frames)
     assert main(["analyze", str(path), "--fps", "500000", "--out", str(tmp_path / "o"), "--no-figures"]) == 0
     err = capsys.readouterr().err
     assert "check the frame rate (--fps)" in err and "give --tube-outer-diameter-mm" in err
     assert "fps=" not in err and "mm_per_px=" not in err
-    saved = json.loads((tmp_path / "o" / "summary.json").read_text())["warnings"]
-    assert any("check the frame rate (fps=)" in w for w in saved)
+    saved = of_code(json.loads((tmp_path / "o" / "summary.json").read_text()), "plugs.implausible_speed")
+    assert saved and all("check the frame rate (fps=)" in w for w in saved)
 
 
 def test_a_tube_without_plugs_does_not_doubt_a_right_scale():
@@ -104,7 +111,7 @@ def test_a_tube_without_plugs_does_not_doubt_a_right_scale():
     frames = np.stack(list(Renderer(cfg).frames()))
     res = gp.analyze(frames, fps=500.0, mm_per_px=0.185)
     assert not res.has_plugs
-    assert not [w for w in res.warnings if "the given scale makes" in w], res.warnings
+    assert "scale.given_vs_tube" not in codes(res), res.warnings
 
 
 @pytest.mark.parametrize("camera", ["up", "down"])
@@ -117,7 +124,8 @@ def test_a_flow_direction_only_assumed_is_said_with_the_celerity(camera):
     res = gp.analyze(frames, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
     assert res.flow_direction == "down" and res.celerity_m_s == pytest.approx(0.03 if camera == "up" else -0.03,
                                                                              rel=0.01)
-    assert any("celerity's sign rests on that" in w and "flow_direction=" in w for w in res.warnings), res.warnings
+    [said] = of_code(res, "flow.sign_assumed")
+    assert "flow_direction=" in said, res.warnings
     seen = SynthConfig(n_frames=150, seed=2, flow_direction=camera, celerity_m_s=-0.03)
     res = gp.analyze(np.stack(list(Renderer(seen).frames())), fps=seen.fps, mm_per_px=seen.mm_per_px)
     assert res.celerity_m_s == pytest.approx(-0.03, rel=0.01) and not res.warnings
@@ -184,9 +192,10 @@ def test_an_opaque_object_over_the_tube_is_pointed_out(train):
     clamped = frames.copy()
     clamped[:, 300:330] = np.clip(30 + np.random.default_rng(1).normal(0, 3, clamped[:, 300:330].shape), 0, 255)
     res = gp.analyze(clamped, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
-    said = [w for w in res.warnings if w.startswith("nothing changes at 55.5-61.1 mm (from the upstream end")]
-    assert said, res.warnings
-    assert any("stay put while the plugs move at +0.05 m/s" in w for w in res.warnings), res.warnings
+    [said] = of_code(res, "still.region")
+    assert said.startswith("nothing changes at 55.5-61.1 mm "), res.warnings  # where it is
+    [said] = of_code(res, "still.track")
+    assert "while the plugs move at +0.05 m/s" in said, res.warnings
 
 
 def test_plugs_about_the_length_threshold_are_said():
@@ -195,11 +204,11 @@ def test_plugs_about_the_length_threshold_are_said():
     cfg = SynthConfig(n_frames=200, seed=5, celerity_m_s=0.05, plug_length_mm=3.3, plug_length_sd_mm=0.5,
                       bubble_length_mm=4.0, bubble_length_sd_mm=0.5)
     res = gp.analyze(np.stack(list(Renderer(cfg).frames())), fps=cfg.fps, mm_per_px=cfg.mm_per_px)
-    said = [w for w in res.warnings if "within 20 % of min_plug_mm = 3 mm" in w]
-    assert said and "lower min_plug_mm=" in said[0], res.warnings
+    [said] = of_code(res, "plugs.near_min_length")
+    assert "within 20 % of min_plug_mm = 3 mm" in said and "lower min_plug_mm=" in said, res.warnings
     lowered = gp.analyze(np.stack(list(Renderer(cfg).frames())), fps=cfg.fps, mm_per_px=cfg.mm_per_px,
                          min_plug_mm=1.5)
-    assert not any("min_plug_mm" in w for w in lowered.warnings)
+    assert "plugs.near_min_length" not in codes(lowered), lowered.warnings
     assert lowered.bubble_length_mm == pytest.approx(4.0, rel=0.1)
 
 
@@ -210,5 +219,5 @@ def test_falling_grains_alone_are_neither_plugs_about_the_threshold_nor_two_clos
     the tube: short things, not plugs, so the tube is said to hold one phase, not two close levels."""
     cfg = SynthConfig(n_frames=150, seed=6, regime="none", falling_grains_per_mm=grains_per_mm)
     res = gp.analyze(np.stack(list(Renderer(cfg).frames())), fps=cfg.fps, mm_per_px=cfg.mm_per_px)
-    assert not res.has_plugs and not any("min_plug_mm" in w for w in res.warnings), res.warnings
+    assert not res.has_plugs and "plugs.near_min_length" not in codes(res), res.warnings
     assert "hint at two" not in res.statement, res.statement

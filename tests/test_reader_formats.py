@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import tifffile
 from conftest import grey
+from warned import codes, of_code
 
 from grainplug.band import Band
 from grainplug.errors import MovieError
@@ -168,7 +169,8 @@ def test_opencv_reader_says_when_it_reads_fewer_bits(tmp_path):
     truth = np.stack(list(Renderer(cfg).frames()))
     with OpenCVVideoMovie(movie) as m:
         assert m.info.dtype == "uint8" and m.info.bit_depth == 8 and m.info.channels == 3
-        assert len(m.info.warnings) == 1 and 'pip install "grainplug[video]"' in m.info.warnings[0]
+        assert len(m.info.warnings) == 1 and of_code(m.info, "movie.deep_read_shallow") == list(m.info.warnings)
+        assert 'pip install "grainplug[video]"' in m.info.warnings[0]
         frame = m.read(3)
         np.testing.assert_allclose(frame, truth[3] / 257.0, atol=1.5)  # 8 bits (FFmpeg dithers a little)
 
@@ -384,9 +386,9 @@ def test_a_given_frame_rate_that_contradicts_the_file_is_said(tmp_path, fmt):
                                    seed=1), tmp_path, fmt=fmt).movie
     with open_movie(movie, fps=25.0) as m:
         assert m.info.fps == 25.0 and m.info.fps_source == "user"
-        said = [w for w in m.info.warnings
-                if "frame rate given (25 fps) is not the one the file records (250 fps)" in w]
-        assert len(said) == 1 and "fps=" in said[0]
+        said = of_code(m.info, "movie.fps_disagrees")
+        assert len(said) == 1 and "given (25 fps)" in said[0] and "records (250 fps)" in said[0], m.info.warnings
+        assert "fps=" in said[0]
     for fps in (None, FPS, FPS * 1.005):
         with open_movie(movie, fps=fps) as m:
-            assert not [w for w in m.info.warnings if "frame rate given" in w]
+            assert "movie.fps_disagrees" not in codes(m.info), m.info.warnings

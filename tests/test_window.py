@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 import tifffile
+from warned import codes, of_code
 
 import grainplug as gp
 from grainplug.calibration.tube import find_tube
@@ -102,16 +103,17 @@ def test_an_end_past_the_movie_is_said_and_frames_keep_the_movies_numbers(movies
     from grainplug.diagram.frames import FrameRepair
 
     res = gp.analyze(movies["tiff"], start_frame=START, end_frame=400, mm_per_px=0.185)
-    [said] = [w for w in res.warnings if "past the movie" in w]
+    [said] = of_code(res, "window.end_past_movie")
     assert "frame 400" in said and "300 frames" in said and res.info.n_frames == 300 - START
     whole = gp.analyze(movies["tiff"], end_frame=400, mm_per_px=0.185)  # a window that is the whole movie
-    assert any("past the movie" in w for w in whole.warnings) and whole.info.n_frames == 300
+    assert of_code(whole, "window.end_past_movie") and whole.info.n_frames == 300
     # in seconds: the movie's duration as info prints it (rounded up by a frame at most) is its end, not past it
     duration = 300 / whole.info.fps
     exact = gp.analyze(movies["tiff"], start_frame=START, end_s=duration * 1.001, mm_per_px=0.185)
-    assert not any("past the movie" in w for w in exact.warnings)
+    assert "window.end_past_movie" not in codes(exact), exact.warnings
     late = gp.analyze(movies["tiff"], start_frame=START, end_s=2 * duration, mm_per_px=0.185)
-    assert any(f"the window's end, {2 * duration:g} s, is past the movie's" in w for w in late.warnings)
+    [said] = of_code(late, "window.end_past_movie")
+    assert f"{2 * duration:g} s" in said and f"{duration:.4g} s" in said, late.warnings
     repair = FrameRepair(bright=np.array([34]))
     assert "(frame 134)" in repair.describe(150, first=100) and "(frame 34)" in repair.describe(150)
 
@@ -161,11 +163,11 @@ def test_a_region_of_interest_chooses_one_of_two_tubes(two_tubes):
     right = gp.analyze(frames, fps=250, roi=(128, 0, 256, 640))
     assert left.celerity_m_s == pytest.approx(-0.05, rel=0.03)
     assert right.celerity_m_s == pytest.approx(-0.08, rel=0.03)
-    assert not [w for w in left.warnings if "second tube" in w]
+    assert "tube.second_region" not in codes(left), left.warnings
     # without a region, one tube is analysed and the other is pointed out, with the fix
     both = gp.analyze(frames, fps=250)
-    said = [w for w in both.warnings if "second tube" in w]
-    assert len(said) == 1 and "roi=" in said[0]
+    said = of_code(both, "tube.second_region")
+    assert len(said) == 1 and "roi=" in said[0], both.warnings
     with pytest.raises(gp.ParameterError, match="roi") as err:
         gp.analyze(frames, fps=250, roi=(0, 0, 400, 640))
     assert err.value.param == "roi"
@@ -178,11 +180,12 @@ def test_a_region_that_cuts_the_tube_is_said(two_tubes, roi):
     tube and its walls are measured as before, without the warning."""
     frames, _ = two_tubes
     res = gp.analyze(frames, fps=250, roi=roi)
-    assert any("the tube is cut by the frame's edge" in w and "widen roi=" in w for w in res.warnings), res.warnings
-    assert not any("contents were not seen to change" in w for w in res.warnings)
+    [said] = of_code(res, "tube.cut_by_frame")
+    assert "widen roi=" in said, res.warnings
+    assert not any("contents were not seen to change" in w for w in of_code(res, "scale.edges_only")), res.warnings
     # a region on the bore alone: the contents change across the whole width, the walls out of view, said so
     bore = gp.analyze(frames, fps=250, roi=(56, 0, 72, 640))
-    assert any("fills" in w and "walls may be out of view" in w for w in bore.warnings), bore.warnings
+    assert of_code(bore, "scale.tube_wide"), bore.warnings
     # a whole tube beside a second one cut by the frame's edge is not cut
     from grainplug.synthetic import SynthConfig
     from grainplug.synthetic.render import Renderer
@@ -190,10 +193,10 @@ def test_a_region_that_cuts_the_tube_is_said(two_tubes, roi):
     a, b = (np.stack(list(Renderer(SynthConfig(n_frames=120, seed=seed)).frames())) for seed in (1, 2))
     beside = gp.analyze(np.concatenate([a, b[:, :, :60]], axis=2), fps=250)
     assert beside.tube.axis_x0_px == pytest.approx(63.5, abs=1)  # the whole one
-    assert not any("cut by the frame" in w for w in beside.warnings), beside.warnings
+    assert "tube.cut_by_frame" not in codes(beside), beside.warnings
     for whole in [(40, 0, 90, 640), (50, 0, 78, 640), (0, 0, 128, 640)]:
         res = gp.analyze(frames, fps=250, roi=whole)
-        assert not any("cut by the frame" in w for w in res.warnings), (whole, res.warnings)
+        assert "tube.cut_by_frame" not in codes(res), (whole, res.warnings)
 
 
 def test_no_second_tube_is_seen_in_a_record_too_short_for_the_plugs_to_move(tmp_path):
@@ -203,7 +206,7 @@ def test_no_second_tube_is_seen_in_a_record_too_short_for_the_plugs_to_move(tmp_
 
     movie = synthesize(SynthConfig(n_frames=12, fps=5000.0, seed=3), tmp_path, fmt="tiff").movie
     res = gp.analyze(movie)
-    assert not [w for w in res.warnings if "second tube" in w]
+    assert "tube.second_region" not in codes(res), res.warnings
 
 
 def test_roi_on_the_command_line_reads_the_band_from_the_file(two_tubes, tmp_path, capsys):

@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from warned import codes, of_code
 
 import grainplug as gp
 from grainplug.errors import ParameterError
@@ -111,8 +112,8 @@ def test_uneven_frame_times_are_used_and_said(uneven, monkeypatch, reader):
     assert res.info.n_frames == 120 and res.info.format.startswith("video-opencv" if reader == "opencv" else "video:")
     np.testing.assert_allclose(np.diff(res.diagram.time_s)[[0, 58, 60, 118]], [0.004, 0.004, 0.008, 0.008],
                                atol=1e-6)
-    said = [w for w in res.warnings if "not evenly spaced" in w]
-    assert len(said) == 1 and "4 to 8 ms" in said[0]
+    said = of_code(res, "time.uneven")
+    assert len(said) == 1 and "4 to 8 ms" in said[0], res.warnings
     with gp.open_movie(uneven) as m:  # frames reached by seeking are the frames in order
         every = list(m.frames())
         for k in (100, 5, 119, 61):
@@ -132,7 +133,7 @@ def test_a_window_of_uneven_frames_keeps_their_own_times(uneven, monkeypatch, re
     assert res.diagram.time_s[0] == pytest.approx(0.040, abs=1e-6)  # frame 10, 4 ms apart from the start
     np.testing.assert_allclose(np.diff(res.diagram.time_s)[[0, 49, 50, 88]], [0.004, 0.004, 0.008, 0.008],
                                atol=1e-6)
-    assert len([w for w in res.warnings if "not evenly spaced" in w]) == 1
+    assert len(of_code(res, "time.uneven")) == 1, res.warnings
 
 
 def test_the_opencv_reader_s_stamps_keep_the_movie_protocol(uneven, no_pyav):
@@ -205,7 +206,8 @@ def test_deep_yuv_video_is_said_to_be_read_as_8_bits(yuv10, monkeypatch, reader)
         monkeypatch.setitem(sys.modules, "av", None)
     with gp.open_movie(yuv10) as m:
         assert m.info.dtype == "uint8" and m.info.bit_depth == 8
-        assert len(m.info.warnings) == 1 and "YUV" in m.info.warnings[0] and "16-bit TIFF" in m.info.warnings[0]
+        assert len(m.info.warnings) == 1 and of_code(m.info, "movie.deep_read_shallow") == list(m.info.warnings)
+        assert "YUV" in m.info.warnings[0] and "16-bit TIFF" in m.info.warnings[0]
         assert "pip install" not in m.info.warnings[0]
 
 
@@ -282,7 +284,7 @@ def test_a_constant_rate_in_whole_milliseconds_is_even(tmp_path, monkeypatch, re
     if reader == "opencv":
         monkeypatch.setitem(sys.modules, "av", None)
     res = gp.analyze(movie)
-    assert not [w for w in res.warnings if "evenly spaced" in w]
+    assert "time.uneven" not in codes(res), res.warnings
     np.testing.assert_allclose(res.diagram.time_s, np.arange(91) / 60, atol=1e-9)
 
 
