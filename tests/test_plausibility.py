@@ -183,10 +183,11 @@ def train():
     return cfg, frames, gp.analyze(frames, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
 
 
-def test_an_opaque_object_over_the_tube_is_pointed_out(train):
+def test_an_opaque_object_over_the_tube_is_measured_around(train):
     """A clamp over the tube (rows 300-329: 55.5-61.1 mm) is a still dark stretch: it was measured as a plug that
-    never moves, and the plugs crossing it cut there (plugs -9 %, bubbles -20 %), without a word. Both the stretch
-    and the track that stays put are said, with where they are."""
+    never moves, and the plugs crossing it cut there (plugs -9 %, bubbles -20 %). It is now found as a blind
+    stretch: plugs touching it are cut there, bubbles across it not measured, no plug made of it; the stretch is
+    said, with where it is, and listed in summary.json."""
     cfg, frames, clean = train
     assert not clean.warnings
     clamped = frames.copy()
@@ -194,8 +195,17 @@ def test_an_opaque_object_over_the_tube_is_pointed_out(train):
     res = gp.analyze(clamped, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
     [said] = of_code(res, "still.region")
     assert said.startswith("nothing changes at 55.5-61.1 mm "), res.warnings  # where it is
-    [said] = of_code(res, "still.track")
-    assert "while the plugs move at +0.05 m/s" in said, res.warnings
+    assert "still.track" not in codes(res), res.warnings  # the clamp is no plug any more
+    [blind] = res.summary["blind_stretches"]
+    assert blind["found_by"] == "still contents" and blind["from_mm"] == pytest.approx(55.5, abs=0.2)
+    assert blind["to_mm"] == pytest.approx(61.1, abs=0.2)
+    assert res.celerity_m_s == pytest.approx(clean.celerity_m_s, rel=0.01)
+    assert res.plug_length_mm == pytest.approx(clean.plug_length_mm, rel=0.03)
+    assert res.bubble_length_mm == pytest.approx(clean.bubble_length_mm, rel=0.03)
+    # given by hand, the same stretch is taken as given, and not said again
+    given = gp.analyze(clamped, fps=cfg.fps, mm_per_px=cfg.mm_per_px, mask_mm=[(55.0, 62.0)])
+    assert [b["found_by"] for b in given.summary["blind_stretches"]] == ["mask_mm"]
+    assert not given.warnings and given.plug_length_mm == pytest.approx(clean.plug_length_mm, rel=0.03)
 
 
 def test_plugs_about_the_length_threshold_are_said():

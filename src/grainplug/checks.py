@@ -12,11 +12,11 @@ import numpy as np
 from .band import Band
 from .calibration.scale import CUT_SIDE_SHARE
 from .calibration.tube import TubeGeometry
-from .diagram import Diagram
 from .errors import ParameterError, non_finite_frames
-from .measures import Lengths, Motion
+from .measures import Motion
 from .measures.flow import GRAVITY_DOWN, Flow
 from .measures.grains import GrainMotion
+from .measures.still import STILL_CONTENTS, BlindStretch
 from .measures.tracks import edge_speed_mm_s
 from .params import AnalysisParams
 from .plugs import Runs, Tracks
@@ -162,39 +162,20 @@ def implausible(motion: Motion | None, grains: GrainMotion | None, saturation: f
             "and bubble contrast is lost there — lower the exposure or the light"))
     return out
 
-#: positions whose grey level varies over the record less than this share of the tube's typical variation are still
-STILL_REGION_SHARE = 0.1
-
-def still_regions(diagram: Diagram, motion: Motion | None, lengths: Lengths | None) -> list[str]:
-    """A warning naming the stretches of the tube (1 mm or more) where nothing changes over the record while the
-    rest of it does: an opaque object over the tube (a clamp, a fitting, the tube's end), which cuts or merges the
-    plugs crossing it. Judged only where the train travelled a plug and a bubble over the record, so that every
-    place should have seen both (in a shorter record a long plug may cover a place throughout)."""
-    if (motion is None or motion.regime != "propagative" or lengths is None or lengths.plug_length_mm is None
-            or lengths.bubble_length_mm is None):
-        return []
-    travel_mm = abs(motion.celerity_m_s) * 1000.0 * float(diagram.time_s[-1] - diagram.time_s[0])
-    if travel_mm < lengths.plug_length_mm + lengths.bubble_length_mm:
-        return []
-    values = diagram.values
-    d = np.log(np.maximum(np.asarray(values[:: max(1, values.shape[0] // 1000)], np.float32), np.float32(1e-3)))
-    sd = d.std(axis=0)
-    typical = float(np.median(sd))
-    if not typical > 0.01:  # nothing moves anywhere (a jammed or empty record): no contrast to judge by
-        return []
-    step = np.diff(np.concatenate([[0], (sd < STILL_REGION_SHARE * typical).astype(np.int8), [0]]))
-    starts, stops = np.nonzero(step == 1)[0], np.nonzero(step == -1)[0]
-    pos, half = diagram.position_mm, 0.5 * diagram.mm_per_px
-    spans = [(pos[a] - half, pos[b - 1] + half) for a, b in zip(starts, stops, strict=True)
-             if (b - a) * diagram.mm_per_px >= 1.0]
+def still_regions(blind: tuple[BlindStretch, ...]) -> list[str]:
+    """A warning naming the stretches of the tube (1 mm or more) where nothing changed over the record while the
+    rest of it did (an opaque object over the tube: a clamp, a fitting, the tube's end), which the measures took
+    as blind (:func:`grainplug.measures.diagram.measure_diagram`)."""
+    spans = [(b.from_mm, b.to_mm) for b in blind if b.found_by == STILL_CONTENTS]
     if not spans:
         return []
     where = ", ".join(f"{lo:.1f}-{hi:.1f} mm" for lo, hi in spans[:4]) + (", ..." if len(spans) > 4 else "")
     return [coded("still.region",
         f"nothing changes at {where} (from the upstream end of the view) over the whole record while the rest "
-        "of the tube does: an object over the tube there (a clamp, a fitting, the tube's end)? Plugs crossing it "
-        "are cut or merged, and their lengths with them — leave it out of the region analysed (roi=, on one side "
-        "of it)")]
+        "of the tube does: an object over the tube there (a clamp, a fitting, the tube's end)? It was taken as a "
+        "blind stretch: plugs touching it are measured as cut there, and bubbles across it not at all — if it is "
+        "not, or to name others, give mask_mm=")]
+
 
 #: a track that moves less than this share of what the plug train moves over its life stays put
 STILL_SHARE = 0.2

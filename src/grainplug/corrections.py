@@ -51,6 +51,7 @@ import numpy as np
 
 from .errors import ParameterError
 from .measures.diagram import measure_train
+from .measures.still import blind_positions
 from .plugs import Runs, Tracks
 from .warning_codes import code_of, coded
 
@@ -529,8 +530,10 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     detected_plugs = len(runs) > 0
     has_plugs = detected_plugs and len(new_runs) > 0
     if has_plugs:  # the analysis' own measuring step, on the corrected tracks
+        blind = blind_positions(res.diagram.position_mm, res.blind) if res.blind else None
         motion, lengths, statement = measure_train(res.diagram.time_s, new_runs, new_links, fps=res.info.fps,
-                                                   mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd)
+                                                   mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd,
+                                                   blind=blind)
     elif detected_plugs:
         statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
     unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)

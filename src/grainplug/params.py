@@ -158,6 +158,11 @@ class AnalysisParams:
         Analyse only this rectangle of each frame (pixels, ``x1``/``y1`` excluded): the tube is
         looked for inside it. The way to choose one tube when a frame holds several. Positions
         along the tube then start at the rectangle's edge.
+    mask_mm : sequence of (from_mm, to_mm)
+        Stretches of the tube that hide its contents (a clamp, a label, a fitting), in mm from
+        the upstream end of the view: blind stretches, as those found by themselves (where
+        nothing changes over the record). A plug touching one is cut there (its length is not
+        used, its other edge is); a bubble across one is not measured.
 
     Examples
     --------
@@ -183,6 +188,7 @@ class AnalysisParams:
     start_s: float | None = None
     end_s: float | None = None
     roi: tuple[int, int, int, int] | None = None
+    mask_mm: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         def check(ok: bool, param: str, message: str) -> None:
@@ -239,6 +245,7 @@ class AnalysisParams:
             check(0 <= r[0] < r[2] and 0 <= r[1] < r[3], "roi",
                   f"must have 0 <= x0 < x1 and 0 <= y0 < y1 (x1, y1 excluded), got {r}")
             object.__setattr__(self, "roi", r)
+        object.__setattr__(self, "mask_mm", _stretches(self.mask_mm))
 
     def as_record(self) -> dict[str, object]:
         """The parameters as plain data, for provenance and run keys: a background is recorded by its
@@ -255,3 +262,27 @@ class AnalysisParams:
             raise ParameterError(f"unknown parameter {', '.join(sorted(unknown))}; the parameters are {names}",
                                  param=sorted(unknown)[0])
         return dataclasses.replace(self, **changes)
+
+
+def _stretches(value: object) -> tuple[tuple[float, float], ...]:
+    """``mask_mm`` as a sorted tuple of ``(from_mm, to_mm)`` pairs of finite numbers, ``from < to``."""
+    if value is None:
+        return ()
+    if (isinstance(value, (tuple, list)) and len(value) == 2
+            and all(isinstance(as_number(v), numbers.Real) for v in value)):
+        value = [value]  # one stretch, not nested
+    try:
+        pairs = [tuple(as_number(v) for v in pair) for pair in value]  # type: ignore[union-attr]
+    except TypeError:
+        pairs = []
+        value = [value]
+    out = []
+    for pair in pairs or ([] if not value else [None]):
+        ok = (isinstance(pair, tuple) and len(pair) == 2
+              and all(isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v) for v in pair)
+              and pair[0] < pair[1] and pair[0] >= 0)
+        if not ok:
+            raise ParameterError(f"must be stretches (from_mm, to_mm) with 0 <= from_mm < to_mm, in mm from the "
+                                 f"upstream end of the view, got {value!r}", param="mask_mm")
+        out.append((float(pair[0]), float(pair[1])))
+    return tuple(sorted(out))

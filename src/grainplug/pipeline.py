@@ -176,10 +176,11 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                                                                               first=first_movie_frame(info))])),
                   *time_warnings,
                   *flow.warnings, *guessed_sign(flow, motion), *other_tubes,
-                  *still_regions(diagram, motion, lengths),
+                  *still_regions(found.blind),
                   *still_objects(runs, links, diagram.time_s, motion, mm_per_px),
                   *near_the_threshold(runs, motion, params),
                   *implausible(motion, grains, saturation)], scale_rel_sd=scale.rel_sd, bore=scale.bore,
+        blind=found.blind,
     )
 
 

@@ -32,6 +32,7 @@ from .calibration.tube import TubeGeometry
 from .calibration.tube_model import BoreEstimate
 from .diagram import Diagram, Normalized
 from .measures import Lengths, Motion
+from .measures.still import BlindStretch
 from .params import AnalysisParams
 from .plugs import Runs, Tracks
 from .readers.base import MovieInfo
@@ -116,6 +117,9 @@ class AnalysisResult:
         ``runs`` and ``links`` are then what was detected).
     corrections : Corrections or None
         The corrections applied (:func:`grainplug.corrections.apply_corrections`).
+    blind : tuple of BlindStretch
+        Stretches of the tube whose contents are hidden (given as ``mask_mm``, or found where
+        nothing changed over the record), left out of the plugs and bubbles measured.
     """
 
     params: AnalysisParams
@@ -143,6 +147,7 @@ class AnalysisResult:
     bore: BoreEstimate | None = None
     detected: tuple[Runs, Tracks] | None = field(default=None, repr=False)
     corrections: Corrections | None = None
+    blind: tuple[BlindStretch, ...] = ()
 
     # -- figures --------------------------------------------------------------
     @property
@@ -405,7 +410,7 @@ def result_types() -> dict[str, type]:
 
     return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
                                     Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate,
-                                    Background, Corrections, Edit)}
+                                    Background, Corrections, Edit, BlindStretch)}
 
 
 def load_result(folder: str | Path) -> AnalysisResult:

@@ -174,6 +174,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "flow_direction": res.flow_direction,
         "flow_direction_source": res.flow_direction_source,
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
+        "blind_stretches": [b.as_dict() for b in res.blind],
         "warnings": list(res.warnings),
         "warning_codes": codes_of(res.warnings),
         **_corrections_fields(res),

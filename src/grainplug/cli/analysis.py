@@ -22,6 +22,7 @@ from .common import (
     err_console,
     figure_options_of,
     in_flags,
+    mask_option,
     refuse_existing,
     roi_option,
     say_warning,
@@ -196,6 +197,10 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.option("--roi", "roi", default=None, metavar="X0,Y0,X1,Y1",
               help="Analyse only this rectangle of the frames (pixels; x1, y1 excluded): choose one tube when "
                    "the frame holds several.")
+@click.option("--mask", "mask", multiple=True, metavar="FROM:TO",
+              help="A stretch of the tube that hides its contents (a clamp, a label), in mm from the upstream end "
+                   "of the view; repeatable. Plugs touching it are cut there, bubbles across it not measured. "
+                   "Stretches where nothing changes over the record are found without it.")
 @click.option("--no-figures", is_flag=True, help="Skip the figures and the HTML report.")
 @click.option("--dpi", type=Number(20, 1200, integer=True), default=None,
               help="Resolution of the PNG figures [default: 200].")
@@ -211,7 +216,8 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
             flow_direction: str | None, min_plug_mm: float, min_gap_mm: float, glob_: str | None,
             threads: int | None,
             calibration: Path | None, background: Path | None, allow_truncated: bool,
-            start: tuple[str, float] | None, end: tuple[str, float] | None, roi: str | None, no_figures: bool,
+            start: tuple[str, float] | None, end: tuple[str, float] | None, roi: str | None,
+            mask: tuple[str, ...], no_figures: bool,
             dpi: int | None,
             figure_formats: str | None, publication: bool, style: str | None, overwrite: bool,
             as_json: bool) -> None:
@@ -239,7 +245,8 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     params = AnalysisParams(fps=fps, mm_per_px=mm_per_px, **diameter,
                             tube_outer_diameter_mm=tube_outer_diameter_mm, glass_index=glass_index,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, min_gap_mm=min_gap_mm, glob=glob_,
-                            allow_truncated=allow_truncated, roi=roi_px, **window_params(start, end))
+                            allow_truncated=allow_truncated, roi=roi_px, mask_mm=mask_option(mask),
+                            **window_params(start, end))
     # the calibration and background files are read by the library, once (gp.analyze takes their paths)
     files = {k: v for k, v in (("calibration", calibration), ("background", background)) if v is not None}
     # the figures' worker starts now, before the analysis' own imports (numpy among them): it imports

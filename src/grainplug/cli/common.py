@@ -112,3 +112,18 @@ def default_of(cls: type, name: str) -> object:
                 raise LookupError(f"{cls.__name__}.{name} has no default")
             return f.default
     raise LookupError(f"{cls.__name__} has no field {name}")
+
+
+def mask_option(values: tuple[str, ...] | list[str] | str | None) -> tuple[tuple[float, float], ...]:
+    """``--mask FROM:TO`` (repeatable; a list in grainplug.toml) as ``mask_mm`` pairs (checked by the library)."""
+    if not values:
+        return ()
+    out = []
+    for text in [values] if isinstance(values, str) else values:
+        parts = str(text).replace(",", ":").split(":")
+        try:
+            a, b = (float(p) for p in parts)
+        except ValueError:
+            raise ParameterError(f"--mask takes FROM:TO in mm (e.g. 55.5:61), got {text!r}") from None
+        out.append((a, b))
+    return tuple(out)

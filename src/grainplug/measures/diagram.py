@@ -15,24 +15,29 @@ from threadpoolctl import threadpool_limits
 
 from ..diagram import Diagram, Normalized, normalize
 from ..diagram.normalize import CONFIRMED_ETA, LOW_SEPARATION_ETA, MIN_CLASS_FRACTION, MIN_SEPARATION_ETA
+from ..errors import ParameterError
 from ..params import AnalysisParams
 from ..plugs import Runs, Tracks, find_runs, link, plug_mask
 from .lengths import Lengths, measure_lengths
 from .motion import NO_FOLLOWED_EDGE, Motion, measure_motion
+from .still import GIVEN, STILL_CONTENTS, BlindStretch, blind_positions, still_stretches
 
 
-def find_plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams) -> tuple[Runs, Tracks]:
-    """Plugs in every frame (runs of grains along the tube), linked into tracks over time."""
+def find_plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams, *,
+               blind: np.ndarray | None = None) -> tuple[Runs, Tracks]:
+    """Plugs in every frame (runs of grains along the tube), linked into tracks over time; ``blind``: the
+    positions whose contents are hidden (:func:`grainplug.measures.still.blind_positions`)."""
     ds = float(diagram.position_mm[1] - diagram.position_mm[0])
-    mask = plug_mask(norm.z, mm_per_sample=ds, min_plug_mm=params.min_plug_mm, min_gap_mm=params.min_gap_mm)
+    mask = plug_mask(norm.z, mm_per_sample=ds, min_plug_mm=params.min_plug_mm, min_gap_mm=params.min_gap_mm,
+                     blind=blind)
     if not norm.two_phase:  # one material only: no plug to find
         mask[:] = False
-    runs = find_runs(norm.z, mask, diagram.position_mm)
+    runs = find_runs(norm.z, mask, diagram.position_mm, blind=blind)
     return runs, link(runs, diagram.n_frames)
 
 def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, background_level: float, *, fps: float,
               mm_per_px: float, scale_rel_sd: float,
-              params: AnalysisParams) -> tuple[Motion | None, Lengths | None, str]:
+              params: AnalysisParams, blind: np.ndarray | None = None) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity and oscillation of the plug train, plug and bubble lengths; or why there are none."""
     if not norm.two_phase and weakly_two(norm):
         averaged = ("" if norm.averaged_eta is None else
@@ -52,11 +57,12 @@ def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks,
         return None, None, (f"no plugs: grains and air are both seen, but no run of grains is at least "
                             f"{params.min_plug_mm:g} mm long{longer} — lower min_plug_mm= "
                             "(or min_gap_mm=), or check the scale; no celerity, length or frequency is measured")
-    return measure_train(diagram.time_s, runs, links, fps=fps, mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
+    return measure_train(diagram.time_s, runs, links, fps=fps, mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd,
+                         blind=blind)
 
 
 def measure_train(time_s: np.ndarray, runs: Runs, links: Tracks, *, fps: float, mm_per_px: float,
-                  scale_rel_sd: float) -> tuple[Motion | None, Lengths | None, str]:
+                  scale_rel_sd: float, blind: np.ndarray | None = None) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity, oscillation and regime of a train of tracked plugs, their lengths and their bubbles' (the step
     that :func:`measure_plugs` ends with and :func:`grainplug.corrections.apply_corrections` repeats on the
     corrected tracks); the statement says why there is no motion, if so."""
@@ -64,7 +70,7 @@ def measure_train(time_s: np.ndarray, runs: Runs, links: Tracks, *, fps: float, 
     with threadpool_limits(limits=1, user_api="blas"):
         motion = measure_motion(time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
                                 mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd)
-        lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd)
+        lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd, blind=blind)
     statement = "" if motion is not None else NO_FOLLOWED_EDGE
     return motion, lengths, statement
 
@@ -78,6 +84,8 @@ class DiagramMeasures:
     motion: Motion | None
     lengths: Lengths | None
     statement: str
+    #: the stretches whose contents are hidden (given or found), left out of the plugs and bubbles
+    blind: tuple[BlindStretch, ...] = ()
 
 def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, fps: float,
                     background_level: float = 0.0, normalized: Normalized | None = None,
@@ -96,10 +104,43 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
     if normalized is None:
         normalized = normalize(diagram.values, background_level=background_level or None,
                                confirm_px=confirm_px(params.min_plug_mm, diagram.mm_per_px))
-    runs, links = find_plugs(normalized, diagram, params)
-    motion, lengths, statement = measure_plugs(normalized, diagram, runs, links, background_level, fps=fps,
-                                               mm_per_px=diagram.mm_per_px, scale_rel_sd=scale_rel_sd, params=params)
-    return DiagramMeasures(normalized, runs, links, motion, lengths, statement)
+    given = _given_stretches(diagram, params.mask_mm)
+
+    def measured(stretches: tuple[BlindStretch, ...]) -> DiagramMeasures:
+        blind = blind_positions(diagram.position_mm, stretches) if stretches else None
+        runs, links = find_plugs(normalized, diagram, params, blind=blind)
+        motion, lengths, statement = measure_plugs(normalized, diagram, runs, links, background_level, fps=fps,
+                                                   mm_per_px=diagram.mm_per_px, scale_rel_sd=scale_rel_sd,
+                                                   params=params, blind=blind)
+        return DiagramMeasures(normalized, runs, links, motion, lengths, statement, stretches)
+
+    first = measured(given)
+    # where nothing changed over the record while the train moved, something hides the tube: measured again
+    # with those stretches blind
+    found = [(a, b) for a, b in still_stretches(diagram, first.motion, first.lengths)
+             if not any(g.from_mm <= a and b <= g.to_mm for g in given)]
+    if not found:
+        return first
+    return measured(tuple(sorted([*given, *(BlindStretch(a, b, STILL_CONTENTS) for a, b in found)],
+                                 key=lambda b: b.from_mm)))
+
+
+def _given_stretches(diagram: Diagram, mask_mm: tuple[tuple[float, float], ...]) -> tuple[BlindStretch, ...]:
+    """The user's blind stretches, checked against the view: one outside it, or all of them covering it, is
+    refused (naming ``mask_mm=``)."""
+    if not mask_mm:
+        return ()
+    half = 0.5 * diagram.mm_per_px
+    lo, hi = float(diagram.position_mm[0] - half), float(diagram.position_mm[-1] + half)
+    for a, b in mask_mm:
+        if b <= lo or a >= hi:
+            raise ParameterError(f"the stretch {a:g}-{b:g} mm is outside the view ({lo:.1f}-{hi:.1f} mm from its "
+                                 "upstream end) — give stretches inside it", param="mask_mm")
+    stretches = tuple(BlindStretch(max(a, lo), min(b, hi), GIVEN) for a, b in mask_mm)
+    if blind_positions(diagram.position_mm, stretches, margin_samples=0).all():
+        raise ParameterError(f"the stretches cover the whole view ({lo:.1f}-{hi:.1f} mm): nothing would be left to "
+                             "measure — give only the stretches something hides", param="mask_mm")
+    return stretches
 
 #: a separation that averaging along the tube lowers by more than this is of short things (falling grains), not plugs
 AVERAGED_LOSS = 0.05

@@ -53,13 +53,17 @@ def _mean_ci(values: np.ndarray, scale_rel_sd: float) -> tuple[float, tuple[floa
     return m, (max(m - tq * se, 0.0), m + tq * se), sd  # a length is never negative: few values, a clipped interval
 
 
-def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int) -> tuple[np.ndarray, np.ndarray]:
+def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int,
+                    blind: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Median gap between each pair of tracks seen one after the other in a frame
     (the bubble between them), for pairs seen in at least ``min_frames`` frames,
     and the pairs ``(upstream track, downstream track)``."""
     u = np.nonzero(runs.frame[1:] == runs.frame[:-1])[0]  # runs sorted by frame, then position
     d = u + 1
     ok = np.isfinite(runs.bottom_mm[u]) & np.isfinite(runs.top_mm[d])
+    if blind is not None and np.any(blind):  # a gap across a blind stretch may hide a plug: not a bubble
+        hidden = np.concatenate([[0], np.cumsum(np.asarray(blind, bool), dtype=np.int64)])
+        ok &= hidden[runs.start[d]] == hidden[runs.stop[u]]
     u, d = u[ok], d[ok]
     if not u.size:
         return np.zeros(0), np.zeros((0, 2), np.int64)
@@ -76,8 +80,10 @@ def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int) -> tuple[np.nda
 
 
 def measure_lengths(runs: Runs, tracks: Tracks, *, scale_rel_sd: float = 0.0,
-                    min_frames: int = 3) -> Lengths:
-    """Mean plug and bubble lengths (see module notes)."""
+                    min_frames: int = 3, blind: np.ndarray | None = None) -> Lengths:
+    """Mean plug and bubble lengths (see module notes); ``blind``: positions whose contents are hidden (a
+    bubble across them is not measured; a plug against them is cut, as :func:`grainplug.plugs.find_runs`
+    marks it)."""
     both = np.isfinite(runs.top_mm) & np.isfinite(runs.bottom_mm)
     per_track: dict[int, float] = {}
     for tid in range(len(tracks)):
@@ -91,7 +97,7 @@ def measure_lengths(runs: Runs, tracks: Tracks, *, scale_rel_sd: float = 0.0,
         plug, plug_ci, plug_sd = _mean_ci(vals, scale_rel_sd)
     else:
         plug, plug_ci, plug_sd = None, None, None
-    bub_vals, bub_pairs = _bubble_medians(runs, tracks, min_frames)
+    bub_vals, bub_pairs = _bubble_medians(runs, tracks, min_frames, blind)
     if bub_vals.size:
         bub, bub_ci, _ = _mean_ci(bub_vals, scale_rel_sd)
     else:

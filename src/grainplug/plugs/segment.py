@@ -9,7 +9,8 @@ bubble) and grain runs shorter than ``min_plug_mm`` are dropped (falling
 grains, clusters; the paper keeps regions longer than 3 mm). Each remaining run
 is a plug in that frame. Its upper and lower edges are where ``z``, smoothed
 along the tube only, crosses 0.5, found by linear interpolation between
-samples; a run touching either end of the view has that edge missing (NaN).
+samples; a run touching either end of the view has that edge missing (NaN), and so has a run
+touching a blind stretch (a clamp, a label: positions whose contents are hidden).
 """
 
 from __future__ import annotations
@@ -75,13 +76,20 @@ def close_rows(mask: np.ndarray, length: int) -> np.ndarray:
 
 
 def plug_mask(z: np.ndarray, *, mm_per_sample: float, min_plug_mm: float = 3.0,
-              min_gap_mm: float = 0.6) -> np.ndarray:
-    """Boolean plug mask of the diagram (frames x positions)."""
+              min_gap_mm: float = 0.6, blind: np.ndarray | None = None) -> np.ndarray:
+    """Boolean plug mask of the diagram (frames x positions).
+
+    ``blind``: positions (a boolean per sample along the tube) whose contents are hidden (a clamp, a
+    label): no plug there, and what is left of a plug beside them is kept only if it is ``min_plug_mm``
+    long (as a plug cut by the end of the view).
+    """
     from .._filters import gaussian_filter
     zs = gaussian_filter(np.asarray(z, np.float32), (0.7, 0.7), mode="nearest")
     mask = zs > 0.5
     gap = max(1, int(round(min_gap_mm / mm_per_sample)))
     mask = close_rows(mask, gap + 1) | mask
+    if blind is not None and np.any(blind):
+        mask[:, np.asarray(blind, bool)] = False
     min_len = max(1, int(round(min_plug_mm / mm_per_sample)))
     rows, starts, stops = _runs_2d(mask)
     short = stops - starts < min_len
@@ -104,8 +112,9 @@ def _crossings(zs: np.ndarray, rows: np.ndarray, i_out: np.ndarray, i_in: np.nda
     return i_out + f * (i_in - i_out)
 
 
-def find_runs(z: np.ndarray, mask: np.ndarray, position_mm: np.ndarray) -> Runs:
-    """Runs of the mask with sub-pixel edges measured on ``z``."""
+def find_runs(z: np.ndarray, mask: np.ndarray, position_mm: np.ndarray, *, blind: np.ndarray | None = None) -> Runs:
+    """Runs of the mask with sub-pixel edges measured on ``z``; an edge against a ``blind`` position (as at an
+    end of the view) is missing (NaN): the plug is cut there."""
     from .._filters import gaussian_filter1d
     zs = gaussian_filter1d(np.asarray(z, np.float32), 0.7, axis=1, mode="nearest")
     n_s = z.shape[1]
@@ -118,4 +127,8 @@ def find_runs(z: np.ndarray, mask: np.ndarray, position_mm: np.ndarray) -> Runs:
     tops[inner] = s0 + ds * _crossings(zs, rows[inner], starts[inner] - 1, starts[inner])
     inner = stops < n_s
     bots[inner] = s0 + ds * _crossings(zs, rows[inner], stops[inner], stops[inner] - 1)
+    if blind is not None and np.any(blind):
+        b = np.asarray(blind, bool)
+        tops[(starts > 0) & b[np.maximum(starts - 1, 0)]] = np.nan
+        bots[(stops < n_s) & b[np.minimum(stops, n_s - 1)]] = np.nan
     return Runs(rows.astype(int), starts.astype(int), stops.astype(int), tops, bots)
