@@ -20,7 +20,7 @@ log = logging.getLogger(__name__)
 
 #: wavenumbers whose roots a result keeps in full; beyond, it keeps a curve of about CURVE_POINTS of them
 MAX_POINTS = 100_000
-#: wavenumbers of the curve kept beyond MAX_POINTS (every s-th, the peak's and the cut-offs' brackets)
+#: wavenumbers of the curve kept beyond MAX_POINTS (evenly spread; and the peak's and the cut-offs' brackets)
 CURVE_POINTS = 10_000
 #: the longest computation started unasked, seconds (``max_seconds=None`` lifts it)
 MAX_SECONDS = 3600.0
@@ -93,9 +93,9 @@ class StabilityResult:
     -----
     Up to ``max_points`` wavenumbers (10^5 by default, :func:`analyze_stability`)
     ``k`` and ``omega`` hold every one; beyond, they hold a curve of about 10^4 of
-    them (:attr:`decimated`): every s-th wavenumber, the last, the grid point of the
-    largest growth rate and both grid points around each sign change of the largest
-    growth rate, with their roots exactly as computed. The most unstable mode, the
+    them (:attr:`decimated`): 10^4 evenly spread over the grid (the first and last
+    included), the grid point of the largest growth rate and both grid points around
+    each sign change of the largest growth rate, with their roots exactly as computed. The most unstable mode, the
     cut-offs and the bands are always those of every wavenumber.
     """
 
@@ -218,8 +218,9 @@ def analyze_stability(p: ModelParams, k: np.ndarray | None = None, *, k_min: flo
         always, if the memory allows); beyond, keep a curve of about ``curve_points``
         of them (:attr:`StabilityResult.decimated`).
     curve_points : int
-        Size of that curve (at least 2): every s-th wavenumber, plus the grid point of the
-        largest growth rate and the two around each cut-off.
+        Size of that curve (at least 2): so many wavenumbers evenly spread over the grid
+        (the first and last included), plus the grid point of the largest growth rate
+        and the two around each cut-off.
     chunk_size : int
         Wavenumbers solved at a time (about 1.2 kB of working memory each). The
         results do not depend on it.
@@ -341,7 +342,6 @@ def _scan(p: ModelParams, ks: _Wavenumbers, *, keep_all: bool, curve_points: int
     """
     n = ks.n
     tracker = _RootTracker()
-    stride = max(1, math.ceil((n - 1) / (curve_points - 1)))
     if keep_all:
         k_all = ks.given if ks.given is not None else np.empty(n)
         w_all = np.empty((n, 3), complex)
@@ -392,9 +392,7 @@ def _scan(p: ModelParams, ks: _Wavenumbers, *, keep_all: bool, curve_points: int
             w_all[i0:i1] = w
         else:
             keep = np.zeros(i1 - i0, bool)
-            keep[(-i0) % stride::stride] = True
-            if i1 == n:
-                keep[-1] = True
+            keep[_evenly_spread(n, curve_points, i0, i1) - i0] = True
             for i in edges:
                 keep[i + 1 - i0] = True
                 if i >= i0:
@@ -422,6 +420,14 @@ def _scan(p: ModelParams, ks: _Wavenumbers, *, keep_all: bool, curve_points: int
     return _Scanned(k_out, w_out, cutoffs, list(zip(starts, stops, strict=False)), best_g, best_j)
 
 
+def _evenly_spread(n: int, count: int, i0: int, i1: int) -> np.ndarray:
+    """The indices in ``[i0, i1)`` of ``count`` evenly spread over ``n`` (``m (n - 1) // (count - 1)``, first and
+    last included)."""
+    span, parts = n - 1, count - 1
+    m = np.arange(-((-i0 * parts) // span), -((-i1 * parts) // span), dtype=np.int64)  # i0 <= m span / parts < i1
+    return m * span // parts
+
+
 def _check_memory(n: int, *, keep_all: bool, curve_points: int, chunk_size: int, param: str) -> None:
     """Refuse, before allocating anything, a scan whose working arrays and results would not fit in memory."""
     kept = n if keep_all else curve_points + 2 * MAX_CUTOFFS + 1
@@ -437,6 +443,7 @@ def _check_memory(n: int, *, keep_all: bool, curve_points: int, chunk_size: int,
 def _check_time(elapsed: float, done: int, n: int, max_seconds: float | None, param: str) -> None:
     """Refuse a scan that the time of its first ``done`` wavenumbers says would take over ``max_seconds``."""
     estimate = elapsed / done * n
+    log.info("stability: %d wavenumbers, about %s (%.2g µs each)", n, _duration(estimate), elapsed / done * 1e6)
     if max_seconds is not None and estimate > max_seconds:
         raise ParameterError(
             f"{n:,} wavenumbers would take about {_duration(estimate)} ({elapsed / done * 1e6:.2g} µs each, "
@@ -507,9 +514,10 @@ def sweep(p: ModelParams, name: str, values: np.ndarray, *, max_seconds: float |
     for i, v in enumerate(values):
         q = dataclasses.replace(p, **{name: float(v)})
         r = analyze_stability(q, max_seconds=max_seconds, **kwargs)
-        if i == 0 and values.size > 1 and max_seconds is not None:
+        if i == 0 and values.size > 1:
             each = time.perf_counter() - t0
-            if each * values.size > max_seconds:
+            log.info("stability sweep: %d values, about %s", values.size, _duration(each * values.size))
+            if max_seconds is not None and each * values.size > max_seconds:
                 raise ParameterError(
                     f"{values.size:,} values would take about {_duration(each * values.size)} "
                     f"({_duration(each)} each, measured on the first), over the limit of {_duration(max_seconds)}: "
