@@ -122,9 +122,16 @@ def _composition_table() -> np.ndarray:
 
 
 _COMPOSE = _composition_table()
+_COMPOSE_LIST: list[list[int]] = _COMPOSE.tolist()
 
 
-def roots(p: ModelParams, k: np.ndarray, *, track: bool = True) -> np.ndarray:
+#: wavenumbers solved at a time: about 1.2 kB of working arrays each, so ~5 MB a chunk, whatever the count
+CHUNK_SIZE = 4096
+#: bytes of working arrays per wavenumber of a chunk (matrices, eigenvalues, the matching's distances), measured
+WORK_BYTES_PER_K = 1200
+
+
+def roots(p: ModelParams, k: np.ndarray, *, track: bool = True, chunk_size: int = CHUNK_SIZE) -> np.ndarray:
     """The three roots ``omega*(k*)``, shape ``(n_k, 3)``.
 
     Parameters
@@ -135,24 +142,69 @@ def roots(p: ModelParams, k: np.ndarray, *, track: bool = True) -> np.ndarray:
     track : bool
         Follow each root continuously along ``k``; the columns are numbered by
         decreasing growth rate at the first ``k``.
+    chunk_size : int
+        Wavenumbers solved at a time: the working memory is about 1.2 kB each on top
+        of the result's 48 B per wavenumber. The roots do not depend on it.
     """
     k = np.atleast_1d(np.asarray(k, dtype=float))
-    A, E = system_matrices(p, k)
-    raw = -1j * np.linalg.eigvals(A / np.diag(E)[None, :, None])  # omega = -i eig(E^-1 A)
-    first = np.argsort(-raw[0].imag, kind="stable")
-    if not track or len(k) < 2:
-        out = raw.copy()
-        out[0] = raw[0][first]
+    chunk_size = max(int(chunk_size), 1)
+    out = np.empty((k.size, 3), complex)
+    if not track:
+        for i0 in range(0, k.size, chunk_size):
+            out[i0:i0 + chunk_size] = _raw_roots(p, k[i0:i0 + chunk_size])
+        if k.size:
+            out[0] = out[0][_first_order(out[0])]
         return out
-    # pi_j: the permutation with raw[j+1][pi_j] closest to raw[j]
-    cand = raw[1:][:, _PERMS]  # (n-1, 6, 3)
-    best = np.argmin(np.abs(cand - raw[:-1][:, None, :]).sum(axis=2), axis=1)
-    # sigma_{j+1} = pi_j[sigma_j]: the tracked order of each step
-    sigma = np.empty(len(k), int)
-    acc = _PERM_INDEX[tuple(first.tolist())]
-    sigma[0] = acc
-    table = _COMPOSE
-    for j, b in enumerate(best.tolist()):
-        acc = int(table[b, acc])
-        sigma[j + 1] = acc
-    return np.take_along_axis(raw, _PERMS[sigma], axis=1)
+    tracker = _RootTracker()
+    for i0 in range(0, k.size, chunk_size):
+        out[i0:i0 + chunk_size] = tracker.follow(_raw_roots(p, k[i0:i0 + chunk_size]))
+    return out
+
+
+def _raw_roots(p: ModelParams, k: np.ndarray) -> np.ndarray:
+    """The roots at each ``k`` in the eigensolver's order, shape ``(n, 3)``."""
+    A, E = system_matrices(p, k)
+    return -1j * np.linalg.eigvals(A / np.diag(E)[None, :, None])  # omega = -i eig(E^-1 A)
+
+
+def _first_order(w: np.ndarray) -> np.ndarray:
+    """The order of one wavenumber's roots by decreasing growth rate."""
+    return np.argsort(-w.imag, kind="stable")
+
+
+class _RootTracker:
+    """Follows the three roots along ``k`` across consecutive chunks of wavenumbers.
+
+    Consecutive roots are matched by the permutation that moves them least; the
+    tracker carries the last wavenumber's roots and order from one chunk to the
+    next, so that chunks give the same columns as one call on all the wavenumbers.
+    """
+
+    def __init__(self) -> None:
+        self._last: np.ndarray | None = None  # the previous chunk's last raw roots, shape (3,)
+        self._acc = 0  # index in _PERMS of the tracked order at that wavenumber
+
+    def follow(self, raw: np.ndarray) -> np.ndarray:
+        """The roots ``raw`` (shape ``(n, 3)``, the eigensolver's order) in tracked order."""
+        if len(raw) == 0:
+            return raw.copy()
+        if self._last is None:
+            self._acc = _PERM_INDEX[tuple(_first_order(raw[0]).tolist())]
+            ext, sigma0 = raw, []
+        else:
+            ext, sigma0 = np.concatenate([self._last[None, :], raw]), None
+        # pi_j: the permutation with ext[j+1][pi_j] closest to ext[j]; d[j, a, b] = |ext[j+1][a] - ext[j][b]|
+        d = np.abs(ext[1:][:, :, None] - ext[:-1][:, None, :])
+        P = _PERMS
+        cost = d[:, P[:, 0], 0] + d[:, P[:, 1], 1] + d[:, P[:, 2], 2]
+        best = np.argmin(cost, axis=1).tolist()
+        # sigma_{j+1} = pi_j[sigma_j]: the tracked order of each step
+        table = _COMPOSE_LIST
+        acc = self._acc
+        sigma = [acc] if sigma0 is not None else []
+        for b in best:
+            acc = table[b][acc]
+            sigma.append(acc)
+        self._acc = acc
+        self._last = raw[-1].copy()
+        return np.take_along_axis(raw, _PERMS[np.array(sigma, dtype=np.intp)], axis=1)
