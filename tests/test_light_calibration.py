@@ -1,8 +1,9 @@
 """Light calibration (issue 16, item 2): a picture of the tube with nothing moving in it flat-fields the diagram.
 
 The movies are grainplug's synthetic ones seen through dirty glass and a steep lamp gradient: dark
-spots 1-2 mm wide and 40-60 % deep fixed on the tube, the light halving along the view. The
-background is the same tube, empty, through the same glass.
+spots 1-2 mm wide and 40-60 % deep fixed on the tube (not on the lamp beside it, which the analysis
+reads the light on), the light halving along the view. The background is the same tube, empty,
+through the same glass.
 """
 
 from __future__ import annotations
@@ -26,11 +27,14 @@ CFG = SynthConfig(n_frames=200, width_px=W, height_px=H, fps=500.0, seed=4, rgb=
 
 
 def _glass(rng: np.random.Generator) -> np.ndarray:
-    yy, _ = np.mgrid[0:H, 0:W]
+    """Dirt on the tube's glass (within 20 px of its axis: the lamp beside the tube is clean), and a lamp whose
+    light halves along the view (everywhere)."""
+    yy, xx = np.mgrid[0:H, 0:W]
     p = np.ones((H, W), np.float32)
+    on_tube = np.abs(xx - W / 2) < 20
     for _ in range(8):
         y0, s = rng.uniform(40, H - 40), rng.uniform(4, 8)
-        p *= 1 - rng.uniform(0.4, 0.6) * np.exp(-0.5 * ((yy - y0) / s) ** 2)
+        p *= 1 - on_tube * rng.uniform(0.4, 0.6) * np.exp(-0.5 * ((yy - y0) / s) ** 2)
     return p * (1 - 0.5 * yy / H)
 
 

@@ -23,7 +23,7 @@ EXPECTED = {
     "movie.truncated", "movie.fps_disagrees", "movie.frames_out_of_step", "window.end_past_movie",
     "tube.cut_by_frame", "tube.second_region", "scale.model_alone", "scale.tube_wide", "scale.tube_narrow",
     "scale.edges_only", "scale.contents_back_lit", "scale.given_vs_tube", "light.saturated", "light.background",
-    "frames.repaired", "flow.sign_assumed", "plugs.implausible_speed", "still.region", "still.track",
+    "frames.repaired", "flow.sign_assumed", "plugs.implausible_speed", "still.region", "shake.along_unmeasured",
     "corrections.not_applied", "corrections.unchecked",
 }
 
@@ -63,6 +63,12 @@ def results(frames, tmp_path_factory) -> dict[str, gp.AnalysisResult]:
     clamped = np.stack(list(Renderer(cfg).frames()))
     clamped[:, 300:330] = np.clip(30 + np.random.default_rng(1).normal(0, 3, clamped[:, 300:330].shape), 0, 255)
     out["clamp"] = gp.analyze(clamped, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
+    from scipy import ndimage
+
+    t = np.arange(len(frames)) / 500.0  # the camera shaking across the tube, 1.2 px at 30 Hz
+    shaken = np.stack([ndimage.shift(f.astype(np.float32), (0.0, 1.2 * np.sin(2 * np.pi * 30 * tk)), order=3,
+                                     mode="nearest") for f, tk in zip(frames, t, strict=True)])
+    out["shaken"] = gp.analyze(np.clip(shaken, 0, 255).astype(np.uint8), fps=500.0, mm_per_px=0.185)
     old = Corrections.from_dict({"format": "grainplug-corrections", "format_version": 1,  # no traces
                                  "edits": [{"action": "exclude", "track": 0, "at": ""},
                                            {"action": "exclude", "track": 999, "at": ""}]})

@@ -16,6 +16,7 @@ from .errors import ParameterError, non_finite_frames
 from .measures import Motion
 from .measures.flow import GRAVITY_DOWN, Flow
 from .measures.grains import GrainMotion
+from .measures.shake import Shake
 from .measures.still import STILL_CONTENTS, BlindStretch
 from .measures.tracks import edge_speed_mm_s
 from .params import AnalysisParams
@@ -100,7 +101,7 @@ SEEN_OVER_BORE = (0.6, 1.15)
 SEEN_OVER_BORE_NO_PLUGS = 0.3
 
 def given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs: bool,
-                        two_phase: bool = True) -> list[str]:
+                        two_phase: bool = True, shake_rms_px: float = 0.0) -> list[str]:
     """A warning when the tube seen is far wider or narrower than a given scale makes its bore (a wrong
     ``mm_per_px`` or tube diameter, or something in view that is not the tube)."""
     if not params.mm_per_px:
@@ -111,7 +112,8 @@ def given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs:
     # material only (an empty tube with a few grains falling): seen over a few pixels, nothing to doubt by
     low = (SEEN_OVER_BORE[0] if has_plugs and tube.back_lit is not None else
            SEEN_OVER_BORE_NO_PLUGS if two_phase else 0.0)
-    if low <= ratio <= SEEN_OVER_BORE[1]:
+    # a camera that shakes across the tube widens the contents seen over the sampled frames by about its swing
+    if low <= ratio <= SEEN_OVER_BORE[1] + 2.0 * np.sqrt(2.0) * shake_rms_px / expected_px:
         return []
     return [coded("scale.given_vs_tube",
         f"the tube's contents are seen over {tube.inner_diameter_px:.1f} px, but the given scale makes its "
@@ -246,3 +248,22 @@ def guessed_sign(flow: Flow, motion: Motion | None) -> list[str]:
         "no grains were seen falling through the bubbles, so the flow is assumed to run down the image "
         "(gravity down) and the celerity's sign rests on that: if the camera was not upright, give the flow "
         "direction (flow_direction=)")]
+
+
+def shaken(shake: Shake | None, motion: Motion | None) -> list[str]:
+    """A warning when the camera shook (the tube moved in the image): how much, at what frequency, what was
+    corrected, and that a plug motion at that frequency is not reported as the plugs'."""
+    if shake is None or not shake.shaking:
+        return []
+    f = f" at {shake.frequency_hz:.3g} Hz" if shake.frequency_hz else ""
+    parts = [f"{v:.2g} px rms {name}" for v, name in ((shake.rms_across_px, "across the tube"),
+                                                     (shake.rms_along_px, "along it")) if v is not None]
+    if shake.along_px is not None:
+        fix = ("the diagram was held still against the tube (its motion along the tube measured on "
+               f"{shake.along_source}), and a plug motion at that frequency is not reported as the plugs'")
+        return [coded("shake.corrected", f"the camera shook{f} ({', '.join(parts)}): {fix}")]
+    osc = "" if motion is None or motion.regime != "oscillating" else " (the oscillation reported is at another)"
+    return [coded("shake.along_unmeasured",
+        f"the camera shook{f} ({', '.join(parts)}, measured on the tube's walls); its motion along the tube could "
+        f"not be measured ({shake.along_source}), so the plug edges carry it: a plug motion at that frequency is "
+        f"taken for the camera's and not reported{osc} — steady the camera, or put a mark beside the tube")]

@@ -45,14 +45,18 @@ from .checks import (
     near_the_threshold,
     other_moving_regions,
     saturated_share,
+    shaken,
     still_objects,
     still_regions,
 )
-from .diagram import Diagram, band_along_tube, normalize
+from .diagram import Diagram, normalize
+from .diagram.extract import probes_along_tube
 from .diagram.frames import repair_frames
+from .diagram.light import divide_by_lamp
 from .errors import ParameterError
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
+from .measures.shake import measure_shake, shake_hz, shift_along
 from .params import AnalysisParams, tube_orientation
 from .plugs import Runs
 from .provenance import fingerprint, movie_identity
@@ -130,19 +134,27 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         other_tubes = other_moving_regions(sample, tube)
         sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
         laps("tube_s")
-        band, axis_px = band_along_tube(tube)
+        probe_band, axis_px, probes = probes_along_tube(tube)  # the tube's core, and what does not move with it
+        band = probes.core_band(probe_band)
         saturation = saturated_share(sample, band, info)
         scale = decide_scale(tube, params, mm_per_px=params.mm_per_px, calibration=params.calibration,
                              frame_shape=(info.height, info.width))
         check_background(params, info)
         laps("setup_s")
-        values = movie.read_band(band, threads=threads,
-                                 progress=(lambda k: progress(k, info.n_frames)) if progress else None)
+        read = movie.read_band(probe_band, threads=threads,
+                               progress=(lambda k: progress(k, info.n_frames)) if progress else None)
+        values, across, beside, where = probes.split(read)
         check_finite(values, info)
         light_warnings: list[str] = []
         if params.background is not None:
             values, light = flat_field(values, band, params.background)
             light_warnings = all_coded("light.background", light)
+        values, lamp = divide_by_lamp(values, beside, where, back_lit=tube.back_lit)
+        values = np.ascontiguousarray(values)  # its own memory, not a view of the read
+        shake = measure_shake(across, [beside], fps=info.fps)
+        del read, across, beside  # the diagram is all that is kept of the read
+        if shake.along_px is not None:  # the diagram held still against the tube
+            values = shift_along(values, shake.along_px)
         laps("stream_s")
         time_s, time_warnings = frame_times(movie, info, len(values))
         identity = movie_identity(movie)
@@ -157,7 +169,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     flow = resolve_flow(params.flow_direction, tube, grains)
     diagram, norm, grains = orient(diagram, norm, grains, tube, flow.direction)
     found = measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level, normalized=norm,
-                            scale_rel_sd=scale.rel_sd)
+                            scale_rel_sd=scale.rel_sd, not_hz=shake_hz(shake))
     runs, links, motion, lengths = found.runs, found.links, found.motion, found.lengths
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
@@ -171,16 +183,18 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *cut_by_the_frame(tube, params), *scale.warnings,
-                  *given_scale_doubts(tube, params, has_plugs=has_plugs, two_phase=norm.two_phase), *light_warnings,
+                  *given_scale_doubts(tube, params, has_plugs=has_plugs, two_phase=norm.two_phase,
+                                      shake_rms_px=(shake.rms_across_px or 0.0) if shake.shaking else 0.0),
+                  *light_warnings,
                   *all_coded("frames.repaired", filter(None, [repair.describe(diagram.n_frames,
                                                                               first=first_movie_frame(info))])),
                   *time_warnings,
                   *flow.warnings, *guessed_sign(flow, motion), *other_tubes,
-                  *still_regions(found.blind),
+                  *still_regions(found.blind), *shaken(shake, motion),
                   *still_objects(runs, links, diagram.time_s, motion, mm_per_px),
                   *near_the_threshold(runs, motion, params),
                   *implausible(motion, grains, saturation)], scale_rel_sd=scale.rel_sd, bore=scale.bore,
-        blind=found.blind,
+        blind=found.blind, shake=shake, lamp=lamp,
     )
 
 

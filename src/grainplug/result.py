@@ -31,7 +31,9 @@ from ._version import __version__
 from .calibration.tube import TubeGeometry
 from .calibration.tube_model import BoreEstimate
 from .diagram import Diagram, Normalized
+from .diagram.light import Lamp
 from .measures import Lengths, Motion
+from .measures.shake import Shake
 from .measures.still import BlindStretch
 from .params import AnalysisParams
 from .plugs import Runs, Tracks
@@ -120,6 +122,10 @@ class AnalysisResult:
     blind : tuple of BlindStretch
         Stretches of the tube whose contents are hidden (given as ``mask_mm``, or found where
         nothing changed over the record), left out of the plugs and bubbles measured.
+    shake : Shake or None
+        The tube's motion in the image (camera shake), measured on its walls and what is still beside it.
+    lamp : Lamp or None
+        The lamp's light read beside the tube, and whether the diagram was divided by it.
     """
 
     params: AnalysisParams
@@ -148,6 +154,8 @@ class AnalysisResult:
     detected: tuple[Runs, Tracks] | None = field(default=None, repr=False)
     corrections: Corrections | None = None
     blind: tuple[BlindStretch, ...] = ()
+    shake: Shake | None = None
+    lamp: Lamp | None = None
 
     # -- figures --------------------------------------------------------------
     @property
@@ -410,7 +418,7 @@ def result_types() -> dict[str, type]:
 
     return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
                                     Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate,
-                                    Background, Corrections, Edit, BlindStretch)}
+                                    Background, Corrections, Edit, BlindStretch, Shake, Lamp)}
 
 
 def load_result(folder: str | Path) -> AnalysisResult:

@@ -175,6 +175,8 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "flow_direction_source": res.flow_direction_source,
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
         "blind_stretches": [b.as_dict() for b in res.blind],
+        "shake": res.shake.as_dict() if res.shake is not None else None,
+        "light": res.lamp.as_dict() if res.lamp is not None else None,
         "warnings": list(res.warnings),
         "warning_codes": codes_of(res.warnings),
         **_corrections_fields(res),

@@ -6,7 +6,7 @@ serialise as before) with a ``.code``: what a program filters on (the campaign t
 naming its flags), while the sentence is for people and may be reworded. :data:`CODES` lists every
 code with its meaning and fix; ``docs/analysis.md`` shows the same table (a test keeps them equal).
 
-The codes are ``area.kind``: ``movie.*`` (what a file says of itself), ``window.*``, ``tube.*``,
+The codes are ``area.kind``: ``shake.*``, ``movie.*`` (what a file says of itself), ``window.*``, ``tube.*``,
 ``scale.*``, ``light.*``, ``frames.*``, ``time.*``, ``flow.*``, ``plugs.*``, ``still.*``,
 ``corrections.*``, ``manifest.*``. A warning read back from an older ``result.npz`` (saved as plain text) has the
 code ``legacy.uncoded``.
@@ -85,6 +85,11 @@ CODES: dict[str, tuple[str, str]] = {
                               "lower min_plug_mm="),
     "plugs.implausible_speed": ("the plugs or the falling grains move faster than grains can fall",
                                 "check the frame rate (fps=) and the scale"),
+    # the camera's shake (the tube moving in the image)
+    "shake.corrected": ("the camera shook; the diagram was held still against the tube",
+                        "nothing: a plug motion at the shake's frequency is not reported as the plugs'"),
+    "shake.along_unmeasured": ("the camera shook, and its motion along the tube could not be measured",
+                               "steady the camera, or put a still mark beside the tube"),
     # still objects over the tube
     "still.region": ("a stretch of the tube where nothing changes over the record (a clamp, a fitting, the end)",
                      "leave it out of the region analysed (roi=)"),

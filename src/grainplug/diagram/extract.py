@@ -104,3 +104,128 @@ def band_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTION)
         band = Band(along, cols, np.ascontiguousarray(weights), (h, w))
     cos_t = np.cos(np.radians(tube.tilt_deg))
     return band, (rows + 0.5) / cos_t
+
+
+#: the background beside the tube is sampled this many inner widths from the axis (beyond the walls of a tube
+#: up to twice as wide outside as inside), on each side
+BESIDE_WIDTHS = (1.8, 2.3)
+#: heights along the tube of the profiles across it (for its motion across)
+ACROSS_PROFILES = 6
+#: the profiles across the tube reach this many inner widths either side of the axis
+ACROSS_WIDTHS = 2.2
+
+
+@dataclass(frozen=True)
+class Probes:
+    """Where, in the output of one :meth:`~grainplug.readers.Movie.read_band` of :func:`probes_along_tube`'s band,
+    each kind of sample lies (column indices of the ``frames x samples`` array).
+
+    Attributes
+    ----------
+    core : slice
+        The diagram: the bore's core at every position along the tube.
+    beside : ndarray
+        The background beside the tube (both sides averaged, or the one the frame reaches) at each position
+        along it (-1 where neither is in the frame).
+    across : ndarray, shape (n_profiles, n_offsets)
+        Profiles across the tube at a few heights along it (each sample averages a few rows).
+    across_offsets_px : ndarray
+        The offsets from the axis of those samples, px.
+    """
+
+    core: slice
+    beside: np.ndarray
+    across: np.ndarray
+    across_offsets_px: np.ndarray
+
+    def core_band(self, band: Band) -> Band:
+        """The core's samples of ``band`` alone (what :func:`band_along_tube` gives)."""
+        c = self.core
+        return Band(band.rows[c], band.cols[c], band.weights[c], band.frame_shape)
+
+    def split(self, values: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:
+        """``(core, across, beside, where)`` of one read's ``frames x samples`` values: the diagram, the profiles
+        across the tube (samples in the frame only), the background beside it at the positions ``where`` (a
+        boolean per position) the frame reaches. ``core`` and ``beside`` are views of ``values`` (no copy)."""
+        core = values[:, self.core]
+        across = [values[:, row[row >= 0]] for row in self.across]
+        where = self.beside >= 0
+        cols = self.beside[where]
+        beside = values[:, cols[0]: cols[-1] + 1] if cols.size else values[:, :0]  # the columns are consecutive
+        return core, across, beside, where
+
+
+def probes_along_tube(tube: TubeGeometry, *,
+                      core_fraction: float = CORE_FRACTION) -> tuple[Band, np.ndarray, Probes]:
+    """The core band of the bore (:func:`band_along_tube`) and, read in the same pass, what does not move
+    with the grains: the background beside the tube along it (the lamp's light, row by row and frame by frame)
+    and profiles across the tube through its walls (the tube's own motion in the image: camera shake).
+
+    Returns
+    -------
+    band : Band
+        Every sample, the core's first (the same as :func:`band_along_tube`'s); other samples are
+        padded with zero weights to the core's width.
+    axis_px : ndarray
+        As :func:`band_along_tube`.
+    probes : Probes
+        Which output columns hold what.
+    """
+    core, axis_px = band_along_tube(tube, core_fraction=core_fraction)
+    h, w = tube.canonical_shape
+    width = core.rows.shape[1]
+    d = float(tube.inner_diameter_px)
+    horizontal = tube.orientation == "horizontal"
+    # canonical (row along, column across) of the core's samples
+    along_c, across_c = (core.cols, core.rows) if horizontal else (core.rows, core.cols)
+    rows = along_c[:, 0]
+    groups_r: list[np.ndarray] = []
+    groups_c: list[np.ndarray] = []
+    groups_w: list[np.ndarray] = []
+    n = core.n_positions
+
+    def add(r: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Groups of canonical pixels (one group a row of ``r``/``c``, equal weights where in the frame);
+        returns their output columns, -1 for a group wholly out of the frame."""
+        inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+        ok = inside.any(axis=1)
+        k = int(ok.sum())
+        pad = np.zeros((k, width), np.int64)
+        rr, cc, ww = pad.copy(), pad.copy(), np.zeros((k, width), np.float32)
+        m = min(width, r.shape[1])
+        rr[:, :m] = np.clip(r[ok][:, :m], 0, h - 1)
+        cc[:, :m] = np.clip(c[ok][:, :m], 0, w - 1)
+        ww[:, :m] = inside[ok][:, :m]
+        ww /= ww.sum(axis=1, keepdims=True)
+        rr[:, m:], cc[:, m:] = rr[:, :1], cc[:, :1]  # padding: a sample of the group, weight 0
+        start = n + sum(len(g) for g in groups_r)
+        groups_r.append(rr)
+        groups_c.append(cc)
+        groups_w.append(ww)
+        out = np.full(len(r), -1, np.int64)
+        out[ok] = start + np.arange(k)
+        return out
+
+    axis = tube.axis_x(rows)
+    lo, hi = BESIDE_WIDTHS
+    spread = np.linspace(lo, hi, min(width, 3)) * d
+    # both sides in one sample per position (the lamp's level there; where one side is out of the frame, the other)
+    c = np.rint(axis[:, None] + np.concatenate([-spread, spread])[None, :]).astype(np.int64)
+    r = np.repeat(rows[:, None], c.shape[1], axis=1)
+    beside = add(r, c)
+    offsets = np.arange(-np.ceil(ACROSS_WIDTHS * d), np.ceil(ACROSS_WIDTHS * d) + 1)
+    heights = rows[np.linspace(0, n - 1, ACROSS_PROFILES + 2).round().astype(int)[1:-1]]
+    tall = min(width, 9)
+    across = []
+    for y in heights:
+        r = (y + np.arange(tall) - tall // 2)[None, :].repeat(len(offsets), axis=0)
+        c = np.rint(tube.axis_x(r.astype(float)) + offsets[:, None]).astype(np.int64)
+        across.append(add(r, c))
+    rr = np.concatenate([along_c, *groups_r]) if groups_r else along_c
+    cc = np.concatenate([across_c, *groups_c]) if groups_c else across_c
+    ww = np.concatenate([core.weights, *groups_w]) if groups_w else core.weights
+    band = Band(cc, rr, np.ascontiguousarray(ww), (w, h)) if horizontal else \
+        Band(rr, cc, np.ascontiguousarray(ww), (h, w))
+    probes = Probes(slice(0, n), beside, np.stack(across) if across else np.zeros((0, 0), np.int64),
+                    offsets.astype(float))
+    return band, axis_px, probes

@@ -226,7 +226,7 @@ NO_FOLLOWED_EDGE = ("plugs were seen, but no upper edge was followed over 3 fram
 
 def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, frame: np.ndarray,
                    *, fps: float, mm_per_px: float, scale_rel_sd: float = 0.0,
-                   min_track_edges: int = 3) -> Motion | None:
+                   min_track_edges: int = 3, not_hz: tuple[float, ...] = ()) -> Motion | None:
     """Celerity, oscillation and regime from the upper edges of all plug tracks.
 
     Parameters
@@ -241,6 +241,9 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
         Scale (for the amplitude threshold).
     scale_rel_sd : float
         Relative standard uncertainty of the scale, added to the interval.
+    not_hz : tuple of float
+        Frequencies that are not the plugs' (the camera's shake, :mod:`grainplug.measures.shake`): an
+        oscillation is not looked for within ``max(0.3 Hz, 2 bins)`` of them.
 
     Returns
     -------
@@ -283,6 +286,8 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     regime, f_osc, amp, explained = "propagative", None, 0.0, 0.0
     f_lo = max(1.5 / max(duration, 1e-9), 0.3)
     band = (freqs >= f_lo) & (freqs <= 0.45 * fps)
+    for f_no in not_hz:  # the camera's frequency is not the plugs'
+        band &= np.abs(freqs - f_no) > max(0.3, 2.0 * (freqs[1] - freqs[0]) if len(freqs) > 1 else 0.3)
     var_x = float(np.var(seg))
     if band.any() and var_x > 0:
         f_peak = float(freqs[band][np.argmax(spec[band])])
@@ -319,7 +324,8 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
                 np.polyfit(time_s[first: last + 1], seg - per_frames, 1), time_s[first: last + 1])
             explained = float(1 - np.var(resid) / var_x)
             threshold = max(0.1, 0.5 * mm_per_px)
-            if explained >= 0.5 and amp_fit >= threshold and f_best * duration >= 1.5:
+            camera = any(abs(f_best * h - f_no) <= max(0.3, 2.0 * step) for f_no in not_hz for h in (1, 2, 3))
+            if explained >= 0.5 and amp_fit >= threshold and f_best * duration >= 1.5 and not camera:
                 regime, f_osc, amp = "oscillating", f_best, amp_fit
                 coef = c_best
     celerity = float(coef[0]) / 1000.0  # mm/s -> m/s
