@@ -38,19 +38,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from lab_nuisances import CASES, Case, render_movie  # noqa: E402
-
-#: targets: (scale given, scale from the tube)
-CELERITY_TOL = {"given": 0.03, "tube": 0.06}
-LENGTH_TOL = {"given": 0.05, "tube": 0.08}
-FREQUENCY_TOL_HZ = 0.3
-CI_GRACE = 0.005
-
-
-def _truth_record(truth: object) -> dict[str, object]:
-    keys = ("celerity_m_s", "plug_length_mm", "bubble_length_mm", "n_plugs_whole", "n_bubbles_whole",
-            "frequency_hz", "amplitude_mm", "regime", "mm_per_px", "fps", "n_frames", "bore_px")
-    return {k: getattr(truth, k) for k in keys}
+from lab_nuisances import CASES, FREQUENCY_TOL_HZ, Case, judge, render_movie, truth_record  # noqa: E402
 
 
 def cached_movie(case: Case, cache: Path) -> tuple[Path, dict[str, object]]:
@@ -61,45 +49,9 @@ def cached_movie(case: Case, cache: Path) -> tuple[Path, dict[str, object]]:
     if movie.exists() and meta.exists():
         return movie, json.loads(meta.read_text())
     truth = render_movie(movie, case.scene, np.random.default_rng(case.seed))
-    record = _truth_record(truth)
+    record = truth_record(truth)
     meta.write_text(json.dumps(record, indent=1))
     return movie, record
-
-
-def judge(case: Case, truth: dict, s: dict) -> dict[str, object]:
-    """Errors and verdict of one analysis (``s`` is the result's summary)."""
-    def rel(m: object, t: object) -> float | None:
-        return None if m is None or t is None or not t else float(m) / float(t) - 1.0
-
-    moving = truth["regime"] != "static"
-    ec = rel(s.get("celerity_m_s"), truth["celerity_m_s"]) if moving else None
-    el = rel(s.get("plug_length_mm"), truth["plug_length_mm"])
-    eb = rel(s.get("bubble_length_mm"), truth["bubble_length_mm"])
-    ft, fm = truth["frequency_hz"], s.get("oscillation_frequency_hz")
-    df = None if ft is None or fm is None else float(fm) - float(ft)
-    ci = s.get("celerity_ci95_m_s")
-    ci_holds = None
-    if moving:
-        c = float(truth["celerity_m_s"])
-        if ci and None not in ci:
-            lo, hi = min(ci), max(ci)
-            miss = max(lo - c, c - hi, 0.0)
-            ci_holds = miss <= CI_GRACE * abs(c)
-        else:
-            ci_holds = False
-    fails = []
-    if s.get("regime") != truth["regime"]:
-        fails.append("regime")
-    if moving and (ec is None or abs(ec) > CELERITY_TOL[case.scale]):
-        fails.append("celerity")
-    if el is None or abs(el) > LENGTH_TOL[case.scale]:
-        fails.append("plug")
-    if ft is not None and (df is None or abs(df) > FREQUENCY_TOL_HZ):
-        fails.append("f")
-    if moving and not ci_holds:
-        fails.append("CI")
-    return {"celerity_err": ec, "plug_err": el, "bubble_err": eb, "f_err_hz": df, "ci_holds": ci_holds,
-            "fails": fails, "ok": not fails}
 
 
 def run_case(name: str, cache: str) -> dict[str, object]:

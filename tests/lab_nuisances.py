@@ -242,6 +242,8 @@ class Scene:
         The record.
     plug_mm, bubble_mm : float
         Mean plug and bubble lengths of the train.
+    plugs : bool
+        False: the train's plugs are not drawn (an empty tube, for the renderer's own checks).
     motion : Motion
         The train's kinematics.
     grains_per_mm, grain_speed_m_s : float
@@ -252,12 +254,15 @@ class Scene:
         Passing shadows, clamps and labels.
     blur_px, noise : float
         Optical blur (Gaussian sigma) and grey noise (read noise, share of the range).
+    shot : float
+        Shot noise: its variance is ``shot`` times the pixel's value (in counts).
     fmt : {"tif", "h264"}
         Lossless TIFF stack or H.264 MP4.
     crf : int
         H.264 quality (higher: more loss).
     level : float
-        The back-light's (or front-lit plug's) share of the sensor's range.
+        The back-light's (or front-lit plug's) share of the sensor's range (0.6: a +40 % ripple just
+        stays below saturation).
     """
 
     lighting: str = "back"
@@ -270,6 +275,7 @@ class Scene:
     fps: float = 250.0
     plug_mm: float = 14.0
     bubble_mm: float = 10.0
+    plugs: bool = True
     motion: Motion = field(default_factory=Motion)
     grains_per_mm: float = 0.4
     grain_speed_m_s: float = 0.35
@@ -280,9 +286,10 @@ class Scene:
     labels: tuple[Label, ...] = ()
     blur_px: float = 0.8
     noise: float = 0.01
+    shot: float = 0.02
     fmt: str = "tif"
     crf: int = 28
-    level: float = 0.75
+    level: float = 0.6
 
 
 @dataclass(frozen=True)
@@ -367,7 +374,8 @@ def _shadow_factor(shadows: tuple[Shadow, ...], s_mm: np.ndarray, t: float) -> n
     """Multiplicative darkening of the scene at positions ``s_mm`` along the tube, time ``t``."""
     f = np.ones_like(s_mm)
     for sh in shadows:
-        env = np.clip(min(t - sh.t_on_s, sh.t_off_s - t) / 0.05, 0.0, 1.0)
+        fade_in = 1.0 if sh.t_on_s <= 0 else (t - sh.t_on_s) / 0.05
+        env = float(np.clip(min(fade_in, (sh.t_off_s - t) / 0.05), 0.0, 1.0))
         if env <= 0:
             continue
         u = (s_mm - sh.start_mm - sh.speed_mm_s * t) / sh.width_mm
@@ -441,6 +449,8 @@ def render_frames(scene: Scene, rng: np.random.Generator) -> tuple[np.ndarray, T
     duration = scene.n_frames / scene.fps
     x_all = scene.motion.displacement_mm(t_all)
     tops, lengths = _train(scene, x_all, rng)
+    if not scene.plugs:
+        lengths = np.zeros_like(lengths)
     cum = np.concatenate([[0.0], np.cumsum(lengths)])
     shake = shake_px(scene.shake, t_all, rng)
     light = light_level(scene.ripple, t_all, duration)
@@ -536,7 +546,7 @@ def render_frames(scene: Scene, rng: np.random.Generator) -> tuple[np.ndarray, T
         if scene.blur_px > 0:
             img = ndimage.gaussian_filter(img, scene.blur_px, mode="nearest")
         img = img * scale
-        img = img + rng.standard_normal(img.shape) * np.sqrt((scene.noise * top) ** 2 + 0.02 * np.maximum(img, 0))
+        img = img + rng.standard_normal(img.shape) * np.sqrt((scene.noise * top) ** 2 + scene.shot * np.maximum(img, 0))
         frames[k] = np.clip(np.round(img), 0, top).astype(np.uint8)
     return frames, truth
 
@@ -604,6 +614,70 @@ class Case:
         """A file name for the case's movie (the scale does not change the movie)."""
         stem = re.sub(r"[^a-z0-9]+", "_", self.name.lower()).strip("_")
         return f"{stem}{SUFFIX[self.scene.fmt]}"
+
+
+# ---- the targets ----
+
+#: celerity and plug-length tolerances, by how the scale is known
+CELERITY_TOL = {"given": 0.03, "tube": 0.06}
+LENGTH_TOL = {"given": 0.05, "tube": 0.08}
+FREQUENCY_TOL_HZ = 0.3
+#: the celerity's 95 % interval may miss the truth by this share of it and still count as holding it
+CI_GRACE = 0.005
+
+
+def truth_record(truth: Truth) -> dict[str, object]:
+    """The truth's scalars as a plain dict (JSON-ready)."""
+    keys = ("celerity_m_s", "plug_length_mm", "bubble_length_mm", "n_plugs_whole", "n_bubbles_whole",
+            "frequency_hz", "amplitude_mm", "regime", "mm_per_px", "fps", "n_frames", "bore_px")
+    return {k: getattr(truth, k) for k in keys}
+
+
+def judge(case: Case, truth: dict[str, object], summary: dict[str, object]) -> dict[str, object]:
+    """Errors of one analysis against the truth, and the targets it misses.
+
+    Parameters
+    ----------
+    case : Case
+    truth : dict
+        :func:`truth_record` of the case's truth.
+    summary : dict
+        The analysis's ``summary``.
+
+    Returns
+    -------
+    dict
+        ``celerity_err``, ``plug_err``, ``bubble_err`` (relative, or None), ``f_err_hz``, ``ci_holds``
+        (None for a static train), ``fails`` (names of the targets missed: regime, celerity, plug, f,
+        CI) and ``ok``. A static train has no celerity target; the bubble length has no target.
+    """
+    def rel(m: object, t: object) -> float | None:
+        return None if m is None or t is None or not t else float(m) / float(t) - 1.0
+
+    moving = truth["regime"] != "static"
+    ec = rel(summary.get("celerity_m_s"), truth["celerity_m_s"]) if moving else None
+    el = rel(summary.get("plug_length_mm"), truth["plug_length_mm"])
+    eb = rel(summary.get("bubble_length_mm"), truth["bubble_length_mm"])
+    ft, fm = truth["frequency_hz"], summary.get("oscillation_frequency_hz")
+    df = None if ft is None or fm is None else float(fm) - float(ft)
+    ci = summary.get("celerity_ci95_m_s")
+    ci_holds = None
+    if moving:
+        c = float(truth["celerity_m_s"])
+        ci_holds = bool(ci) and None not in ci and max(min(ci) - c, c - max(ci), 0.0) <= CI_GRACE * abs(c)
+    fails = []
+    if summary.get("regime") != truth["regime"]:
+        fails.append("regime")
+    if moving and (ec is None or abs(ec) > CELERITY_TOL[case.scale]):
+        fails.append("celerity")
+    if el is None or abs(el) > LENGTH_TOL[case.scale]:
+        fails.append("plug")
+    if ft is not None and (df is None or abs(df) > FREQUENCY_TOL_HZ):
+        fails.append("f")
+    if moving and not ci_holds:
+        fails.append("CI")
+    return {"celerity_err": ec, "plug_err": el, "bubble_err": eb, "f_err_hz": df, "ci_holds": ci_holds,
+            "fails": fails, "ok": not fails}
 
 
 # ---- the bench ---------------------------------------------------------------------------------------------
