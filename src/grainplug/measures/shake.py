@@ -160,12 +160,21 @@ def _combine(shifts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray | 
     return mean - np.median(mean), float(np.median(1.0 / np.sqrt(w.sum(axis=0))))
 
 
-def _detrended_rms(x: np.ndarray, fps: float) -> float:
-    """rms of ``x`` about a slow drift (a running mean over a fifth of a second)."""
+#: the motion slower than this (s, a running mean) is the camera's wander, not its shake
+WANDER_S = 1.0
+
+
+def _detrended(x: np.ndarray, fps: float) -> np.ndarray:
+    """``x`` about a slow wander (a running mean over :data:`WANDER_S`, at most a third of the record)."""
     from .._filters import uniform_filter1d
 
-    k = max(3, int(round(0.2 * fps)) | 1)
-    return float(np.std(x - uniform_filter1d(x, k, mode="nearest")))
+    k = max(3, min(int(round(WANDER_S * fps)), len(x) // 3) | 1)
+    return x - uniform_filter1d(x, k, mode="nearest")
+
+
+def _detrended_rms(x: np.ndarray, fps: float) -> float:
+    """rms of ``x`` about its slow wander."""
+    return float(np.std(_detrended(x, fps)))
 
 
 def main_frequency(x: np.ndarray, fps: float) -> float | None:
@@ -205,7 +214,7 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
     if candidates:
         r, x, sd = max(candidates, key=lambda c: c[0])
         shaking = r >= SHAKE_MIN_RMS_PX and r >= SHAKE_MIN_SNR * sd
-        freq = main_frequency(x, fps) if shaking else None
+        freq = main_frequency(_detrended(x, fps), fps) if shaking else None
     source = ("the background beside the tube" if x_along is not None else
               "nothing still along the tube (a flat background beside it) to register it on")
     return Shake(x_across, x_along, rms_a, rms_l, freq, bool(shaking), source)

@@ -57,11 +57,12 @@ def still_stretches(diagram: Diagram, motion: Motion | None, lengths: Lengths | 
     if travel_mm < lengths.plug_length_mm + lengths.bubble_length_mm:
         return []
     values = diagram.values
-    d = np.log(np.maximum(np.asarray(values[:: max(1, values.shape[0] // 1000)], np.float32), np.float32(1e-3)))
+    d = np.asarray(values[:: max(1, values.shape[0] // 1000)], np.float32)
+    # in grey levels, not their logarithm: a dark clamp's noise is small in grey levels and large in logarithm
     sd = d.std(axis=0)
     typical = float(np.median(sd))
-    if not typical > 0.01:  # nothing moves anywhere (a jammed or empty record): no contrast to judge by
-        return []
+    if not typical > 0.01 * max(float(np.median(np.abs(d))), 1e-6):  # nothing moves anywhere (a jammed or empty
+        return []  # record): no contrast to judge by
     step = np.diff(np.concatenate([[0], (sd < STILL_REGION_SHARE * typical).astype(np.int8), [0]]))
     starts, stops = np.nonzero(step == 1)[0], np.nonzero(step == -1)[0]
     pos, half = diagram.position_mm, 0.5 * diagram.mm_per_px
