@@ -26,8 +26,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: a probe whose shift's standard error (px) exceeds this does not measure the motion
-MEASURABLE_SD_PX = 0.15
+#: a profile across the tube whose shift's standard error (px) exceeds this does not measure the motion
+MEASURABLE_SD_PX = 0.5
+#: the same along the tube, stricter: a shadow passing along the background beside the tube is structure that
+#: moves, and must not be taken for the camera's motion
+MEASURABLE_ALONG_SD_PX = 0.15
+#: a camera shakes and wanders by a few pixels: a motion along the tube wider than this (px, peak to peak) is
+#: something moving along the background (a passing shadow), not the camera
+MAX_ALONG_SWING_PX = 6.0
 #: the tube shakes when the motion's rms (px) reaches this and stands this many standard errors above noise
 SHAKE_MIN_RMS_PX = 0.2
 SHAKE_MIN_SNR = 4.0
@@ -149,9 +155,10 @@ def _interp_rows(values: np.ndarray, xs: np.ndarray) -> np.ndarray:
     return values[i0] * (1 - f) + values[i0 + 1] * f
 
 
-def _combine(shifts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray | None, float]:
+def _combine(shifts: list[tuple[np.ndarray, np.ndarray]], *,
+             limit_px: float = MEASURABLE_SD_PX) -> tuple[np.ndarray | None, float]:
     """The measurable probes' shifts averaged by their inverse variance; None when none is measurable."""
-    good = [(s, sd) for s, sd in shifts if np.median(sd) <= MEASURABLE_SD_PX]
+    good = [(s, sd) for s, sd in shifts if np.median(sd) <= limit_px]
     if not good:
         return None, np.inf
     w = np.stack([1.0 / np.maximum(sd, 1e-6) ** 2 for _, sd in good])
@@ -205,7 +212,10 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
         Frame rate.
     """
     x_across, sd_across = _combine([register(p) for p in across if p.size and p.shape[1] >= 8])
-    x_along, sd_along = _combine([register(p) for p in along if p.size and p.shape[1] >= 8])
+    x_along, sd_along = _combine([register(p) for p in along if p.size and p.shape[1] >= 8],
+                                 limit_px=MEASURABLE_ALONG_SD_PX)
+    if x_along is not None and np.ptp(x_along) > MAX_ALONG_SWING_PX:
+        x_along, sd_along = None, np.inf  # not the camera's motion
     rms_a = None if x_across is None else _detrended_rms(x_across, fps)
     rms_l = None if x_along is None else _detrended_rms(x_along, fps)
     candidates = [(r, x, sd) for r, x, sd in ((rms_a, x_across, sd_across), (rms_l, x_along, sd_along))
