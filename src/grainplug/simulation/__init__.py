@@ -16,8 +16,9 @@ defaults from) without the integrator and the linear analysis.
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
+
+from .._lazy import lazy_names
 
 _WHERE = {"Closure": "equations", "simulate": "run", "RANDOM_CLOSE_PACKING": "state", "SimulationParams": "state",
           "SimulationResult": "state", "SimulationStudy": "study", "run_study": "study",
@@ -36,14 +37,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> object:
-    if name in _WHERE:
-        return getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *_WHERE])
+__getattr__, __dir__ = lazy_names(__name__, _WHERE, lambda: globals())
 
 
 if TYPE_CHECKING:

@@ -9,8 +9,9 @@ numpy and scipy: the command line takes its defaults from there).
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
+
+from .._lazy import lazy_names
 
 _WHERE = {
     "Mode": "analysis", "StabilityResult": "analysis", "analyze_stability": "analysis", "max_growth": "analysis",
@@ -38,14 +39,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> object:
-    if name in _WHERE:
-        return getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *_WHERE])
+__getattr__, __dir__ = lazy_names(__name__, _WHERE, lambda: globals())
 
 
 if TYPE_CHECKING:
