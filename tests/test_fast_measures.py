@@ -28,8 +28,8 @@ def test_fit_without_one_hot_equals_full_design(rng):
     w = rng.uniform(0, 1, n)
     w[tix == 3] = 0.0  # a track with no weight at all: offset 0, as the minimum-norm solution
     for f, nh, weights in ((None, 0, None), (6.3, 3, None), (6.3, 3, w), (None, 0, w)):
-        coef, rss, res = motion._fit_res(t, y, tix, n_tracks, f, nh, weights)
-        A = motion._design(t, tix, n_tracks, f, nh)
+        coef, rss, res = motion.fit_edges(t, y, tix, n_tracks, f, nh, weights)
+        A = motion.edge_design(t, tix, n_tracks, f, nh)
         sw = np.ones(n) if weights is None else np.sqrt(weights)
         ref, *_ = np.linalg.lstsq(A * sw[:, None], y * sw, rcond=None)
         np.testing.assert_allclose(coef, ref, rtol=1e-8, atol=1e-8)
@@ -45,8 +45,8 @@ def test_fit_of_a_rank_deficient_design(rng):
     t = np.repeat(np.arange(40) / f, 3)
     tix = np.tile(np.arange(3), 40) + (np.arange(120) >= 60)
     y = -30 * t + rng.normal(0, 0.3, t.size)
-    coef, rss, res = motion._fit_res(t, y, tix, n_tracks, f, 2)
-    A = motion._design(t, tix, n_tracks, f, 2)
+    coef, rss, res = motion.fit_edges(t, y, tix, n_tracks, f, 2)
+    A = motion.edge_design(t, tix, n_tracks, f, 2)
     assert np.linalg.matrix_rank(A) < A.shape[1]
     ref, *_ = np.linalg.lstsq(A, y, rcond=None)
     np.testing.assert_allclose(res, y - A @ ref, rtol=0, atol=1e-8)

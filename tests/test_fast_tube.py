@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from grainplug.calibration.tube import _bin, _grey_binned, sheared_profile, to_grey
+from grainplug.calibration.tube import bin_pixels, grey_binned, sheared_profile, to_grey
 
 
 def _profile_by_map_coordinates(img, tan_b, x_grid, rows=None):
@@ -57,8 +57,8 @@ def test_sheared_profile_equals_interpolation(step, tan_b):
 def test_grey_binning_is_exact(b, shape):
     rng = np.random.default_rng(b * 100 + len(shape))
     frame = rng.integers(0, 256, shape, dtype=np.uint8)
-    got = _grey_binned(frame, b)
-    ref = _bin(to_grey(frame), b)
+    got = grey_binned(frame, b)
+    ref = bin_pixels(to_grey(frame), b)
     assert got.shape == (shape[0] // b, shape[1] // b)
     np.testing.assert_allclose(got, ref, rtol=0, atol=1e-4)
     # and the plain definition: block means of the channel mean, in float64

@@ -141,7 +141,7 @@ def to_grey(frame: np.ndarray) -> np.ndarray:
     return frame.astype(np.float32)
 
 
-def _bin(img: np.ndarray, b: int) -> np.ndarray:
+def bin_pixels(img: np.ndarray, b: int) -> np.ndarray:
     if b == 1:
         return img
     h, w = img.shape[0] // b * b, img.shape[1] // b * b
@@ -153,12 +153,12 @@ def _bin(img: np.ndarray, b: int) -> np.ndarray:
     return out
 
 
-def _grey_binned(frame: np.ndarray, b: int) -> np.ndarray:
-    """``_bin(to_grey(frame), b)``; 8-bit frames are summed in 16-bit integers (exact, and
+def grey_binned(frame: np.ndarray, b: int) -> np.ndarray:
+    """``bin_pixels(to_grey(frame), b)``; 8-bit frames are summed in 16-bit integers (exact, and
     about twice as fast as converting the whole frame to float first)."""
     n_ch = frame.shape[2] if frame.ndim == 3 else 1
     if b == 1 or frame.dtype != np.uint8 or n_ch * b * b * 255 >= 2**16:
-        return _bin(to_grey(frame), b)
+        return bin_pixels(to_grey(frame), b)
     h, w = frame.shape[0] // b * b, frame.shape[1] // b * b
     if frame.ndim == 3:
         g = frame[:h, :w, 0].astype(np.uint16)
@@ -203,7 +203,7 @@ def mean_and_variation(frames: list[np.ndarray], *, binning: int = 1, transpose:
         view = np.swapaxes(f, 0, 1) if transpose else f
         if cols is not None:
             view = view[:, cols]
-        g = _grey_binned(view, binning)
+        g = grey_binned(view, binning)
         level = float(np.median(g[::4, ::4]))
         levels.append(level)
         g = g * np.float32(1.0 / max(level, 1e-6))
@@ -287,7 +287,7 @@ def _sheared_profile_gather(img: np.ndarray, tan_b: float, x_grid: np.ndarray, y
 def _downsample(img: np.ndarray, limit: int = 120_000) -> np.ndarray:
     """Halve the image (2x2 means) until it holds at most ``limit`` pixels."""
     while img.shape[0] * img.shape[1] > limit and min(img.shape) >= 64:
-        img = _bin(img, 2)
+        img = bin_pixels(img, 2)
     return img
 
 

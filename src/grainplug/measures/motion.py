@@ -98,9 +98,9 @@ def _drift_and_harmonics(t: np.ndarray, f: float | None, n_harm: int) -> np.ndar
     return np.stack(cols, axis=1)
 
 
-def _design(t: np.ndarray, track_idx: np.ndarray, n_tracks: int, f: float | None,
+def edge_design(t: np.ndarray, track_idx: np.ndarray, n_tracks: int, f: float | None,
             n_harm: int) -> np.ndarray:
-    """The full design: drift, one offset per track, harmonics (what ``_fit_res`` solves)."""
+    """The full design: drift, one offset per track, harmonics (what ``fit_edges`` solves)."""
     onehot = np.zeros((len(t), n_tracks))
     onehot[np.arange(len(t)), track_idx] = 1.0
     B = _drift_and_harmonics(t, f, n_harm)
@@ -108,7 +108,7 @@ def _design(t: np.ndarray, track_idx: np.ndarray, n_tracks: int, f: float | None
 
 
 class _TrackFit:
-    """(Weighted) least squares of ``_design`` on fixed edges, for any frequency.
+    """(Weighted) least squares of ``edge_design`` on fixed edges, for any frequency.
 
     Solved without forming the one-hot block: the track offsets are projected out
     by weighted within-track centring (Frisch-Waugh-Lovell), which leaves a small
@@ -174,9 +174,9 @@ def _least_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(a, b, rcond=None)[0]
 
 
-def _fit_res(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
+def fit_edges(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int, f: float | None,
              n_harm: int, weights: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
-    """(Weighted) least squares of ``_design``: coefficients, residual sum of squares, residuals
+    """(Weighted) least squares of ``edge_design``: coefficients, residual sum of squares, residuals
     (see :class:`_TrackFit`)."""
     return _TrackFit(t, y, tix, n_tracks, weights).solve(f, n_harm)
 
@@ -187,7 +187,7 @@ def _robust_weights(t: np.ndarray, y: np.ndarray, tix: np.ndarray, n_tracks: int
     (a plug sliding alone, a misdetection) lose their weight."""
     w = np.ones_like(y)
     for _ in range(n_iter):
-        _, _, res = _fit_res(t, y, tix, n_tracks, None, 0, w)
+        _, _, res = fit_edges(t, y, tix, n_tracks, None, 0, w)
         scale = 1.4826 * np.median(np.abs(res - np.median(res))) + 1e-9
         u = res / (6.0 * max(scale, 0.05))  # never tighter than 0.3 mm: oscillations stay in
         w = np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
