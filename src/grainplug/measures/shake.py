@@ -68,17 +68,25 @@ class Shake:
     frequency_hz: float | None
     shaking: bool
     along_source: str
+    #: the frequency of the camera's slow wander (a pixel or more, slower than :data:`WANDER_S`), when it wanders
+    wander_hz: float | None = None
 
     def as_dict(self) -> dict[str, object]:
         def r(x: float | None) -> float | None:
             return None if x is None or not np.isfinite(x) else round(float(x), 4)
 
         return {"shaking": self.shaking, "rms_across_px": r(self.rms_across_px), "rms_along_px": r(self.rms_along_px),
-                "frequency_hz": r(self.frequency_hz), "along_measured": self.along_px is not None,
-                "along_source": self.along_source}
+                "frequency_hz": r(self.frequency_hz), "wander_hz": r(self.wander_hz),
+                "along_measured": self.along_px is not None, "along_source": self.along_source}
 
 
-def register(profiles: np.ndarray, *, n_iter: int = 4, chunk: int = 32) -> tuple[np.ndarray, np.ndarray]:
+#: the registration's working arrays hold at most this many samples (frames x profile length) at once
+CHUNK_SAMPLES = 1 << 17
+#: frames spread over the record on which a probe is first tried: registered in full only where it measures
+TRIAL_FRAMES = 48
+
+
+def register(profiles: np.ndarray, *, n_iter: int = 4, chunk: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Shift (samples, positive: the profile moved to higher indices) of each row of ``profiles`` against
     their median over the rows, and its standard error.
 
@@ -88,11 +96,13 @@ def register(profiles: np.ndarray, *, n_iter: int = 4, chunk: int = 32) -> tuple
         One profile per frame.
     n_iter : int
         Gauss-Newton steps.
-    chunk : int
-        Frames registered at once (the working memory is that of ``chunk`` frames, whatever the record's length).
+    chunk : int, optional
+        Frames registered at once (the working memory is that of ``chunk`` frames, whatever the record's length);
+        by default as many as :data:`CHUNK_SAMPLES` allows.
     """
     P = np.asarray(profiles, np.float32)
     n_t, n_x = P.shape
+    chunk = chunk or max(8, CHUNK_SAMPLES // max(n_x, 1))
     ref = np.median(P, axis=0).astype(np.float64)
     grad = np.gradient(ref)
     var = np.zeros(n_x)
@@ -184,8 +194,8 @@ def _detrended_rms(x: np.ndarray, fps: float) -> float:
     return float(np.std(_detrended(x, fps)))
 
 
-def main_frequency(x: np.ndarray, fps: float) -> float | None:
-    """The strongest frequency of ``x`` above 1 Hz (a periodogram, Hann window, zero-padded)."""
+def main_frequency(x: np.ndarray, fps: float, *, lowest_hz: float = 1.0) -> float | None:
+    """The strongest frequency of ``x`` above ``lowest_hz`` (a periodogram, Hann window, zero-padded)."""
     n = len(x)
     if n < 16:
         return None
@@ -193,7 +203,7 @@ def main_frequency(x: np.ndarray, fps: float) -> float | None:
     nfft = 1 << int(np.ceil(np.log2(4 * n)))
     spec = np.abs(np.fft.rfft(y, nfft))
     f = np.fft.rfftfreq(nfft, 1.0 / fps)
-    band = f >= max(1.0, 2.0 * fps / n)
+    band = f >= max(lowest_hz, 1.5 * fps / n)
     if not band.any():
         return None
     return float(f[band][np.argmax(spec[band])])
@@ -211,8 +221,12 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
     fps : float
         Frame rate.
     """
-    x_across, sd_across = _combine([register(p) for p in across if p.size and p.shape[1] >= 8])
-    x_along, sd_along = _combine([register(p) for p in along if p.size and p.shape[1] >= 8],
+    # the profiles across the tube at its several heights move together (the camera moves the whole image): their
+    # mean is registered once, with less noise
+    full = [p for p in across if p.size and p.shape[1] == max(q.shape[1] for q in across)]
+    across = [np.mean(full, axis=0, dtype=np.float32)] if full else []
+    x_across, sd_across = _combine([register(p) for p in _measuring(across, MEASURABLE_SD_PX)])
+    x_along, sd_along = _combine([register(p) for p in _measuring(along, MEASURABLE_ALONG_SD_PX)],
                                  limit_px=MEASURABLE_ALONG_SD_PX)
     if x_along is not None and np.ptp(x_along) > MAX_ALONG_SWING_PX:
         x_along, sd_along = None, np.inf  # not the camera's motion
@@ -220,14 +234,30 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
     rms_l = None if x_along is None else _detrended_rms(x_along, fps)
     candidates = [(r, x, sd) for r, x, sd in ((rms_a, x_across, sd_across), (rms_l, x_along, sd_along))
                   if r is not None]
-    shaking, freq = False, None
+    shaking, freq, wander = False, None, None
     if candidates:
         r, x, sd = max(candidates, key=lambda c: c[0])
         shaking = r >= SHAKE_MIN_RMS_PX and r >= SHAKE_MIN_SNR * sd
         freq = main_frequency(_detrended(x, fps), fps) if shaking else None
+        slow = x - _detrended(x, fps)
+        if np.ptp(slow) >= 1.0 and np.ptp(slow) >= 2 * SHAKE_MIN_SNR * sd:  # the camera wanders by a pixel or more
+            wander = main_frequency(slow, fps, lowest_hz=0.3)
     source = ("the background beside the tube" if x_along is not None else
               "nothing still along the tube (a flat background beside it) to register it on")
-    return Shake(x_across, x_along, rms_a, rms_l, freq, bool(shaking), source)
+    return Shake(x_across, x_along, rms_a, rms_l, freq, bool(shaking), source, wander)
+
+
+def _measuring(profiles: list[np.ndarray], limit_px: float) -> list[np.ndarray]:
+    """The probes that can measure the motion, tried first on :data:`TRIAL_FRAMES` frames spread over the record
+    (a flat background is found so without registering every frame)."""
+    out = []
+    for p in profiles:
+        if not p.size or p.shape[1] < 8:
+            continue
+        trial = p[np.unique(np.linspace(0, len(p) - 1, min(len(p), TRIAL_FRAMES)).round().astype(int))]
+        if np.median(register(trial)[1]) <= 1.5 * limit_px:  # a margin: the full record's reference is better
+            out.append(p)
+    return out
 
 
 def shift_along(values: np.ndarray, along_px: np.ndarray, px_per_sample: float = 1.0) -> np.ndarray:
@@ -245,6 +275,9 @@ def shift_along(values: np.ndarray, along_px: np.ndarray, px_per_sample: float =
 
 def shake_hz(shake: Shake | None) -> tuple[float, ...]:
     """The frequencies that are the camera's, not the plugs' (none when the tube does not shake)."""
-    if shake is None or not shake.shaking or shake.frequency_hz is None:
+    if shake is None:
         return ()
-    return (float(shake.frequency_hz),)
+    out = [shake.frequency_hz] if shake.shaking and shake.frequency_hz is not None else []
+    if shake.along_px is None and shake.wander_hz is not None:  # a wander not corrected along the tube
+        out.append(shake.wander_hz)
+    return tuple(float(f) for f in out)
