@@ -143,13 +143,13 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("setup_s")
         read = movie.read_band(probe_band, threads=threads,
                                progress=(lambda k: progress(k, info.n_frames)) if progress else None)
-        values, across, beside, where = probes.split(read)
+        values, across, beside, beside_at = probes.split(read)
         check_finite(values, info)
         light_warnings: list[str] = []
         if params.background is not None:
             values, light = flat_field(values, band, params.background)
             light_warnings = all_coded("light.background", light)
-        values, lamp = divide_by_lamp(values, beside, where, back_lit=tube.back_lit)
+        values, lamp = divide_by_lamp(values, beside, beside_at, back_lit=tube.back_lit)
         values = np.ascontiguousarray(values)  # its own memory, not a view of the read
         shake = measure_shake(across, [beside], fps=info.fps)
         del read, across, beside  # the diagram is all that is kept of the read

@@ -110,9 +110,11 @@ def band_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTION)
 #: up to twice as wide outside as inside), on each side
 BESIDE_WIDTHS = (1.8, 2.3)
 #: heights along the tube of the profiles across it (for its motion across)
-ACROSS_PROFILES = 6
-#: the profiles across the tube reach this many inner widths either side of the axis
-ACROSS_WIDTHS = 2.2
+ACROSS_PROFILES = 3
+#: the background beside the tube is read every this many positions along it (each sample averages them)
+BESIDE_STEP = 4
+#: the profiles across the tube reach this many inner widths either side of the axis (beyond the walls)
+ACROSS_WIDTHS = 1.6
 
 
 @dataclass(frozen=True)
@@ -125,8 +127,8 @@ class Probes:
     core : slice
         The diagram: the bore's core at every position along the tube.
     beside : ndarray
-        The background beside the tube (both sides averaged, or the one the frame reaches) at each position
-        along it (-1 where neither is in the frame).
+        The background beside the tube (both sides averaged, or the one the frame reaches) every
+        :data:`BESIDE_STEP` positions along it (-1 where neither is in the frame).
     across : ndarray, shape (n_profiles, n_offsets)
         Profiles across the tube at a few heights along it (each sample averages a few rows).
     across_offsets_px : ndarray
@@ -137,6 +139,8 @@ class Probes:
     beside: np.ndarray
     across: np.ndarray
     across_offsets_px: np.ndarray
+    #: the position (in samples along the tube) of each sample beside it
+    beside_at: np.ndarray
 
     def core_band(self, band: Band) -> Band:
         """The core's samples of ``band`` alone (what :func:`band_along_tube` gives)."""
@@ -144,15 +148,15 @@ class Probes:
         return Band(band.rows[c], band.cols[c], band.weights[c], band.frame_shape)
 
     def split(self, values: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:
-        """``(core, across, beside, where)`` of one read's ``frames x samples`` values: the diagram, the profiles
-        across the tube (samples in the frame only), the background beside it at the positions ``where`` (a
-        boolean per position) the frame reaches. ``core`` and ``beside`` are views of ``values`` (no copy)."""
+        """``(core, across, beside, at)`` of one read's ``frames x samples`` values: the diagram, the profiles
+        across the tube (samples in the frame only), the background beside it at the positions ``at`` (in samples
+        along the tube) the frame reaches. ``core`` and ``beside`` are views of ``values`` (no copy)."""
         core = values[:, self.core]
         across = [values[:, row[row >= 0]] for row in self.across]
         where = self.beside >= 0
         cols = self.beside[where]
         beside = values[:, cols[0]: cols[-1] + 1] if cols.size else values[:, :0]  # the columns are consecutive
-        return core, across, beside, where
+        return core, across, beside, self.beside_at[where]
 
 
 def probes_along_tube(tube: TubeGeometry, *,
@@ -206,16 +210,19 @@ def probes_along_tube(tube: TubeGeometry, *,
         out[ok] = start + np.arange(k)
         return out
 
-    axis = tube.axis_x(rows)
     lo, hi = BESIDE_WIDTHS
-    spread = np.linspace(lo, hi, min(width, 3)) * d
-    # both sides in one sample per position (the lamp's level there; where one side is out of the frame, the other)
-    c = np.rint(axis[:, None] + np.concatenate([-spread, spread])[None, :]).astype(np.int64)
-    r = np.repeat(rows[:, None], c.shape[1], axis=1)
+    # both sides in one sample every BESIDE_STEP positions (the lamp's level there; where one side is out of the
+    # frame, the other): BESIDE_STEP rows by a column each side at the middle distance
+    at = np.arange(0, n - BESIDE_STEP + 1, BESIDE_STEP)
+    per_side = min(BESIDE_STEP, width // 2)  # rows a sample averages on each side (the band's width holds both)
+    r = rows[at][:, None] + np.tile(np.linspace(0, BESIDE_STEP - 1, per_side).round().astype(int), 2)[None, :]
+    side = np.repeat([-1.0, 1.0], per_side)[None, :] * (0.5 * (lo + hi) * d)
+    c = np.rint(tube.axis_x(r.astype(float)) + side).astype(np.int64)
     beside = add(r, c)
+    beside_at = at + 0.5 * (BESIDE_STEP - 1)
     offsets = np.arange(-np.ceil(ACROSS_WIDTHS * d), np.ceil(ACROSS_WIDTHS * d) + 1)
     heights = rows[np.linspace(0, n - 1, ACROSS_PROFILES + 2).round().astype(int)[1:-1]]
-    tall = min(width, 9)
+    tall = width
     across = []
     for y in heights:
         r = (y + np.arange(tall) - tall // 2)[None, :].repeat(len(offsets), axis=0)
@@ -227,5 +234,5 @@ def probes_along_tube(tube: TubeGeometry, *,
     band = Band(cc, rr, np.ascontiguousarray(ww), (w, h)) if horizontal else \
         Band(rr, cc, np.ascontiguousarray(ww), (h, w))
     probes = Probes(slice(0, n), beside, np.stack(across) if across else np.zeros((0, 0), np.int64),
-                    offsets.astype(float))
+                    offsets.astype(float), beside_at)
     return band, axis_px, probes

@@ -4,7 +4,9 @@ A back-lit tube stands in front of the lamp it is seen against; the background b
 that lamp. Its level at each position along the tube and in each frame is the light the tube's
 contents were seen under there and then: mains ripple, a slow drift, a shadow passing along the
 tube (someone walking by the lamp). Dividing the diagram by it, before plugs and bubbles are told
-apart, leaves the contents only. A front-lit tube has no lamp beside it (the background is dark):
+apart, leaves the contents only. The light is sampled every few positions
+(each sample their mean: :data:`grainplug.diagram.extract.BESIDE_STEP`) and interpolated between,
+never smoothed in time. A front-lit tube has no lamp beside it (the background is dark):
 nothing is divided, and the diagram's own per-frame gain (:func:`grainplug.diagram.normalize`) takes
 the ripple and the drift; a passing shadow is then not corrected.
 """
@@ -17,10 +19,11 @@ import numpy as np
 
 #: the background beside the tube must be at least this share of the tube's brightest contents to be a lamp
 LAMP_SHARE = 0.5
-#: the lamp's light is smoothed along the tube over this many samples (noise), never in time (ripple)
-SMOOTH_SAMPLES = 3.0
 #: a lamp dimmer than this share of its median (a clamp's shadow on the probes) is not trusted there
 TRUSTED_SHARE = 0.25
+#: a lamp steadier than this (rms of its frame-to-frame level, and deepest local dimming, relative) is not divided
+#: by: the diagram's own per-frame and per-position gains take what is left
+STEADY_RIPPLE, STEADY_SHADOW = 0.005, 0.06
 
 
 @dataclass(frozen=True)
@@ -52,47 +55,46 @@ class Lamp:
                 "shadow_depth": r(self.shadow_depth)}
 
 
-def lamp_light(beside: np.ndarray, where: np.ndarray) -> np.ndarray | None:
-    """The lamp's level ``(n_frames, n_positions)`` from the background beside the tube (``beside``: frames x the
-    positions ``where`` the frame reaches it; the others take the nearest one's level); None when too few
-    positions are seen."""
-    from .._filters import gaussian_filter1d
-
-    n_positions = len(where)
-    if where.sum() < max(8, n_positions // 4) or beside.shape[1] != where.sum():
+def lamp_light(beside: np.ndarray, at: np.ndarray, n_positions: int) -> np.ndarray | None:
+    """The lamp's level ``(n_frames, n_positions)`` from the background beside the tube (``beside``: frames x
+    samples at positions ``at``, each the mean over a few positions), linearly interpolated between them and held
+    beyond them; None when they cover too little of the tube."""
+    at = np.asarray(at, float)
+    if beside.shape[1] != len(at) or len(at) < 4 or np.ptp(at) < 0.5 * n_positions:
         return None
-    level = np.empty((len(beside), n_positions), np.float32)
-    idx = np.arange(n_positions)
-    seen = idx[where]
-    nearest = seen[np.clip(np.searchsorted(seen, idx), 0, len(seen) - 1)]
-    level[:, where] = beside
-    if not where.all():
-        level[:, ~where] = level[:, nearest[~where]]
-    return gaussian_filter1d(level, SMOOTH_SAMPLES, axis=1, mode="nearest")
+    idx = np.arange(n_positions, dtype=float)
+    j = np.clip(np.searchsorted(at, idx) - 1, 0, len(at) - 2)
+    f = np.clip((idx - at[j]) / np.maximum(at[j + 1] - at[j], 1e-9), 0.0, 1.0).astype(np.float32)
+    b = np.asarray(beside, np.float32)
+    return b[:, j] * (1 - f) + b[:, j + 1] * f
 
 
-def divide_by_lamp(values: np.ndarray, beside: np.ndarray, where: np.ndarray, *,
+def divide_by_lamp(values: np.ndarray, beside: np.ndarray, at: np.ndarray, *,
                    back_lit: bool | None) -> tuple[np.ndarray, Lamp]:
     """The diagram divided by the lamp's light (scaled back to its median level), and what was done; ``beside``
-    and ``where`` as :func:`lamp_light` takes them."""
+    and ``at`` as :func:`lamp_light` takes them."""
     v = np.asarray(values, np.float32)
     if not back_lit:
         return v, Lamp(False, "front light (no lamp beside the tube): the ripple and drift from the diagram's own "
                               "per-frame gain; a passing shadow is not corrected")
-    light = lamp_light(beside, where)
-    if light is None:
+    b = np.asarray(beside, np.float32)
+    if b.shape[1] != len(at) or len(at) < 4 or np.ptp(np.asarray(at, float)) < 0.5 * v.shape[1]:
         return v, Lamp(False, "no background beside the tube in the frame: the ripple and drift from the "
                               "diagram's own per-frame gain; a passing shadow is not corrected")
-    typical = float(np.median(light))
+    few = b[:: max(1, len(b) // 500)]  # the light's figures, on at most 500 frames
+    typical = float(np.median(few))
     top = float(np.percentile(v[:: max(1, len(v) // 200)], 95))
     if not typical > LAMP_SHARE * top:
         return v, Lamp(False, "the background beside the tube is darker than the tube (not a lamp): the ripple and "
                               "drift from the diagram's own per-frame gain; a passing shadow is not corrected")
-    gain = light  # in place: the lamp's level relative to its median, 1 where it is not trusted (a clamp's shadow)
+    rel = few / np.maximum(np.median(few, axis=0), 1e-6)[None, :]
+    frame_level = np.median(rel, axis=1)
+    ripple = float(np.std(frame_level))
+    shadow = float(np.max(1.0 - rel.min(axis=1) / frame_level))
+    if ripple < STEADY_RIPPLE and shadow < STEADY_SHADOW:  # a steady lamp: the diagram's own gains suffice
+        return v, Lamp(False, "the lamp beside the tube is steady: nothing to correct", ripple, shadow)
+    gain = lamp_light(b, at, v.shape[1])  # in place below: relative to its median, 1 where a clamp shades it
     gain[gain <= TRUSTED_SHARE * typical] = typical
     gain /= np.float32(typical)
-    frame_level = np.median(gain[:: max(1, len(gain) // 2000)], axis=1)
-    ripple = float(np.std(frame_level))
-    shadow = float(np.max(1.0 - gain.min(axis=1) / np.median(gain, axis=1))) if gain.size else 0.0
     np.divide(v, gain, out=gain)
     return gain, Lamp(True, "the background beside the tube, row by row and frame by frame", ripple, shadow)
