@@ -227,7 +227,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
 
     # before the analysis, not after it: the folder is replaced whole, so it must hold none of the inputs
     check_output_place(out, inputs=[p for p in (movie, calibration, background, config) if p is not None],
-                       replace=True)
+                       replace=True, kind="analysis")
     refuse_existing(out, overwrite)
     # a setting of grainplug.toml gives way to the command line: --figure-formats over publication = true, and
     # --publication over figure_formats = "..."

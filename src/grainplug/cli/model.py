@@ -254,7 +254,7 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
                            feed_rate_g_s=feed_rate_g_s, balance=balance)
     from .._atomic import check_output_place
 
-    check_output_place(out_dir)  # refuse a bad place before the run, not after
+    check_output_place(out_dir, kind="simulation")  # refuse a bad place before the run, not after
     refuse_existing(out_dir, overwrite)
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
