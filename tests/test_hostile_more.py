@@ -202,3 +202,116 @@ def test_synth_refuses_a_folder_not_its_own_and_replaces_its_own_with_overwrite(
     code, _, err = gp_run("synth", "--out", out, "--frames", 10, "--seed", 3, "--format", "png", "--overwrite")
     assert code == 0, err
     assert not (out / "movie.tif").exists() and (out / "movie_frames").is_dir()  # replaced whole
+
+
+# -- 3. crashes instead of one line (rows 15-19, 24) ---------------------------------------------
+def test_a_name_too_long_is_one_line(tmp_path, movie):
+    long = "x" * 300
+    for args in (["info", tmp_path / f"{long}.tif"],
+                 ["analyze", movie, "--out", tmp_path / long, "--no-figures"]):
+        code, _, err = gp_run(*args)
+        assert code == 2
+        one_error(err, "the name is too long", "give a shorter name")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["movies"]
+
+
+@pytest.fixture
+def damaged(tmp_path, movie) -> Path:
+    """An analysis whose result.npz was cut short (a copy interrupted, a full disk)."""
+    out = tmp_path / "done"
+    assert gp_run("analyze", movie, "--out", out, "--no-figures")[0] == 0
+    data = (out / "result.npz").read_bytes()
+    (out / "result.npz").write_bytes(data[:1000])
+    return out
+
+
+@pytest.mark.parametrize("command", [["remeasure", "--no-figures"], ["overlay"], ["review", "--no-browser"]])
+def test_a_damaged_result_is_one_line(damaged, command):
+    before = snapshot(damaged)
+    code, out, err = gp_run(command[0], damaged, *command[1:], timeout=60)  # review: refused before serving
+    assert code == 2
+    one_error(err, "result.npz is damaged", "analyse the movie again")
+    assert "review " not in out  # no address printed: nothing served
+    assert snapshot(damaged) == before
+
+
+def test_a_damaged_result_in_python(tmp_path):
+    import io
+    import zipfile
+
+    from grainplug.errors import GrainplugError
+    from grainplug.store import read_result
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as z:
+        z.writestr("__tree__.npy", b"cut")
+    path = tmp_path / "result.npz"
+    for data in (b"PK\x03\x04 cut short", buf.getvalue()):
+        path.write_bytes(data)
+        with pytest.raises(GrainplugError, match="damaged or not a grainplug result"):
+            read_result(path, {})
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["--diameter-mm", "1e308"], "--diameter-mm: must be a finite number below"),
+    (["--grain-density-kg-m3", "1e300"], "--grain-density-kg-m3: must be a finite number below"),
+])
+def test_stability_inputs_that_overflow_are_one_line(args, words):
+    code, _, err = gp_run("stability", *args)
+    assert code == 2
+    one_error(err, words)
+
+
+def test_synth_seed_out_of_range_is_one_line_and_leaves_no_folder(tmp_path):
+    code, _, err = gp_run("synth", "--out", tmp_path / "syn", "--seed", -1, "--frames", 10)
+    assert code == 2
+    one_error(err, "--seed: must be a whole number from 0")
+    assert not (tmp_path / "syn").exists()
+
+
+# -- 4. a cost check before a huge job (rows 20-23, 25-27) ----------------------------------------
+@pytest.mark.parametrize(("args", "words"), [
+    (["--width", 1000000], "--width: a 1000000 x 640 px frame needs about"),
+    (["--width", 100000, "--height", 100000], "GiB to render"),
+    (["--celerity-m-s", "1e308"], "--celerity-m-s: plugs at 1e+308 m/s"),
+])
+def test_synth_sizes_are_checked_before_rendering(tmp_path, args, words):
+    code, _, err = gp_run("synth", "--out", tmp_path / "syn", "--frames", 10, *args, timeout=30)
+    assert code == 2
+    one_error(err, words)
+    assert not (tmp_path / "syn").exists()
+
+
+@pytest.mark.parametrize("args", [
+    ["--cells", 1000000, "--duration-tc", 10000000],
+    ["--cells", 100000, "--duration-tc", 10000000, "--output-interval-tc", 0.0001],
+    ["--cells", 1000000, "--duration-tc", 100000],
+])
+def test_simulate_memory_is_checked_before_the_run(tmp_path, args):
+    code, _, err = gp_run("simulate", "--out", tmp_path / "sim", *args, timeout=30)
+    assert code == 2
+    one_error(err, "saved states of", "GiB free — give fewer --cells")
+    assert not (tmp_path / "sim").exists()
+
+
+def test_a_simulation_longer_than_the_limit_is_refused_after_its_first_seconds(monkeypatch):
+    from grainplug.errors import ParameterError
+    from grainplug.simulation import SimulationParams
+    from grainplug.simulation import run as sim_run
+    from grainplug.stability import ModelParams
+
+    monkeypatch.setattr(sim_run, "ESTIMATE_AFTER_S", 0.0)
+    with pytest.raises(ParameterError, match=r"would take about .* over the limit"):
+        sim_run.simulate(ModelParams(), SimulationParams(n_cells=64, duration_tc=5), max_seconds=1e-9)
+
+
+def test_a_stability_sweep_longer_than_the_limit_is_refused_on_its_first_seconds(monkeypatch):
+    from grainplug.errors import ParameterError
+    from grainplug.stability import ModelParams, analysis, sweep
+
+    monkeypatch.setattr(analysis, "SWEEP_RECHECK_S", 0.0)
+    said: list[float] = []
+    with pytest.raises(ParameterError, match=r"measured on the first 1\b"):
+        sweep(ModelParams(), "c0", np.linspace(0.45, 0.6, 1000), n_k=10, max_seconds=1e-9)
+    rows = sweep(ModelParams(), "c0", np.linspace(0.45, 0.6, 5), n_k=10, on_estimate=said.append)
+    assert len(rows) == 5 and len(said) == 2 and all(s > 0 for s in said)

@@ -366,8 +366,12 @@ def review(folder: Path, port: int, no_browser: bool) -> None:
     import threading
     import webbrowser
 
+    from ..result import load_result
     from ..review import ReviewServer
+    from ..review.server import review_targets
 
+    for target in review_targets(folder).values():  # a damaged result: one line now, not a page that fails
+        load_result(target)
     try:
         server = ReviewServer(folder, port=port)
     except OSError as exc:
