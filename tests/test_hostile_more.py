@@ -315,3 +315,31 @@ def test_a_stability_sweep_longer_than_the_limit_is_refused_on_its_first_seconds
         sweep(ModelParams(), "c0", np.linspace(0.45, 0.6, 1000), n_k=10, max_seconds=1e-9)
     rows = sweep(ModelParams(), "c0", np.linspace(0.45, 0.6, 5), n_k=10, on_estimate=said.append)
     assert len(rows) == 5 and len(said) == 2 and all(s > 0 for s in said)
+
+
+# -- 5. silently wrong (rows 28-30) ---------------------------------------------------------------
+def test_overlay_refuses_a_movie_changed_since_the_analysis(tmp_path, movie, frames):
+    out = tmp_path / "done"
+    assert gp_run("analyze", movie, "--out", out, "--no-figures")[0] == 0
+    tifffile.imwrite(movie, frames[::-1][:40], metadata={"fps": 250.0})  # another movie under the same name
+    before = snapshot(out)
+    code, _, err = gp_run("overlay", out)
+    assert code == 2
+    one_error(err, "is not the one analysed", "analyse it again")
+    assert snapshot(out) == before  # no overlay.mp4
+
+
+def test_a_moving_background_is_refused(tmp_path, movie, frames):
+    out = tmp_path / "out"
+    code, _, err = gp_run("analyze", movie, "--out", out, "--no-figures", "--background", movie)
+    assert code == 2
+    one_error(err, "moves", "nothing moving in it")
+    assert not out.exists()
+    # a still tube (the same frame with its noise) is a background
+    rng = np.random.default_rng(0)
+    still = tmp_path / "still.tif"
+    tifffile.imwrite(still, np.clip(frames[0][None] + rng.normal(0, 3, (20, *frames[0].shape)), 0, 255)
+                     .astype(np.uint8), metadata={"fps": 250.0})
+    from grainplug.calibration_files import read_background
+
+    assert read_background(still).n_frames == 20
