@@ -343,3 +343,77 @@ def test_a_moving_background_is_refused(tmp_path, movie, frames):
     from grainplug.calibration_files import read_background
 
     assert read_background(still).n_frames == 20
+
+
+# -- 6. small ones (rows 31-36) -------------------------------------------------------------------
+@pytest.mark.parametrize(("text", "words"), [
+    ("this is: not: a: style\nfont.size: huge\n", "line 1 ('this is: not: a: style'): 'this is' is no matplotlib"),
+    ("font.size: 40\nlines.linewidth: abc\n", "line 2 ('lines.linewidth: abc'): bad value for lines.linewidth"),
+])
+def test_a_bad_style_sheet_is_refused_before_the_analysis(tmp_path, movie, text, words):
+    style = tmp_path / "bad.mplstyle"
+    style.write_text(text)
+    code, _, err = gp_run("analyze", movie, "--out", tmp_path / "out", "--style", style)
+    assert code == 2
+    one_error(err, words)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_good_style_sheet_passes_the_check(tmp_path):
+    import matplotlib
+
+    from grainplug.cli.common import check_style_file
+
+    style = tmp_path / "good.mplstyle"
+    style.write_text('# a lab\'s style\naxes.facecolor: "#eeeeee"  # grey\nfont.size : 9\n\nlines.linewidth: 2\n')
+    check_style_file(style)
+    for sheet in sorted((Path(matplotlib.get_data_path()) / "stylelib").glob("*.mplstyle")):
+        check_style_file(sheet)  # matplotlib's own sheets
+
+
+def test_one_setting_twice_in_a_settings_file_is_refused(tmp_path, movie):
+    config = tmp_path / "lab.toml"
+    config.write_text("[analyze]\nmm-per-px = 0.2\nmm_per_px = 0.3\n")
+    code, _, err = gp_run("analyze", movie, "--out", tmp_path / "out", "--no-figures", "--config", config)
+    assert code == 2
+    one_error(err, "'mm-per-px' and 'mm_per_px' in [analyze] are the same setting")
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("args", [[], ["--debug"]])
+def test_no_command_prints_the_usage(args):
+    code, out, err = gp_run(*args)
+    assert code == 0 and err == ""
+    assert out.startswith("Usage: grainplug") and "analyze" in out
+
+
+def test_every_stderr_line_of_an_analysis_has_a_known_prefix(tmp_path, frames):
+    """The statement of what is not measured ("no plugs: ...") and "settings from" are notes, not bare lines."""
+    still = tmp_path / "still.tif"
+    tifffile.imwrite(still, np.repeat(frames[:1], 30, axis=0), metadata={"fps": 250.0})
+    config = tmp_path / "grainplug.toml"
+    config.write_text("[analyze]\nfps = 250\n")
+    code, _, err = gp_run("analyze", still, "--out", tmp_path / "out", "--no-figures")
+    assert code == 0, err
+    lines = err.splitlines()
+    assert lines and all(ln.startswith(("warning: ", "note: ")) for ln in lines), err
+    assert any(ln.startswith("note: settings from") for ln in lines), err
+
+
+def test_ctrl_c_is_one_line():
+    """click writes an empty line before its Abort: the command line reports Ctrl-C itself."""
+    import click
+
+    from grainplug.cli.app import LazyGroup
+    from grainplug.errors import Interrupted
+
+    @click.group(cls=LazyGroup)
+    def group() -> None:
+        pass
+
+    @group.command()
+    def stop() -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(Interrupted, match="interrupted"):
+        group.main(["stop"], standalone_mode=False)

@@ -34,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
 def _main(args: list[str]) -> int:
     import click
 
-    from ..errors import GrainplugError, MovieError, ParameterError
+    from ..errors import GrainplugError, Interrupted, MovieError, ParameterError
     from .app import cli
     from .logs import CommandLog
     from .words import ALIASES, as_flags, option_flags
@@ -71,7 +71,7 @@ def _main(args: list[str]) -> int:
         click.echo(f"error: {where}{as_flags(exc.message, flags)}", err=True)
         return 2
     except GrainplugError as exc:
-        if debug:
+        if debug and not isinstance(exc, Interrupted):  # Ctrl-C is no bug: one line even with --debug
             raise
         # what a library said of a file it could not read goes with grainplug's line about that file
         text = logs.quote(str(exc)) if isinstance(exc, MovieError) else str(exc)

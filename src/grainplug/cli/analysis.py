@@ -25,6 +25,7 @@ from .common import (
     mask_option,
     refuse_existing,
     roi_option,
+    say_note,
     say_warning,
     window_params,
 )
@@ -271,14 +272,14 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     s = json.loads((out / "summary.json").read_text())  # what was written: outputs and figure settings too
     settings = click.get_current_context().meta.get("grainplug.config")
     if settings is not None:  # said once the run is done: a refusal stays one line
-        err_console.print(f"settings from {escape(str(settings))}", highlight=False, soft_wrap=True)
+        say_note(f"settings from {settings}")
     for line in result.warnings:
         say_warning(line)
     if as_json:
         echo_json(s)
         return
     if not result.has_plugs or s.get("celerity_m_s") is None:
-        err_console.print(escape(in_flags(result.statement)), highlight=False, soft_wrap=True)
+        say_note(result.statement)  # what is not measured, and why: a note, as every other line on stderr
     if result.has_plugs:
         def fmt(v: object, unit: str = "", nd: int = 4) -> str:
             return "—" if v is None else f"{v:.{nd}f}{unit}" if isinstance(v, float) else f"{v}{unit}"
