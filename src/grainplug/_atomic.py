@@ -37,17 +37,34 @@ from .errors import GrainplugError
 log = logging.getLogger(__name__)
 
 __all__ = ["OutputPlaceError", "atomic_directory", "atomic_file", "check_output_place", "is_complete",
+           "mark_campaign",
            "refuse_overwriting_inputs"]
 
 #: a folder holding this file was written by grainplug (an analysis or a campaign)
 MARKER = ".grainplug"
-#: files that make a folder recognisably grainplug's even without the marker (older versions)
-OWN_FILES = ("summary.json", "campaign.csv", "paper_reproduction.json")
 #: files a user edits in place (a reviewer's corrections): not part of the completion check
 USER_FILES = ("corrections.json",)
 #: files grainplug writes into an output folder after it was made (``grainplug overlay``): its own, but drawn
 #: from that analysis, so a new analysis in the folder replaces them with the rest
 DERIVED_FILES = ("overlay.mp4", "overlay.webm")
+#: what writes an output folder: a folder replaced whole is replaced only by a run of the same kind, and a
+#: campaign's folder (its runs, the user's manifest beside them) never
+KINDS = ("analysis", "paper", "simulation", "synthetic", "campaign")
+#: the file that names a folder's kind when its marker does not say (versions before the kind was written)
+_IDENTITY = (("campaign", "campaign.csv"), ("paper", "paper.json"), ("simulation", "fields.nc"),
+             ("synthetic", "truth.json"), ("analysis", "result.npz"), ("analysis", "summary.json"))
+#: what each kind writes, for folders whose marker lists nothing (older versions): anything else there is a user's
+_KNOWN = {
+    "analysis": {"summary.json", "plug_edges.csv", "tracks.csv", "diagram.npz", "result.npz", "report.html",
+                 *(f"{stem}.{ext}" for stem in ("diagram", "spectrum", "frame") for ext in ("png", "svg", "pdf"))},
+    "simulation": {"fields.nc", "summary.json", *(f"diagram.{ext}" for ext in ("png", "svg", "pdf"))},
+    "paper": {"paper.json", "reproduction.md", "report.html"},
+    "synthetic": {"truth.json", "truth_edges.csv"},
+}
+_PAPER_FIGURES = ("model_vs_experiment", "celerity_", "length_", "growth_rates_")
+#: folders no command writes into: the file system's root and the system's own folders
+_SYSTEM = frozenset({"/", "/bin", "/boot", "/dev", "/etc", "/lib", "/lib32", "/lib64", "/opt", "/proc", "/root",
+                     "/run", "/sbin", "/srv", "/sys", "/usr", "/var", "/home", "/tmp", "/mnt", "/media"})
 
 
 class OutputPlaceError(GrainplugError):
@@ -63,7 +80,7 @@ def _describe(exc: OSError, place: Path) -> str:
 
 
 def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), replace: bool = True,
-                       keeps: Iterable[str] = (), carry: bool = False) -> Path:
+                       keeps: Iterable[str] = (), carry: bool = False, kind: str | None = None) -> Path:
     """The output folder, checked; raises :class:`OutputPlaceError` with the fix when it cannot be used.
 
     Parameters
@@ -81,7 +98,13 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
     carry : bool
         What grainplug did not write there is carried into the new folder (see :func:`atomic_directory`),
         so it is no loss and not refused.
+    kind : str, optional
+        What will write there (one of :data:`KINDS`). A folder that holds anything is then used only
+        when it holds an earlier output of the same kind: never a campaign's folder for an analysis,
+        nor a folder of the user's files for a campaign.
     """
+    if kind is not None and kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
     if str(out).strip() == "" or (replace and str(out).strip() == "."):
         what = "empty" if str(out).strip() == "" else "the current folder (it would be replaced whole)"
         raise OutputPlaceError(f"the output folder is {what} — give a folder of its own, e.g. results/run1")
@@ -92,6 +115,9 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
         raise OutputPlaceError(f"{p} is a loop of symbolic links ({exc}) — give another output folder") from None
     if p.is_symlink() and not p.exists():
         raise OutputPlaceError(f"{p} is a symbolic link to nothing (or a loop of links) — give another output folder")
+    if str(resolved) in _SYSTEM or any(str(resolved).startswith(f"{d}/") for d in ("/proc", "/sys", "/dev")):
+        raise OutputPlaceError(f"{p} is a system folder — give a folder of its own for the output, e.g. "
+                               "results/run1")
     for src in inputs:
         s = _resolved(src)
         if s is None:
@@ -107,13 +133,22 @@ def check_output_place(out: str | Path, *, inputs: Iterable[str | Path] = (), re
             raise OutputPlaceError(f"{p} {what} — the output must be a folder")
         if parent.exists():
             break
-    if replace and resolved.is_dir():
-        entries = [e for e in resolved.iterdir() if not e.name.startswith(f".{resolved.name}.grainplug-")]
-        ours = (resolved / MARKER).exists() or any((resolved / f).exists() for f in OWN_FILES)
-        if entries and not ours:
-            raise OutputPlaceError(f"{p} holds files grainplug did not write ({entries[0].name}, ...) — give a new "
-                                   "or empty folder (grainplug replaces its output folder whole)")
-        foreign = [] if carry else _foreign(resolved, entries, set(keeps))
+    entries = _entries(resolved)
+    if not entries or (not replace and kind is None):
+        return p
+    found = _kind_of(resolved, entries)
+    if found is None:
+        how = "grainplug replaces its output folder whole" if replace else "the output goes into a folder of its own"
+        raise OutputPlaceError(f"{p} holds files grainplug did not write ({entries[0].name}, ...) — give a new "
+                               f"or empty folder ({how})")
+    if found == "campaign" and (replace or kind != "campaign"):
+        raise OutputPlaceError(f"{p} is a campaign's folder (grainplug batch): its runs and what you keep there "
+                               f"would be lost — give another output folder for the {kind or 'output'}")
+    if kind is not None and found != kind and (found != "output" or kind == "campaign"):
+        raise OutputPlaceError(f"{p} holds a grainplug {found}, not a {kind} — give another output folder "
+                               "(or move that one out first)")
+    if replace:
+        foreign = [] if carry else _foreign(resolved, entries, set(keeps), found)
         if foreign:
             names = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
             why = (" (a reviewer's corrections: `grainplug remeasure` applies them to the analysis there)"
@@ -162,17 +197,90 @@ def refuse_overwriting_inputs(outputs: Iterable[str | Path], inputs: Iterable[st
                                        "(nothing was written)")
 
 
-def _foreign(folder: Path, entries: list[Path], keeps: set[str]) -> list[str]:
-    """Entries of an output folder that its completion marker does not list (nothing for a folder written
-    by a version without the list: it cannot tell)."""
+def _entries(folder: Path) -> list[Path]:
+    """What a folder holds, without what a killed run left there (an empty list for no folder)."""
+    if not folder.is_dir():
+        return []
     try:
-        listed = json.loads((folder / MARKER).read_text())["files"]
-    except (OSError, ValueError, KeyError, TypeError):
+        return sorted((e for e in folder.iterdir() if not e.name.startswith(f".{folder.name}.grainplug-")
+                       and not e.name.startswith(".grainplug-")), key=lambda e: e.name)
+    except OSError:
         return []
-    if not isinstance(listed, dict):
-        return []
-    own = {name.split("/", 1)[0] for name in listed} | {MARKER} | set(DERIVED_FILES) | keeps
-    return sorted(e.name for e in entries if e.name not in own and not e.name.startswith(".grainplug-"))
+
+
+def _marker(folder: Path) -> dict | None:
+    """The completion marker of ``folder`` when it is a valid one (a JSON object), else None."""
+    try:
+        data = json.loads((folder / MARKER).read_text())
+    except (OSError, ValueError, UnicodeDecodeError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def _listed(folder: Path) -> set[str] | None:
+    """The top-level names the marker of ``folder`` lists (None when it lists nothing: no marker, an empty one,
+    one written by a version without the list)."""
+    files = (_marker(folder) or {}).get("files")
+    return {str(name).split("/", 1)[0] for name in files} if isinstance(files, dict) else None
+
+
+def _grainplugs(path: Path) -> bool:
+    """Whether a JSON file is one grainplug wrote (it names the version that wrote it)."""
+    try:
+        with open(path, "rb") as fh:
+            return b'"grainplug_version"' in fh.read(1 << 16)
+    except OSError:
+        return False
+
+
+def _kind_of(folder: Path, entries: list[Path]) -> str | None:
+    """What wrote ``folder`` (one of :data:`KINDS`), or None when nothing says grainplug did.
+
+    The marker's ``kind`` says it; a marker that lists files without a kind (older versions) by what it
+    lists ("output" when that does not tell); an empty marker is a campaign's (what ``batch`` wrote before
+    it listed its files); otherwise (no marker, or the one line of the first versions) by a file of
+    grainplug's own that names its version (a user's ``summary.json`` does not).
+    """
+    marker = _marker(folder)
+    if marker is not None and marker.get("kind") in KINDS:
+        return str(marker["kind"])
+    listed = _listed(folder)
+    if listed is not None:  # an output replaced whole, written before its kind was
+        return next((k for k, name in _IDENTITY if name in listed and k != "campaign"), "output")
+    try:
+        if (folder / MARKER).is_file() and (folder / MARKER).stat().st_size == 0:
+            return "campaign"  # what batch wrote before it listed its files
+    except OSError:
+        pass
+    names = {e.name for e in entries}
+    for k, name in _IDENTITY:
+        if name in names and k != "campaign" and _grainplugs(folder / name):
+            return k
+    return None
+
+
+def _known(kind: str | None, name: str) -> bool:
+    """Whether ``name`` is one an output of ``kind`` writes (for folders whose marker lists nothing)."""
+    if name in _KNOWN.get(kind or "", ()):
+        return True
+    stem, _, ext = name.rpartition(".")
+    if kind == "paper":
+        return ext in ("png", "svg", "pdf") and stem.startswith(_PAPER_FIGURES)
+    if kind == "synthetic":
+        return stem == "movie" or stem == "movie_frames" or name == "movie_frames"
+    return False
+
+
+def _foreign(folder: Path, entries: list[Path], keeps: set[str], kind: str | None = None) -> list[str]:
+    """Entries of an output folder grainplug did not write: what its completion marker does not list, or,
+    when it lists nothing (older versions), what the output of its ``kind`` never writes."""
+    listed = _listed(folder)
+    own = {MARKER, *DERIVED_FILES, *keeps}
+    if listed is not None:
+        own |= listed
+    kind = kind or _kind_of(folder, entries)
+    return sorted(e.name for e in entries if e.name not in own and not e.name.startswith(".grainplug-")
+                  and (listed is not None or not _known(kind, e.name)))
 
 
 def _fsync_tree(folder: Path) -> None:
@@ -188,7 +296,7 @@ def _fsync_tree(folder: Path) -> None:
             os.close(fd)
 
 
-def _seal(folder: Path, carried: Iterable[str] = ()) -> None:
+def _seal(folder: Path, carried: Iterable[str] = (), kind: str | None = None) -> None:
     """Write the completion marker: every file of the set with its size (see :func:`is_complete`),
     except the files a user edits (:data:`USER_FILES`) and the entries carried from the previous folder
     (``carried``: they stay the user's, so that a later run does not take them for grainplug's)."""
@@ -196,8 +304,31 @@ def _seal(folder: Path, carried: Iterable[str] = ()) -> None:
     files = {f.relative_to(folder).as_posix(): f.stat().st_size
              for f in sorted(folder.rglob("*")) if f.is_file() and f.name != MARKER and f.name not in USER_FILES
              and f.relative_to(folder).parts[0] not in skip}
-    (folder / MARKER).write_text(json.dumps({"grainplug_output": "replaced whole by each run", "complete": True,
-                                             "files": files}, indent=1) + "\n")
+    seal: dict[str, object] = {"grainplug_output": "replaced whole by each run", "complete": True}
+    if kind is not None:
+        seal["kind"] = kind
+    (folder / MARKER).write_text(json.dumps({**seal, "files": files}, indent=1) + "\n")
+
+
+def mark_campaign(folder: Path) -> None:
+    """Mark ``folder`` as a campaign's as soon as it is made (before its first run), unless it is marked."""
+    if _marker(folder) is None or _marker(folder).get("kind") != "campaign":  # type: ignore[union-attr]
+        _seal_campaign(folder, [])
+
+
+def _seal_campaign(folder: Path, names: Iterable[str]) -> None:
+    """The marker of a campaign's folder (its files replaced one by one): what the campaign wrote there, this
+    time and before, so that the folder is known for a campaign's and its user's files for the user's."""
+    files: dict[str, int] = {}
+    old = _marker(folder)
+    if old is not None and isinstance(old.get("files"), dict):
+        files.update({str(k): v for k, v in old["files"].items() if os.path.lexists(folder / str(k))})
+    for name in names:
+        f = folder / name
+        files[name] = f.stat().st_size if f.is_file() else 0
+    (folder / MARKER).write_text(json.dumps({"grainplug_output": "a campaign: its files replaced one by one",
+                                             "kind": "campaign", "files": dict(sorted(files.items()))},
+                                            indent=1) + "\n")
 
 
 def _carry(src: Path, dst: Path) -> None:
@@ -275,7 +406,7 @@ def recover(out: Path) -> None:
 @contextlib.contextmanager
 def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None, *, replace: bool = False,
                      inputs: Iterable[str | Path] = (), keeps: Iterable[str] = (),
-                     carry: bool = False) -> Iterator[Path]:
+                     carry: bool = False, kind: str | None = None) -> Iterator[Path]:
     """Write files into a temporary folder, then move them all into ``out_dir``.
 
     Parameters
@@ -297,6 +428,9 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
         subfolder) is carried into the new folder (hard-linked, or copied), instead of refusing the
         folder; an entry this block writes under the same name wins. For a result rewritten in place
         (``remeasure``), where the user's files belong to the same analysis.
+    kind : str, optional
+        What writes the folder (one of :data:`KINDS`): recorded in its marker, and a folder that holds an
+        output of another kind is refused (see :func:`check_output_place`).
 
     Notes
     -----
@@ -316,7 +450,7 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
         When the place cannot be used or written (full disk, read-only): nothing
         of the previous result is changed.
     """
-    out = check_output_place(out_dir, inputs=inputs, replace=replace, keeps=keeps, carry=carry)
+    out = check_output_place(out_dir, inputs=inputs, replace=replace, keeps=keeps, carry=carry, kind=kind)
     if replace:  # "./" or "run1/..": the folder by its name in its parent (links are not followed)
         out = Path(os.path.abspath(out))
     try:
@@ -340,13 +474,13 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
             if replace:
                 carried = []
                 if carry and out.is_dir():
-                    for name in _foreign(out.resolve(), list(out.iterdir()), set(keeps)):
+                    for name in _foreign(out.resolve(), _entries(out.resolve()), set(keeps)):
                         if not os.path.lexists(tmp / name):
                             _carry(out / name, tmp / name)
                             carried.append(name)
                     if carried:
                         log.info("kept in %s what grainplug did not write there: %s", out, ", ".join(carried))
-                _seal(tmp, carried)
+                _seal(tmp, carried, kind)
                 _fsync_tree(tmp)
                 old = None
                 if out.exists():
@@ -361,12 +495,14 @@ def atomic_directory(out_dir: str | Path, written: dict[str, Path] | None = None
                         if f.name != MARKER:
                             written[f.name] = f
             else:
+                names = []
                 for f in sorted(tmp.iterdir()):
                     dest = out / f.name
                     os.replace(f, dest)
+                    names.append(f.name)
                     if written is not None:
                         written[f.name] = dest
-                (out / MARKER).touch()
+                _seal_campaign(out, names)
         except OSError as exc:
             raise OutputPlaceError(_describe(exc, out)) from None
     finally:

@@ -17,7 +17,7 @@ import numpy as np
 
 from ._atomic import atomic_file
 from ._version import __version__
-from .calibration.background import Background, grey_background
+from .calibration.background import MOVING_SHARE, Background, grey_background, moving_share
 from .calibration.pattern import Calibration, CalibrationError, calibrate_image
 from .errors import MovieError
 
@@ -121,6 +121,11 @@ def read_background(path: str | Path) -> Background:
     with open_movie(p) as movie:
         n = min(movie.info.n_frames, BACKGROUND_FRAMES_AVERAGED)
         frames = [movie.read(k) for k in np.unique(np.linspace(0, movie.info.n_frames - 1, n).round().astype(int))]
+    share = moving_share(frames)
+    if share > MOVING_SHARE:
+        raise MovieError(f"the background {p} moves: {share:.1%} of its pixels change from frame to frame far above "
+                         "its noise (a plug-flow movie?) — give a picture or a movie of the tube with nothing moving "
+                         "in it (empty, or full and still)")
     return grey_background(frames, identity=identity)
 
 

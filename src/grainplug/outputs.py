@@ -111,7 +111,7 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
     source = res.input.get("path") if isinstance(res.input, dict) else None
     keeps = (CORRECTIONS_FILE,) if res.corrections is not None else ()
     with atomic_directory(out_dir, written, replace=True, inputs=input_files(source, res.params), keeps=keeps,
-                          carry=carry) as tmp:
+                          carry=carry, kind="analysis") as tmp:
         summary = res.summary
         summary.update(extra or {})
         options = figure_options or FigureOptions()

@@ -126,6 +126,25 @@ def draw_frame(res: AnalysisResult, frame: np.ndarray, k: int, *, top_value: flo
     return img
 
 
+def _refuse_another_movie(recorded: dict, path: str) -> None:
+    """Refuse a movie that is not the one analysed: its size or sampled content differ from those the
+    analysis recorded (:func:`grainplug.provenance.fingerprint`), so the edges would be drawn on other frames.
+    A movie gone is left to the reader's own message."""
+    from .provenance import fingerprint
+
+    if not recorded.get("sha256_sampled") or not Path(path).exists():
+        return
+    try:
+        now = fingerprint(path)
+    except OSError:
+        return
+    if now.get("sha256_sampled") != recorded.get("sha256_sampled") or now.get("bytes") != recorded.get("bytes"):
+        raise GrainplugError(f"the movie {path} is not the one analysed (now {now.get('bytes'):,} bytes, "
+                             f"{recorded.get('bytes'):,} then, and other content): its edges would be drawn on "
+                             "other frames — analyse it again (grainplug analyze ... --overwrite), or put the "
+                             "analysed movie back")
+
+
 def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown: float | None = None,
                   every: int = 1) -> Path:
     """Write the overlay video of the analysis saved in ``folder``; returns its path.
@@ -167,6 +186,7 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
         raise ParameterError('an MP4 (H.264) overlay needs PyAV: pip install "grainplug[video]", or give a name '
                              "ending in .webm", param="out")
     refuse_overwriting_inputs([target], [path])  # an overlay named as the movie would replace it
+    _refuse_another_movie(res.input, path)
     top = float((1 << int(res.info.bit_depth)) - 1) if res.info.bit_depth else 255.0
     p = res.params
     try:

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import zipfile
+import zlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -89,16 +91,25 @@ def read_result(path: str | Path, types: Mapping[str, type]) -> Any:
     :func:`grainplug.result.load_result` gives :class:`~grainplug.result.AnalysisResult`'s)."""
     p = Path(path)
     try:
-        with np.load(p, allow_pickle=False) as data:
+        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as data:  # closed when it is no zip either
             meta = json.loads(str(data["__tree__"]))
             arrays = {k: data[k] for k in data.files if k != "__tree__"}
-    except (OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
-        raise GrainplugError(f"{p} is not a grainplug result ({exc}) — pass a folder written by "
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+        # a truncated or damaged file (a copy cut short, a full disk) is no zip archive, or a part of it is cut
+        raise GrainplugError(f"{p} is damaged or not a grainplug result ({type(exc).__name__}: {exc}) — analyse "
+                             "the movie again (grainplug analyze ... --overwrite), or pass a folder written by "
                              "result.save() or `grainplug analyze`") from None
+    if not isinstance(meta, dict):
+        raise GrainplugError(f"{p} is not a grainplug result (no description of its parts) — pass a folder "
+                             "written by result.save() or `grainplug analyze`")
     if meta.get("format") != "grainplug-result" or meta.get("format_version", 0) > FORMAT_VERSION:
         raise GrainplugError(f"{p} was written by a newer grainplug (format {meta.get('format_version')}) "
                              "— upgrade grainplug to read it")
-    return _decode(meta["tree"], arrays, dict(types))
+    try:
+        return _decode(meta["tree"], arrays, dict(types))
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise GrainplugError(f"{p} is damaged ({type(exc).__name__}: {exc}) — analyse the movie again "
+                             "(grainplug analyze ... --overwrite)") from None
 
 
 def result_file(folder: str | Path) -> Path:

@@ -55,6 +55,35 @@ def grey_background(frames: np.ndarray | list[np.ndarray], *, identity: dict[str
     return Background(mean.astype(np.float32), dict(identity or {}), len(stack))
 
 
+#: a pixel moves when its grey level varies over the frames by more than this many times the noise (the median
+#: pixel's variation), and by more than this share of the picture's contrast
+MOVING_OVER_NOISE, MOVING_CONTRAST = 8.0, 0.03
+#: a background moves when more than this share of its pixels do (a plug-flow movie given as the background)
+MOVING_SHARE = 0.01
+
+
+def moving_share(frames: np.ndarray | list[np.ndarray]) -> float:
+    """The share of pixels whose grey level varies over ``frames`` far above the noise (0 for fewer than 3).
+
+    Each frame is first divided by its median, so that a lamp's flicker does not count as motion; a pixel
+    moves when its standard deviation over the frames exceeds both :data:`MOVING_OVER_NOISE` times the median
+    pixel's (the noise: most of a background picture is still) and :data:`MOVING_CONTRAST` of the picture's
+    contrast (a noiseless picture).
+    """
+    stack = np.asarray([np.asarray(f, dtype=np.float32) for f in frames])
+    if len(stack) < 3:
+        return 0.0
+    if stack.ndim == 4:
+        stack = stack[..., :3].mean(axis=3)
+    med = np.median(stack.reshape(len(stack), -1), axis=1)
+    stack = stack / np.where(med > 0, med, 1.0)[:, None, None]
+    sd = stack.std(axis=0)
+    mean = stack.mean(axis=0)
+    contrast = float(np.percentile(mean, 99) - np.percentile(mean, 1))
+    threshold = max(MOVING_OVER_NOISE * float(np.median(sd)), MOVING_CONTRAST * contrast, 1e-6)
+    return float(np.mean(sd > threshold))
+
+
 def flat_field(values: np.ndarray, band: Band, background: Background) -> tuple[np.ndarray, list[str]]:
     """The diagram divided by the background's light along the tube.
 

@@ -237,17 +237,18 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     never interrupted. Worker processes ignore Ctrl-C (the batch stops them) and end when
     the batch's process ends, even if it was killed.
     """
-    from .._atomic import OutputPlaceError, check_output_place
+    from .._atomic import OutputPlaceError, check_output_place, mark_campaign
 
     specs = read_manifest(manifest)
     inputs = [Path(manifest), *(f for s in specs for f in _spec_inputs(s))]
-    out = check_output_place(out_dir, inputs=inputs, replace=False)
+    out = check_output_place(out_dir, inputs=inputs, replace=False, kind="campaign")
     _refuse_inputs_in_campaign(out, inputs)
     if workers < 1:
         raise ParameterError("must be at least 1", param="workers")
     client = _dask_client(scheduler) if scheduler else None  # refuse an unreachable scheduler before writing
     try:
         out.mkdir(parents=True, exist_ok=True)
+        mark_campaign(out)
     except OSError as exc:
         if client is not None:
             client.close()
@@ -515,7 +516,7 @@ def _stop(pool: ProcessPoolExecutor) -> None:
 
 def _write_campaign(table: pd.DataFrame, fits: dict, out: Path, *, manifest: Path, figures: bool,
                     simulate: bool = True, figure_options: FigureOptions | None = None) -> None:
-    with atomic_directory(out) as tmp:
+    with atomic_directory(out, kind="campaign") as tmp:
         table = typed(table)
         table.to_csv(tmp / "campaign.csv", index=False)
         (tmp / "campaign.schema.json").write_text(schema_json(table))

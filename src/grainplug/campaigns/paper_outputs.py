@@ -77,7 +77,7 @@ def write_paper(rep: PaperReproduction, out_dir: str | Path, *, figures: bool = 
     from ..reports import images, page, provenance, table
 
     written: dict[str, Path] = {}
-    with atomic_directory(out_dir, written, replace=True) as tmp:
+    with atomic_directory(out_dir, written, replace=True, kind="paper") as tmp:
         data = {"grainplug_version": __version__, **rep.as_dict()}
         (tmp / "paper.json").write_text(dumps(data))
         text = reproduction_text(rep)

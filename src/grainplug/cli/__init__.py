@@ -9,11 +9,21 @@ library log lines and numpy's warnings are not shown.
 
 from __future__ import annotations
 
+import errno
 import logging
 import sys
 import warnings
+from pathlib import Path
 
 log = logging.getLogger("grainplug")
+
+#: the longest file name most file systems take, bytes
+NAME_MAX = 255
+
+
+def shorten(text: str, keep: int = 60) -> str:
+    """``text`` cut in its middle to about ``keep`` characters (a path of thousands of characters in one line)."""
+    return text if len(text) <= keep else f"{text[:keep // 2]}…{text[-keep // 2:]}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -24,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
 def _main(args: list[str]) -> int:
     import click
 
-    from ..errors import GrainplugError, MovieError, ParameterError
+    from ..errors import GrainplugError, Interrupted, MovieError, ParameterError
     from .app import cli
     from .logs import CommandLog
     from .words import ALIASES, as_flags, option_flags
@@ -61,7 +71,7 @@ def _main(args: list[str]) -> int:
         click.echo(f"error: {where}{as_flags(exc.message, flags)}", err=True)
         return 2
     except GrainplugError as exc:
-        if debug:
+        if debug and not isinstance(exc, Interrupted):  # Ctrl-C is no bug: one line even with --debug
             raise
         # what a library said of a file it could not read goes with grainplug's line about that file
         text = logs.quote(str(exc)) if isinstance(exc, MovieError) else str(exc)
@@ -78,6 +88,16 @@ def _main(args: list[str]) -> int:
         if debug:
             raise
         click.echo(f"error: unexpected SystemError: {exc} — rerun with --debug and report it", err=True)
+        return 1
+    except OSError as exc:
+        if debug:
+            raise
+        if exc.errno == errno.ENAMETOOLONG:  # a path the system cannot take, whichever command met it
+            name = Path(str(exc.filename or "")).name
+            click.echo(f"error: {shorten(str(exc.filename or 'a name'))}: the name is too long for the file "
+                       f"system ({len(name.encode())} bytes, at most {NAME_MAX}) — give a shorter name", err=True)
+            return 2
+        click.echo(f"error: unexpected OSError: {logs.quote(str(exc))} — rerun with --debug and report it", err=True)
         return 1
     except Exception as exc:  # a bug: say so in one line, traceback with --debug
         if debug:

@@ -25,6 +25,7 @@ from .common import (
     mask_option,
     refuse_existing,
     roi_option,
+    say_note,
     say_warning,
     window_params,
 )
@@ -227,7 +228,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
 
     # before the analysis, not after it: the folder is replaced whole, so it must hold none of the inputs
     check_output_place(out, inputs=[p for p in (movie, calibration, background, config) if p is not None],
-                       replace=True)
+                       replace=True, kind="analysis")
     refuse_existing(out, overwrite)
     # a setting of grainplug.toml gives way to the command line: --figure-formats over publication = true, and
     # --publication over figure_formats = "..."
@@ -271,14 +272,14 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     s = json.loads((out / "summary.json").read_text())  # what was written: outputs and figure settings too
     settings = click.get_current_context().meta.get("grainplug.config")
     if settings is not None:  # said once the run is done: a refusal stays one line
-        err_console.print(f"settings from {escape(str(settings))}", highlight=False, soft_wrap=True)
+        say_note(f"settings from {settings}")
     for line in result.warnings:
         say_warning(line)
     if as_json:
         echo_json(s)
         return
     if not result.has_plugs or s.get("celerity_m_s") is None:
-        err_console.print(escape(in_flags(result.statement)), highlight=False, soft_wrap=True)
+        say_note(result.statement)  # what is not measured, and why: a note, as every other line on stderr
     if result.has_plugs:
         def fmt(v: object, unit: str = "", nd: int = 4) -> str:
             return "—" if v is None else f"{v:.{nd}f}{unit}" if isinstance(v, float) else f"{v}{unit}"
@@ -366,8 +367,12 @@ def review(folder: Path, port: int, no_browser: bool) -> None:
     import threading
     import webbrowser
 
+    from ..result import load_result
     from ..review import ReviewServer
+    from ..review.server import review_targets
 
+    for target in review_targets(folder).values():  # a damaged result: one line now, not a page that fails
+        load_result(target)
     try:
         server = ReviewServer(folder, port=port)
     except OSError as exc:

@@ -25,6 +25,24 @@ class LazyGroup(click.Group):
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted([*super().list_commands(ctx), *self.LAZY])
 
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        """No command (``grainplug``, ``grainplug --debug``): the usage on stdout, exit status 0 (as ``--help``),
+        not click's usage error on stderr."""
+        if not [a for a in args if a not in ("--debug", "-v", "--verbose")]:
+            click.echo(ctx.get_help())
+            ctx.exit(0)
+        return super().parse_args(ctx, args)
+
+    def invoke(self, ctx: click.Context) -> object:
+        """The command, with Ctrl-C reported as :class:`~grainplug.errors.Interrupted` (one line, status 130):
+        click's own handling writes an empty line to stderr first."""
+        from ..errors import Interrupted
+
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt as exc:
+            raise Interrupted(str(exc) or "interrupted") from None
+
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
         if name in self.LAZY:
             import importlib

@@ -59,7 +59,7 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publ
     from ..campaigns.paper import reproduce
     from ..campaigns.paper_outputs import write_paper
 
-    check_output_place(out)
+    check_output_place(out, kind="paper")
     refuse_existing(out, overwrite)
     doing = "reproducing the paper" + ("" if no_simulations else " (its simulations compile once after install, ~15 s)")
     with err_console.status(doing) if err_console.is_terminal else contextlib.nullcontext():

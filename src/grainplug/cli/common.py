@@ -32,6 +32,12 @@ def say_warning(line: str, prefix: str = "") -> None:
     err_console.print(f"[yellow]warning:[/] {escape(prefix + in_flags(line))}", highlight=False, soft_wrap=True)
 
 
+def say_note(line: str) -> None:
+    """``note: <line>`` on stderr (what the user should know, not a doubt about the result), the library's
+    keywords named as this command line's options."""
+    err_console.print(f"note: {escape(in_flags(line))}", highlight=False, soft_wrap=True)
+
+
 OVERWRITE_HELP = ("Replace --out if it holds an earlier result (the whole folder; refused if it holds anything "
                   "grainplug did not write there, such as your notes or a reviewer's corrections.json).")
 
@@ -73,10 +79,60 @@ def figure_options_of(dpi: int | None, formats: str | None, publication: bool, s
     fmts = tuple(f.strip().lower() for f in formats.split(",") if f.strip()) if formats else base.formats
     if style and not (Path(style).is_file() or known_style(style)):
         raise ParameterError(f"--style {style}: neither a file nor a matplotlib style sheet name")
+    if style and Path(style).is_file():
+        check_style_file(Path(style))
     try:
         return FigureOptions(dpi=dpi or base.dpi, formats=fmts, style=style)
     except ParameterError as exc:
         raise ParameterError(f"--{'dpi' if exc.param == 'dpi' else 'figure-formats'}: {exc.message}") from None
+
+
+def _strip_comment(line: str) -> str:
+    """``line`` without its comment: from the first ``#`` outside double quotes (a quoted colour keeps its)."""
+    quoted = False
+    for i, ch in enumerate(line):
+        if ch == '"':
+            quoted = not quoted
+        elif ch == "#" and not quoted:
+            return line[:i].strip()
+    return line.strip()
+
+
+def check_style_file(path: Path) -> None:
+    """Refuse a style sheet with a line matplotlib would ignore (it only complains, and draws without it).
+
+    Each line ``key: value`` (comments and blank lines aside) must name a setting of matplotlib's and give
+    it a value its validator takes; the first that does not is named, with its number.
+    """
+    import warnings
+
+    import matplotlib
+
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"--style {path}: not a readable style sheet ({exc})") from None
+    probe = matplotlib.RcParams()
+    for n, raw in enumerate(lines, 1):
+        line = _strip_comment(raw)
+        if not line:
+            continue
+        key, colon, value = (part.strip() for part in line.partition(":"))
+        why = None
+        if not colon:
+            why = "no 'key: value'"
+        elif key not in matplotlib.rcParams:
+            why = f"{key!r} is no matplotlib setting"
+        else:
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # a deprecated setting is still a setting
+                    probe[key] = value[1:-1] if len(value) > 1 and value[0] == value[-1] == '"' else value
+            except (ValueError, KeyError, TypeError) as exc:
+                why = f"bad value for {key} ({exc})"
+        if why:
+            raise ParameterError(f"--style {path}: line {n} ({raw.strip()!r}): {why} — fix or remove it "
+                                 "(matplotlib would skip it)")
 
 
 def known_style(name: str) -> bool:

@@ -68,11 +68,16 @@ def _settings(ctx: click.Context, command: click.Command, path: Path) -> dict[st
             for opt in param.opts:
                 options[opt.lstrip("-").replace("-", "_")] = param
     out: dict[str, object] = {}
+    seen: dict[str, str] = {}
     for key, value in section.items():
         param = options.get(key.replace("-", "_"))
         if param is None:
             known = ", ".join(sorted(options))
             raise ParameterError(f"{path}: unknown setting {key!r} in [{ConfigCommand.section}] — known: {known}")
+        if param.name in seen:  # mm-per-px and mm_per_px: which one was meant cannot be told
+            raise ParameterError(f"{path}: {seen[param.name]!r} and {key!r} in [{ConfigCommand.section}] are the same "
+                                 "setting — keep one of them")
+        seen[str(param.name)] = key
         if ctx.get_parameter_source(param.name) is not ParameterSource.DEFAULT:
             continue  # given on the command line: it wins
         if isinstance(param.type, click.Path) and isinstance(value, str) and not Path(value).is_absolute():

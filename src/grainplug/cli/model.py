@@ -254,7 +254,7 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
                            feed_rate_g_s=feed_rate_g_s, balance=balance)
     from .._atomic import check_output_place
 
-    check_output_place(out_dir)  # refuse a bad place before the run, not after
+    check_output_place(out_dir, kind="simulation")  # refuse a bad place before the run, not after
     refuse_existing(out_dir, overwrite)
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -327,6 +327,9 @@ def simulation_lines(summary: dict) -> list[str]:
 _SWEEP_NAMES = {"B1_star": "B1_star_override", "B1-star": "B1_star_override"}
 
 
+#: a sweep longer than this is announced (with its estimate), seconds
+LONG_SWEEP_S = 60.0
+
 #: axis labels of the inputs a sweep varies
 SWEEP_LABELS = {"diameter_mm": "pipe diameter D (mm)", "grain_diameter_um": "grain diameter d (µm)",
                 "grain_density_kg_m3": "grain density ρs (kg/m³)", "air_viscosity_pa_s": "air viscosity (Pa s)",
@@ -345,7 +348,7 @@ def _stability_sweep(p, spec: str, *, k_min: float, k_max: float, n_k: int, as_j
     import numpy as np
 
     from ..stability import ModelParams, sweep
-    from ..stability.analysis import check_sweep_size
+    from ..stability.analysis import _duration, check_sweep_size
 
     try:
         name, rng = spec.split("=", 1)
@@ -362,8 +365,16 @@ def _stability_sweep(p, spec: str, *, k_min: float, k_max: float, n_k: int, as_j
         raise ParameterError(f"--sweep: unknown input {name!r}; choose one of {', '.join(sorted(fields))}")
     check_sweep_size(int(n), param="sweep")  # before the values are made
     values = np.linspace(first, last, int(n))
+    told: list[float] = []
+
+    def tell(seconds: float) -> None:  # a long sweep is said once, with its estimate (Ctrl-C stops it)
+        if seconds > LONG_SWEEP_S and not told:
+            told.append(seconds)
+            err_console.print(f"note: {int(n):,} values, about {_duration(seconds)} (Ctrl-C stops it)",
+                              highlight=False, soft_wrap=True)
+
     try:
-        rows = sweep(p, name, values, k_min=k_min, k_max=k_max, n_k=n_k)
+        rows = sweep(p, name, values, k_min=k_min, k_max=k_max, n_k=n_k, on_estimate=tell)
     except ParameterError as exc:  # the sweep's values are this option's
         if exc.param != "values":
             raise

@@ -10,7 +10,7 @@ import click
 from ..errors import ParameterError
 from ..params import FLOW_DIRECTIONS
 from ..synthetic import FORMATS, REGIMES, SynthConfig, synthesize
-from .common import echo_json, err_console
+from .common import echo_json, err_console, refuse_existing
 from .types import FINITE, Number
 
 
@@ -86,8 +86,20 @@ def _synth_options(f):
 @click.command()
 @_synth_options
 @click.option("--json", "as_json", is_flag=True, help="Print the truth as JSON.")
-def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwargs: object) -> None:
-    """Render a synthetic plug-flow movie with its ground truth (truth.json)."""
+@click.option("--overwrite", is_flag=True,
+              help="Replace --out if it holds an earlier synthetic movie (the whole folder; refused if it holds "
+                   "anything grainplug synth did not write there).")
+def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, overwrite: bool,
+          **kwargs: object) -> None:
+    """Render a synthetic plug-flow movie with its ground truth (truth.json).
+
+    --out is a folder of its own: new, empty, or (with --overwrite) one an earlier ``grainplug synth``
+    wrote, which is then replaced whole.
+    """
+    from .._atomic import atomic_directory, check_output_place
+
+    check_output_place(out, replace=True, kind="synthetic")  # a user's folder, a system folder: refused
+    refuse_existing(out, overwrite)
     try:
         cfg = SynthConfig(rgb=not grey, bit_depth=int(bit_depth), **kwargs)
     except TypeError as exc:  # pragma: no cover - option/field mismatch is a bug
@@ -95,11 +107,12 @@ def synth(out: Path, fmt: str, grey: bool, bit_depth: str, as_json: bool, **kwar
     if fmt in ("mraw", "cine") and cfg.rgb:
         cfg = SynthConfig(**{**cfg.as_dict(), "rgb": False, "tint": cfg.tint})
         err_console.print(f"note: {fmt} is written grey")
-    with err_console.status(f"rendering {cfg.n_frames} frames"):
-        result = synthesize(cfg, out, fmt=fmt)
+    with err_console.status(f"rendering {cfg.n_frames} frames"), \
+            atomic_directory(out, replace=True, kind="synthetic") as tmp:
+        result = synthesize(cfg, tmp, fmt=fmt)
     if as_json:
         echo_json(result.truth)
     else:
-        click.echo(f"wrote {result.movie} and {result.truth_json.name}")
+        click.echo(f"wrote {out / result.movie.name} and {result.truth_json.name}")
 
 

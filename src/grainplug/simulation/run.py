@@ -65,8 +65,51 @@ def initial_state(closure: Closure, params: SimulationParams, rng: np.random.Gen
     return closure.conserved(c, np.full(n, closure.v0), np.full(n, closure.P0))
 
 
+#: bytes a saved state costs per cell: 3 fields of float64, kept, then copied once to be written (fields.nc)
+SAVED_BYTES_PER_CELL = 3 * 8 * 2
+#: the share of the free memory a simulation's saved fields may take
+MEMORY_SHARE = 0.8
+#: the longest simulation started unasked, seconds (``max_seconds=None`` lifts it)
+MAX_SECONDS = 3600.0
+#: a simulation's duration is estimated once its time steps (the compiled kernel built) ran this long, seconds
+ESTIMATE_AFTER_S = 2.0
+
+
+def check_simulation_size(params: SimulationParams) -> None:
+    """Refuse, before anything is allocated, a simulation whose saved fields would not fit in the free memory.
+
+    Raises
+    ------
+    ParameterError
+        Naming the memory it would need (``n_outputs x n_cells x 3 fields x 8 bytes``, and a copy to write
+        them) and the fix.
+    """
+    from .._system import free_memory_bytes
+
+    n_out = math.floor(params.duration_tc / params.output_interval_tc + 0.5) + 1
+    need = float(n_out) * params.n_cells * SAVED_BYTES_PER_CELL
+    free = free_memory_bytes()
+    if need > MEMORY_SHARE * free:
+        raise ParameterError(f"{n_out:,} saved states of {params.n_cells:,} cells would take about "
+                             f"{need / 2**30:.3g} GiB, more than the {free / 2**30:.3g} GiB free — give fewer "
+                             "n_cells=, a shorter duration_tc= or a longer output_interval_tc=")
+
+
+def _check_time(elapsed: float, done_tc: float, left_tc: float, max_seconds: float | None) -> None:
+    """Refuse a simulation that the pace of its time steps so far says would run longer than ``max_seconds``."""
+    if max_seconds is None or done_tc <= 0:
+        return
+    estimate = elapsed / done_tc * left_tc
+    log.info("simulation: about %.0f s more", estimate)
+    if estimate > max_seconds:
+        raise ParameterError(f"the simulation would take about {estimate / 3600:.3g} h more ({elapsed:.1f} s for "
+                             f"its first {done_tc:.3g} t_c), over the limit of {max_seconds / 3600:g} h — give fewer "
+                             "n_cells= or a shorter duration_tc= (in Python, max_seconds=None lifts the limit)")
+
+
 def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng: np.random.Generator | None = None,
-             initial: np.ndarray | None = None, progress: object = None) -> SimulationResult:
+             initial: np.ndarray | None = None, progress: object = None,
+             max_seconds: float | None = MAX_SECONDS) -> SimulationResult:
     """Integrate the nonlinear 1D model in time.
 
     Parameters
@@ -80,12 +123,21 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
         The conserved variables ``(c, c v, m)`` to start from, instead of the noisy base state.
     progress : callable, optional
         Called as ``progress(t, duration)`` at each output.
+    max_seconds : float or None
+        Refuse a run that the pace of its first seconds of time steps says would take longer (None: no limit).
 
     Returns
     -------
     SimulationResult
+
+    Raises
+    ------
+    ParameterError
+        Before anything is allocated, saved fields that would not fit in the free memory
+        (:func:`check_simulation_size`); after its first seconds, a run estimated longer than ``max_seconds``.
     """
     params = params or SimulationParams()
+    check_simulation_size(params)
     closure = Closure.from_params(model, balance=params.balanced)
     bc = Boundary()
     if params.boundary == "open":
@@ -123,8 +175,14 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
         def advance(U: np.ndarray, t: float, t_end: float) -> tuple[np.ndarray, float, int]:
             return integ.advance(U, t, t_end, params.cfl, budget)
     crossed = np.zeros((n_out, 2))
+    paced: tuple[float, float] | None = None  # (clock, t) once the first output is done (the kernel built)
     for j in range(1, n_out):
         U, t, n = advance(U, t, float(times[j]))
+        if paced is None:
+            paced = (time.perf_counter(), t)
+        elif paced[0] > 0 and time.perf_counter() - paced[0] >= ESTIMATE_AFTER_S:
+            _check_time(time.perf_counter() - paced[0], t - paced[1], params.duration_tc - t, max_seconds)
+            paced = (-1.0, 0.0)  # estimated once
         if n < 0 or not np.isfinite(U).all():
             raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (a non-finite state): "
                                  "try more cells or a smaller cfl=")

@@ -56,7 +56,7 @@ def save_simulation(res: SimulationResult, out_dir: str | Path, summary: dict[st
     from ..plotting.files import save_figure
 
     written: dict[str, Path] = {}
-    with atomic_directory(out_dir, written, replace=True) as tmp:
+    with atomic_directory(out_dir, written, replace=True, kind="simulation") as tmp:
         to_xarray(res).to_netcdf(tmp / FIELDS_FILE, engine="scipy")
         (tmp / SUMMARY_FILE).write_text(dumps(summary), encoding="utf-8")
         if figure is not None:

@@ -6,6 +6,7 @@ import dataclasses
 import logging
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +23,8 @@ log = logging.getLogger(__name__)
 MAX_POINTS = 100_000
 #: wavenumbers of the curve kept beyond MAX_POINTS (evenly spread; and the peak's and the cut-offs' brackets)
 CURVE_POINTS = 10_000
+#: a sweep's duration is estimated again once it ran this long, seconds
+SWEEP_RECHECK_S = 2.0
 #: the longest computation started unasked, seconds (``max_seconds=None`` lifts it)
 MAX_SECONDS = 3600.0
 #: sign changes of the largest growth rate beyond which the cut-offs are a root neutral to round-off
@@ -470,7 +473,7 @@ def _duration(seconds: float) -> str:
 
 
 def sweep(p: ModelParams, name: str, values: np.ndarray, *, max_seconds: float | None = MAX_SECONDS,
-          **kwargs: float) -> list[dict[str, object]]:
+          on_estimate: Callable[[float], None] | None = None, **kwargs: float) -> list[dict[str, object]]:
     """Most unstable mode and cut-offs as one input varies.
 
     Parameters
@@ -484,7 +487,11 @@ def sweep(p: ModelParams, name: str, values: np.ndarray, *, max_seconds: float |
         Values to take.
     max_seconds : float or None
         Refuse a sweep estimated, from the time of its first value, to take longer
-        (None: no limit); also each value's own limit (:func:`analyze_stability`).
+        (None: no limit); also each value's own limit (:func:`analyze_stability`). The estimate is
+        made again on the values of the first seconds (the first one alone is a poor guide).
+    on_estimate : callable, optional
+        Called with the estimated duration of the whole sweep, seconds, each time it is estimated
+        (a front end tells its user of a long one).
     **kwargs
         Passed to :func:`analyze_stability` (``k_min``, ``k_max``, ``n_k``...).
 
@@ -511,18 +518,25 @@ def sweep(p: ModelParams, name: str, values: np.ndarray, *, max_seconds: float |
     check_sweep_size(values.size)
     rows = []
     t0 = time.perf_counter()
+    checks = iter((0.0, SWEEP_RECHECK_S))  # estimated after the first value, then on the values of the first seconds
+    next_check = next(checks)
     for i, v in enumerate(values):
         q = dataclasses.replace(p, **{name: float(v)})
         r = analyze_stability(q, max_seconds=max_seconds, **kwargs)
-        if i == 0 and values.size > 1:
-            each = time.perf_counter() - t0
-            log.info("stability sweep: %d values, about %s", values.size, _duration(each * values.size))
-            if max_seconds is not None and each * values.size > max_seconds:
+        elapsed = time.perf_counter() - t0
+        if next_check is not None and elapsed >= next_check and i + 1 < values.size:
+            next_check = next(checks, None)
+            each = elapsed / (i + 1)
+            estimate = each * values.size
+            log.info("stability sweep: %d values, about %s", values.size, _duration(estimate))
+            if max_seconds is not None and estimate > max_seconds:
                 raise ParameterError(
-                    f"{values.size:,} values would take about {_duration(each * values.size)} "
-                    f"({_duration(each)} each, measured on the first), over the limit of {_duration(max_seconds)}: "
-                    "give fewer values or fewer wavenumbers (n_k=), or in Python lift the limit (max_seconds=None)",
-                    param="values")
+                    f"{values.size:,} values would take about {_duration(estimate)} "
+                    f"({_duration(each)} each, measured on the first {i + 1:,}), over the limit of "
+                    f"{_duration(max_seconds)}: give fewer values or fewer wavenumbers (n_k=), or in Python lift "
+                    "the limit (max_seconds=None)", param="values")
+            if on_estimate is not None:
+                on_estimate(estimate)
         m = r.most_unstable
         rows.append({
             name: float(v), "B1_star": q.B1_star,

@@ -36,6 +36,10 @@ BASE_VELOCITIES = ("printed", "balanced")
 P_ATM_PA = 101_325.0
 
 
+#: the largest input a model parameter takes (every one is a size or a material constant)
+MAX_INPUT = 1e12
+
+
 @dataclass(frozen=True)
 class ModelParams:
     """Inputs of the model of Alvarez & Franklin (2017), in SI-friendly units.
@@ -162,6 +166,25 @@ class ModelParams:
         for ok, msg in checks:
             if not ok:
                 raise ParameterError(msg)
+        self._check_scales()
+
+    def _check_scales(self) -> None:
+        """Refuse inputs whose scales (B1*, the pressure and time scales) overflow or are not finite: a pipe
+        of 1e308 mm is a typing slip, and the model's numbers would be infinite or an OverflowError."""
+        for name in ("diameter_mm", "grain_diameter_um", "grain_density_kg_m3", "air_viscosity_pa_s", "g_m_s2",
+                     "kappa", "b", "mu_s", "gamma"):
+            value = getattr(self, name)
+            if not math.isfinite(value) or abs(value) > MAX_INPUT:
+                raise ParameterError(f"must be a finite number below {MAX_INPUT:g}, got {value:g}", param=name)
+        for scale in ("L_c_m", "t_c_s", "v_c_m_s", "P_c_pa", "B1_star"):
+            try:
+                value = float(getattr(self, scale))
+            except (OverflowError, ZeroDivisionError, ValueError):
+                value = math.inf
+            if not math.isfinite(value):
+                raise ParameterError(f"these inputs make the model's scale {scale} {value:g}: give the pipe "
+                                     "(diameter_mm=) and grains (grain_diameter_um=, grain_density_kg_m3=) sizes "
+                                     "of a laboratory")
 
     # -- scales ----------------------------------------------------------------
     @property

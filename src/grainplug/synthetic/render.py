@@ -16,6 +16,14 @@ from .kinematics import REGIMES, PlugTrain, build_train, displacement_mm
 MERGE_FREQUENCY_HZ = 1.0
 
 
+#: bytes the renderer holds per pixel of a frame (coordinates, shading and the frame, in float64)
+RENDER_BYTES_PER_PX = 64
+#: the largest frame rendered, pixels
+MAX_FRAME_PX = 2**28
+#: the most plugs a movie's train may hold (they are drawn one by one)
+MAX_PLUGS = 1e6
+
+
 @dataclass(frozen=True)
 class SynthConfig:
     """Everything that defines a synthetic plug-flow movie.
@@ -138,12 +146,41 @@ class SynthConfig:
         for ok, msg in checks:
             if not ok:
                 raise ParameterError(msg)
+        self._check_sizes()
         outer_px = (self.tube_diameter_mm + 2 * self.wall_mm) / self.mm_per_px
         if outer_px + 2 * abs(self.tube_offset_px) + 4 > self.width_px:
             raise ParameterError(
                 f"the tube ({outer_px:.0f} px wide) does not fit in {self.width_px} px — "
                 "widen the frame or coarsen mm_per_px"
             )
+
+    def _check_sizes(self) -> None:
+        """Refuse, before anything is allocated, a seed numpy cannot take, a frame too large to render in the
+        memory there is, and plugs so fast or so short that their train could not be drawn."""
+        from .._system import free_memory_bytes
+
+        if not 0 <= self.seed < 2**63:
+            raise ParameterError(f"must be a whole number from 0 to 2**63 - 1, got {self.seed}", param="seed")
+        pixels = float(self.width_px) * float(self.height_px)
+        need = pixels * RENDER_BYTES_PER_PX
+        free = free_memory_bytes()
+        if pixels > MAX_FRAME_PX or need > free / 2:
+            big = "width_px" if self.width_px >= self.height_px else "height_px"
+            raise ParameterError(
+                f"a {self.width_px} x {self.height_px} px frame needs about {need / 2**30:.3g} GiB to render "
+                f"({free / 2**30:.3g} GiB free; at most {MAX_FRAME_PX / 1e6:.0f} million pixels a frame) — "
+                "give a smaller width_px= and height_px=", param=big)
+        duration = self.n_frames / self.fps
+        travel = abs(self.celerity_m_s) * 1000 * duration + 2 * abs(self.amplitude_mm)
+        step = max(0.25 * self.plug_length_mm, 1.0) + 0.3 * self.bubble_length_mm
+        n_plugs = (2 * travel + self.height_px * self.mm_per_px * 1.01 + 3 * self.plug_length_mm) / step
+        if not np.isfinite(n_plugs) or n_plugs > MAX_PLUGS:
+            fast = abs(self.celerity_m_s) * 1000 * duration >= abs(self.amplitude_mm)
+            what = (f"plugs at {self.celerity_m_s:g} m/s travel {travel / 1000:.3g} m in the movie's {duration:.3g} s"
+                    if fast else f"plugs that swing {self.amplitude_mm:g} mm")
+            raise ParameterError(f"{what}: about {n_plugs:.3g} plugs to draw (at most {MAX_PLUGS:.0e}) — give a "
+                                 "celerity_m_s= of a few m/s at most, or fewer n_frames=",
+                                 param="celerity_m_s" if fast else "amplitude_mm")
 
     @property
     def shape(self) -> tuple[int, int]:
