@@ -90,7 +90,8 @@ def divide_by_lamp(values: np.ndarray, beside: np.ndarray, at: np.ndarray, *,
     rel = few / np.maximum(np.median(few, axis=0), 1e-6)[None, :]
     frame_level = np.median(rel, axis=1)
     ripple = float(np.std(frame_level))
-    shadow = float(np.max(1.0 - rel.min(axis=1) / frame_level))
+    lit = frame_level > 0.1  # a frame the lamp does not light (blank, dropped) says nothing of a shadow
+    shadow = float(np.max(1.0 - rel[lit].min(axis=1) / frame_level[lit])) if lit.any() else 0.0
     if ripple < STEADY_RIPPLE and shadow < STEADY_SHADOW:  # a steady lamp: the diagram's own gains suffice
         return v, Lamp(False, "the lamp beside the tube is steady: nothing to correct", ripple, shadow)
     gain = lamp_light(b, at, v.shape[1])  # in place below: relative to its median, 1 where a clamp shades it
