@@ -16,12 +16,18 @@ the variation (docs/calibration.md, "Lens distortion").
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import logging
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import GrainplugError
+from ..warning_codes import CODES, coded
+from .distortion import PlaneMap, fit_points, frame_centre_and_radius
+
+log = logging.getLogger(__name__)
 
 #: version of the calibration.json layout
 CALIBRATION_FORMAT = 1
@@ -85,6 +91,20 @@ class Calibration:
         The calibration file this was read from (absolute path, set by
         :func:`grainplug.load_calibration`), for the analysis's provenance; empty when made
         in memory. Not written into the calibration file, and not compared.
+    distortion_k1, distortion_k2 : float
+        The lens's radial distortion fitted with the map (0 for a pinhole, and in files written
+        before it was fitted): an image point ``p`` is seen where a pinhole would put
+        ``c + (p - c)(1 + k1 rho^2 + k2 rho^4)``, ``rho = |p - c| / distortion_radius_px``
+        (:mod:`grainplug.calibration.distortion`); ``homography`` then maps the plane to those
+        undistorted pixels. ``k1 > 0`` is barrel distortion.
+    distortion_centre_px : tuple of float or None
+        The distortion's centre ``c`` (x, y), the frame's centre; None in files written before the
+        distortion was fitted.
+    distortion_radius_px : float
+        The radius of ``rho = 1``: from the centre to the frame's corner (0 when not fitted).
+    levels : tuple of int
+        Graph paper and rulers: every how many finest lines (ticks) a bolder (longer) one was seen,
+        e.g. ``(5, 10)``; empty for checkerboards and dot grids.
     """
 
     mm_per_px: float
@@ -105,6 +125,11 @@ class Calibration:
     warnings: tuple[str, ...] = ()
     points_px: tuple[tuple[float, float], ...] = ()
     source: str = field(default="", compare=False)
+    distortion_k1: float = 0.0
+    distortion_k2: float = 0.0
+    distortion_centre_px: tuple[float, float] | None = None
+    distortion_radius_px: float = 0.0
+    levels: tuple[int, ...] = ()
 
     def mm_per_px_along(self, direction_xy: tuple[float, float]) -> float:
         """mm per pixel along an image direction ``(dx, dy)`` (e.g. the tube's axis)."""
@@ -112,10 +137,58 @@ class Calibration:
         u = u / np.hypot(*u)
         return float(np.hypot(*(np.asarray(self.jacobian_mm_per_px) @ u)))
 
+    def plane_map(self) -> PlaneMap:
+        """The map from the calibration image's pixels to the pattern's plane (mm): the lens's distortion undone,
+        then the homography (:class:`grainplug.calibration.distortion.PlaneMap`)."""
+        centre = self.distortion_centre_px or (0.0, 0.0)
+        return PlaneMap(np.asarray(self.homography, float), float(self.distortion_k1), float(self.distortion_k2),
+                        (float(centre[0]), float(centre[1])), float(self.distortion_radius_px) or 1.0)
+
+    @property
+    def corner_distortion(self) -> float:
+        """The lens's distortion at the frame's corners as optics states it: (r_image - r_pinhole) / r_pinhole,
+        negative for barrel, positive for pincushion (0 when none was fitted)."""
+        return 1.0 / (1.0 + self.distortion_k1 + self.distortion_k2) - 1.0
+
+    def scale_at(self, x_px: float | np.ndarray, y_px: float | np.ndarray,
+                 direction_xy: tuple[float, float]) -> float | np.ndarray:
+        """mm per pixel along an image direction at image points, through the lens's distortion and perspective.
+
+        Equal to :meth:`mm_per_px_along` at the pattern's centre; elsewhere that value times the fitted map's
+        change of scale between the centre and the point (a ruler: along its length, pixels taken as square).
+
+        Parameters
+        ----------
+        x_px, y_px : float or ndarray
+            Image points (px), in the calibration image's frame.
+        direction_xy : (float, float)
+            The direction ``(dx, dy)`` (e.g. the tube's axis).
+
+        Returns
+        -------
+        float or ndarray
+            mm per px at each point (a float for scalar coordinates).
+        """
+        x, y = np.broadcast_arrays(np.asarray(x_px, float), np.asarray(y_px, float))
+        pm = self.plane_map()
+        pts = np.column_stack([x.ravel(), y.ravel()])
+        local = pm.scale_along(pts, direction_xy)
+        at_centre = float(pm.scale_along(np.asarray([self.centre_px], float), direction_xy)[0])
+        out = (self.mm_per_px_along(direction_xy) * local / at_centre).reshape(x.shape)
+        return float(out) if out.ndim == 0 else out
+
+    def plane_mm(self, points_px: np.ndarray) -> np.ndarray:
+        """Where image points (N, 2) lie on the pattern's plane (mm), through the distortion and the homography,
+        rescaled so that the map's scale at the pattern's centre is :attr:`mm_per_px`."""
+        pm = self.plane_map()
+        at_centre = float(pm.scale(np.asarray([self.centre_px], float))[0])
+        return pm.to_plane(np.asarray(points_px, float).reshape(-1, 2)) * (self.mm_per_px / at_centre)
+
     def as_dict(self) -> dict[str, object]:
         """JSON-ready, with the layout's version."""
         d = dataclasses.asdict(self)
         d.pop("source")  # where a file is, is not in it
+        d["warning_codes"] = [getattr(w, "code", None) for w in self.warnings]
         return {"format": "grainplug-calibration", "version": CALIBRATION_FORMAT, **d}
 
     @classmethod
@@ -139,8 +212,17 @@ class Calibration:
             kw["homography"] = tuple(tuple(float(x) for x in row) for row in kw["homography"])
             kw["image_shape"] = tuple(int(x) for x in kw["image_shape"])
             kw["centre_px"] = tuple(float(x) for x in kw["centre_px"])
-            kw["warnings"] = tuple(kw.get("warnings", ()))
+            codes = list(data.get("warning_codes") or [])
+            kw["warnings"] = tuple(coded(c, w) if isinstance(c, str) and c in CODES else w
+                                   for w, c in itertools.zip_longest(kw.get("warnings", ()), codes[:len(
+                                       kw.get("warnings", ()))]))
             kw["points_px"] = tuple(tuple(float(x) for x in p) for p in kw.get("points_px", ()))
+            if kw.get("distortion_centre_px") is not None:
+                kw["distortion_centre_px"] = tuple(float(x) for x in kw["distortion_centre_px"])
+            for name in ("distortion_k1", "distortion_k2", "distortion_radius_px"):
+                if name in kw:
+                    kw[name] = float(kw[name])
+            kw["levels"] = tuple(int(x) for x in kw.get("levels", ()))
             cal = cls(**kw)
         except (KeyError, TypeError, ValueError) as exc:
             raise CalibrationError(f"the calibration is incomplete or damaged ({exc}) — redo it with "
@@ -207,7 +289,7 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
         # (lens distortion bends the lattice by a few per cent of its pitch: allowed, and warned of)
         # (pixels far from square are believed when the pattern is named: auto mode must tell readings apart)
         pitch_px = pitch_mm / cal.mm_per_px
-        aspect = abs(cal.mm_per_px_x / cal.mm_per_px_y - 1)
+        aspect = round(abs(cal.mm_per_px_x / cal.mm_per_px_y - 1), 6)  # 10 % is 10 %, not 0.0999999
         if aspect < (ASPECT_LIMIT_AUTO if pattern == "auto" else ASPECT_LIMIT_NAMED) \
                 and cal.rms_residual_px < max(1.0, 0.06 * pitch_px):
             fits.append(cal)
@@ -655,39 +737,71 @@ def _drop_inconsistent(ij: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.
 
 
 # -- the fit ----------------------------------------------------------------------------------
+#: the lens's distortion is fitted when the points reach this far from the frame's centre (share of its corner's
+#: distance) and number at least MIN_POINTS_DISTORTION
+MIN_REACH_DISTORTION = 0.3
+MIN_POINTS_DISTORTION = 16
+#: a lens distorting more than this at the frame's corners (either sign) is said
+DISTORTION_SAY = 0.005
+
+
+def _reach(points: np.ndarray, shape: tuple[int, int]) -> float:
+    """How far the points reach from the frame's centre, as a share of its corner's distance."""
+    centre, radius = frame_centre_and_radius(shape)
+    return float(np.max(np.hypot(*(np.asarray(points, float) - np.asarray(centre)).T)) / radius)
+
+
+def _distortion_warning(k1: float, k2: float) -> str | None:
+    corner = 1.0 / (1.0 + k1 + k2) - 1.0
+    if abs(corner) <= DISTORTION_SAY:
+        return None
+    kind = "barrel" if corner < 0 else "pincushion"
+    return coded("calibration.lens_distortion",
+                 f"the lens distorts the image by {100 * corner:+.1f} % at the frame's corners ({kind}; fitted k1 "
+                 f"{k1:+.4f}, k2 {k2:+.4f}): the scale is corrected at the pattern's centre, and the analysis "
+                 "takes it where the tube is (Calibration.scale_at)")
+
+
 def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str, shape: tuple[int, int],
          identity: dict[str, object]) -> Calibration:
-    import cv2
-
-    H, _ = cv2.findHomography(world.astype(np.float64), image_pts.astype(np.float64), 0)
-    if H is None:
+    distortion = len(world) >= MIN_POINTS_DISTORTION and _reach(image_pts, shape) >= MIN_REACH_DISTORTION
+    fit = fit_points(world, image_pts, shape=shape, distortion=distortion)
+    pm = fit.plane_map
+    if not np.all(np.isfinite(pm.homography)):
         raise CalibrationError("the pattern's points do not fit a plane seen by a camera — retake the image")
-    proj = cv2.perspectiveTransform(world.reshape(-1, 1, 2), H).reshape(-1, 2)
-    rms = float(np.sqrt(np.mean(np.sum((proj - image_pts) ** 2, axis=1))))
+    proj = pm.to_image(world)
+    rms = fit.rms
     centre_world = world.mean(axis=0)
-    J = _inverse_jacobian(H, centre_world)
+    centre = pm.to_image(centre_world.reshape(1, 2))[0]
+    J = pm.jacobian(centre.reshape(1, 2))[0]
     mm_x, mm_y = float(np.hypot(*J[:, 0])), float(np.hypot(*J[:, 1]))
     scale = float(math.sqrt(abs(np.linalg.det(J))))
-    local = np.array([math.sqrt(abs(np.linalg.det(_inverse_jacobian(H, w)))) for w in world])
+    local = pm.scale(image_pts)
     variation = float((local.max() - local.min()) / local.mean())
-    # what a plane seen by a pinhole cannot show (lens distortion): the scale measured between
-    # each point's lattice neighbours, against the homography's at the same place
-    field = _local_scale_field(world, image_pts, proj, pitch_mm=pitch_mm)
-    if field is not None:
-        at_centre, field_sd, field_variation = field(cv2.perspectiveTransform(centre_world.reshape(1, 1, 2),
-                                                                              H).reshape(2))
+    # what the fitted map cannot show (a lens's distortion of another form, a card not flat): the scale measured
+    # between each point's lattice neighbours, against the map's at the same place
+    field_fit = _local_scale_field(world, image_pts, proj, pitch_mm=pitch_mm)
+    if field_fit is not None:
+        at_centre, field_sd, field_variation = field_fit(centre)
         J = J * at_centre
         mm_x, mm_y, scale = mm_x * at_centre, mm_y * at_centre, scale * at_centre
         variation = max(variation, field_variation)
     # pattern rows in the image: the image of the plane's X axis
-    d = cv2.perspectiveTransform(np.array([[centre_world, centre_world + np.array([pitch_mm, 0.0])]]), H)[0]
+    d = pm.to_image(np.array([centre_world, centre_world + np.array([pitch_mm, 0.0])]))
     tilt = float(math.degrees(math.atan2(-(d[1, 1] - d[0, 1]), d[1, 0] - d[0, 0])))
     tilt = (tilt + 45.0) % 90.0 - 45.0  # a square grid looks the same turned by a quarter
     rel_sd = _affine_scale_rel_sd(world, image_pts, residual_mm=rms * scale)
-    if field is not None:
+    if distortion:  # the distortion's coefficients are uncertain too
+        def centre_scale(m: PlaneMap) -> float:
+            return float(m.scale(m.to_image(centre_world.reshape(1, 2)))[0])
+
+        rel_sd = max(rel_sd, fit.rel_sd_of(centre_scale))
+    if field_fit is not None:
         rel_sd = math.hypot(rel_sd, field_sd)
-    centre = cv2.perspectiveTransform(centre_world.reshape(1, 1, 2), H).reshape(2)
     warnings = []
+    said = _distortion_warning(pm.k1, pm.k2)
+    if said:
+        warnings.append(said)
     if variation > SCALE_VARIATION_WARN:
         warnings.append(f"the scale varies by {100 * variation:.1f} % over the pattern (perspective or lens "
                         "distortion): hold the pattern square to the camera, at the tube's plane, and use the "
@@ -704,8 +818,10 @@ def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str
         rel_sd=rel_sd, tilt_deg=tilt, scale_variation=variation, rms_residual_px=rms, n_points=len(world),
         pattern=kind, pitch_mm=float(pitch_mm), image_shape=(int(shape[0]), int(shape[1])),
         centre_px=(float(centre[0]), float(centre[1])),
-        homography=tuple(tuple(float(x) for x in row) for row in H), image=dict(identity),
+        homography=tuple(tuple(float(x) for x in row) for row in pm.homography), image=dict(identity),
         warnings=tuple(warnings), points_px=tuple((float(x), float(y)) for x, y in image_pts),
+        distortion_k1=float(pm.k1), distortion_k2=float(pm.k2), distortion_centre_px=tuple(pm.centre),
+        distortion_radius_px=float(pm.radius),
     )
 
 

@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -360,3 +361,227 @@ def part_misfit(centres: np.ndarray, freqs: np.ndarray, sizes: np.ndarray) -> fl
         extent = u[:, 0] * sizes[:, 1] + u[:, 1] * sizes[:, 0]  # each part's length along f, px
         worst = max(worst, math.sqrt(float(resid @ resid) / dof) * float(np.mean(extent)))
     return worst
+
+
+# -- the map over the field (lens distortion, perspective) and the lines' hierarchy -------------------------
+def tile_frequencies(grey: np.ndarray, found: Gratings, *, grid: int,
+                     predict: Callable[[np.ndarray], np.ndarray] | None = None,
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The families' frequencies refined in ``grid`` x ``grid`` tiles of the gratings' box (``grid`` stretches
+    along a ruler), each started from ``predict(centre)`` (the frequencies a map fitted already expects there)
+    or from the whole image's.
+
+    Returns
+    -------
+    centres : ndarray, (n, 2)
+        Each part's weighted centre (x, y) in px.
+    freqs : ndarray, (n, 2 * families)
+        Its families' frequency vectors (cycles/px), end to end.
+    sizes : ndarray, (n, 2)
+        Its height and width in px.
+    weights : ndarray, (n,)
+        Its share of the gratings (sum of the support).
+    """
+    y0, y1, x0, x1 = found.box
+    freqs = found.freqs
+    if len(freqs) >= 2:
+        ycuts, xcuts = np.linspace(y0, y1, grid + 1).astype(int), np.linspace(x0, x1, grid + 1).astype(int)
+        parts = [(slice(a, b), slice(c, d)) for a, b in itertools.pairwise(ycuts)
+                 for c, d in itertools.pairwise(xcuts)]
+    elif abs(freqs[0][0]) >= abs(freqs[0][1]):
+        cuts = np.linspace(x0, x1, grid + 1).astype(int)
+        parts = [(slice(y0, y1), slice(a, b)) for a, b in itertools.pairwise(cuts)]
+    else:
+        cuts = np.linspace(y0, y1, grid + 1).astype(int)
+        parts = [(slice(a, b), slice(x0, x1)) for a, b in itertools.pairwise(cuts)]
+    sums = [float(found.support[ys, xs].sum()) for ys, xs in parts]
+    centres, out, sizes, weights = [], [], [], []
+    for (ys, xs), wsum in zip(parts, sums, strict=True):
+        part = grey[ys, xs]
+        weight = found.support[ys, xs]
+        if min(part.shape) < 16 or wsum < 0.3 * max(sums):
+            continue
+        yy, xx = np.mgrid[ys, xs]
+        centre = np.array([float((xx * weight).sum() / wsum), float((yy * weight).sum() / wsum)])
+        start = (np.asarray(predict(centre), float).reshape(-1, 2) if predict is not None
+                 else np.asarray(freqs, float))
+        gw = _prepare(part) * _window(part.shape) * weight
+        bin_size = 0.5 / max(part.shape)
+        out.append(np.concatenate([_refine(gw, f, bin_size) for f in start]))
+        centres.append(centre)
+        sizes.append(part.shape)
+        weights.append(wsum)
+    n = len(out)
+    return (np.asarray(centres, dtype=float).reshape(-1, 2), np.asarray(out, dtype=float).reshape(n, 2 * len(freqs)),
+            np.asarray(sizes, dtype=float).reshape(-1, 2), np.asarray(weights, dtype=float))
+
+
+def model_misfit(freqs: np.ndarray, model: np.ndarray, sizes: np.ndarray, *, n_params: int) -> float:
+    """How far the parts' line spacings scatter about a fitted map's, in frequency bins of a part.
+
+    As :func:`part_misfit`, with the map fitted to the parts (perspective and the lens's distortion) as the
+    smooth trend: each family's ``|f|`` against the map's at the same place, the residuals' standard
+    deviation (``n_params`` shared between the families) in units of one over a part's extent along ``f``.
+
+    Returns
+    -------
+    float
+        The largest misfit over the families (inf when there are no more parts than parameters).
+    """
+    n, families = len(freqs), freqs.shape[1] // 2
+    dof = n - n_params / families
+    if dof < 1:
+        return math.inf
+    worst = 0.0
+    for k in range(families):
+        f = freqs[:, 2 * k: 2 * k + 2]
+        mag = np.hypot(f[:, 0], f[:, 1])
+        resid = mag - np.hypot(model[:, 2 * k], model[:, 2 * k + 1])
+        u = np.abs(f / mag[:, None])
+        extent = u[:, 0] * sizes[:, 1] + u[:, 1] * sizes[:, 0]
+        worst = max(worst, math.sqrt(float(resid @ resid) / dof) * float(np.mean(extent)))
+    return worst
+
+
+#: the fold spans this many periods of the lines first found (graph paper repeats every 10 mm)
+FOLD_PERIODS = 10
+#: finer lines are looked for at these fractions of the period first found (1 mm in 5 or 10 mm; 5 in 10)
+FINER_FACTORS = (10, 5, 2)
+#: finer lines closer than this (px) cannot be resolved
+MIN_FINE_PX = 2.4
+#: a level of bolder lines (every 2nd, 5th, 10th...) and finer lines must stand this many standard errors out
+LEVEL_Z = 5.0
+
+
+@dataclass(frozen=True)
+class Fold:
+    """The image's mean grey level against the position across one family of lines, modulo ``span`` periods.
+
+    Attributes
+    ----------
+    profile : ndarray, (span * bins,)
+        Mean grey in each bin (nan where no pixel fell).
+    se : ndarray
+        Its standard error.
+    span : int
+        Periods folded.
+    bins : int
+        Bins per period.
+    period_px : float
+        The period in px (at the pattern's centre).
+    """
+
+    profile: np.ndarray
+    se: np.ndarray
+    span: int
+    bins: int
+    period_px: float
+
+    def at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The profile and its standard error at positions ``x`` (periods), linearly interpolated, circular."""
+        n = len(self.profile)
+        t = np.mod(np.asarray(x, float) * self.bins - 0.5, n)
+        i = np.floor(t).astype(int)
+        a = t - i
+        j = (i + 1) % n
+        value = (1 - a) * self.profile[i] + a * self.profile[j]
+        se = np.hypot((1 - a) * self.se[i], a * self.se[j])
+        return value, se
+
+
+def fold(grey: np.ndarray, mask: np.ndarray, coordinate: np.ndarray, *, span: int, bins: int,
+         period_px: float) -> Fold:
+    """Fold the image's pixels in ``mask`` by their ``coordinate`` (periods, from a fitted map) modulo ``span``."""
+    g = grey[mask].astype(np.float64)
+    b = np.floor(np.mod(coordinate[mask], span) * bins).astype(np.int64) % (span * bins)
+    n = np.bincount(b, minlength=span * bins).astype(float)
+    s1 = np.bincount(b, weights=g, minlength=span * bins)
+    s2 = np.bincount(b, weights=g * g, minlength=span * bins)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = s1 / n
+        var = np.maximum(s2 / n - mean**2, 0.0) * n / np.maximum(n - 1, 1)
+        se = np.sqrt(var / n)
+    empty = n < 3
+    mean[empty], se[empty] = np.nan, np.nan
+    return Fold(mean, se, span, bins, period_px)
+
+
+def _dips(f: Fold, x: np.ndarray, half: float) -> tuple[np.ndarray, np.ndarray]:
+    """How much darker the profile is at ``x`` than ``half`` a period either side, and its standard error."""
+    centre, se0 = f.at(x)
+    left, se1 = f.at(x - half)
+    right, se2 = f.at(x + half)
+    return 0.5 * (left + right) - centre, np.sqrt(se0**2 + 0.25 * (se1**2 + se2**2))
+
+
+def _line_phase(f: Fold, m: int) -> float:
+    """Where the dark lines repeating ``m`` times per period are, in periods (modulo ``1 / m``)."""
+    x = (np.arange(len(f.profile)) + 0.5) / f.bins
+    ok = np.isfinite(f.profile)
+    c = np.sum((f.profile[ok] - np.mean(f.profile[ok])) * np.exp(-2j * np.pi * m * x[ok]))
+    return float(np.mod((np.pi - np.angle(c)) / (2 * np.pi * m), 1.0 / m))
+
+
+@dataclass(frozen=True)
+class Levels:
+    """The lines' hierarchy read in a :class:`Fold`.
+
+    Attributes
+    ----------
+    finer : int
+        The finest lines seen are this many per period first found (1: those).
+    phase : float
+        Where a finest line is, in periods first found (modulo ``1 / finer``).
+    bolder : tuple of int
+        Every how many finest lines a bolder (longer) one comes, for each level seen (2, 5, 10).
+    dips : ndarray
+        The finest lines' depths over the fold (grey levels), for the record.
+    """
+
+    finer: int
+    phase: float
+    bolder: tuple[int, ...]
+    dips: np.ndarray
+
+
+def read_levels(f: Fold) -> Levels:
+    """The finest lines in a fold and the bolder lines among them.
+
+    Finer lines are looked for at ``1 / m`` of the period first found (``m`` in ``FINER_FACTORS``,
+    where they would be at least ``MIN_FINE_PX`` apart): they are there when the profile dips at
+    the positions between the lines first found, by ``LEVEL_Z`` standard errors in the median and at
+    9 positions in 10. Among the finest lines, a level of bolder ones every ``r`` (2, 5, 10) is
+    seen when every line of one class modulo ``r`` dips deeper than any other's, by ``LEVEL_Z``
+    standard errors and a quarter of the others' depth.
+    """
+    finer, phase = 1, _line_phase(f, 1)
+    for m in FINER_FACTORS:
+        if f.period_px / m < MIN_FINE_PX:
+            continue
+        x0 = _line_phase(f, m)
+        x = x0 + np.arange(f.span * m) / m
+        between = np.abs(np.mod(x - phase + 0.5, 1.0) - 0.5) > 0.5 / m
+        d, se = _dips(f, x[between], 0.5 / m)
+        ok = np.isfinite(d) & np.isfinite(se) & (se > 0)
+        if ok.sum() < 0.5 * between.sum() or not between.any():
+            continue
+        z = d[ok] / se[ok]
+        if np.median(z) >= LEVEL_Z and np.mean(z > 2.0) >= 0.9:
+            finer, phase = m, x0
+            break
+    if finer == 1:
+        phase = _line_phase(f, 1)
+    k = f.span * finer
+    x = phase + np.arange(k) / finer
+    d, se = _dips(f, x, 0.5 / finer)
+    bolder = []
+    for r in (2, 5, 10):
+        if k < r or k % r or not np.all(np.isfinite(d)):
+            continue
+        classes = [d[c::r] for c in range(r)]
+        best = int(np.argmax([float(np.mean(c)) for c in classes]))
+        others = np.concatenate([c for i, c in enumerate(classes) if i != best])
+        margin = LEVEL_Z * float(np.median(se)) + 0.25 * max(float(np.median(others)), 0.0)
+        if float(np.min(classes[best])) > float(np.max(others)) + margin:
+            bolder.append(r)
+    return Levels(finer, float(phase), tuple(bolder), d)
