@@ -74,9 +74,6 @@ CODES: dict[str, tuple[str, str]] = {
     "calibration.lens_distortion": ("the lens distorts the calibration image (barrel or pincushion): fitted, and "
                                     "the scale corrected for it", "none needed; the analysis takes the scale "
                                     "where the tube is"),
-    "calibration.lattice_not_checkerboard": ("a lattice of corners was found whose squares are not alternately "
-                                             "dark and light: not a checkerboard (graph paper's crossings?)",
-                                             "name the pattern (--pattern graph) if it is graph paper"),
     # light
     "light.background": ("the background (light calibration) leaves something doubtful", "as the sentence says"),
     "light.saturated": ("part of the tube's pixels are at the camera's top value",

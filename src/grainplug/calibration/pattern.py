@@ -283,6 +283,15 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
         if found is None:
             continue
         index, points = found
+        if kind == "checkerboard" and not _alternates(grey, index, points):
+            # corners on a lattice whose squares are all alike: line crossings (graph paper), not a board
+            log.info("a lattice of %d corners whose squares do not alternate: not a checkerboard", len(points))
+            if pattern == "checkerboard":
+                raise CalibrationError(
+                    f"a lattice of {len(points)} corners was found, but its squares are not alternately dark and "
+                    "light: it is not a checkerboard (graph paper's crossings?) — name the right pattern "
+                    "(--pattern graph) or photograph a checkerboard")
+            continue
         cal = _fit(index * pitch_mm, points, pitch_mm=pitch_mm, kind=kind, shape=grey.shape,
                    identity=identity or {})
         # a lattice read wrongly (the corners between dots taken for a board...) is not square
@@ -323,7 +332,9 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
                 "dots": "dot grid", "graph": "graph paper (two families of lines)", "ruler": "ruler's ticks"}[pattern]
         raise CalibrationError(f"no {what} was found in the image{why} — make sure the pattern "
                                "is in focus, evenly lit and fills a good part of the frame")
-    return fits[0]  # a checkerboard where one was found: its squares could pass for a grid of dots
+    # the lattice of most points: a few corners of a dot grid's edges taken for a board lose to its dots (a
+    # checkerboard's squares are not taken for dots: a dot must be round); a tie goes to the checkerboard
+    return max(fits, key=lambda c: (c.n_points, c.pattern == "checkerboard"))
 
 
 #: a scale from lines is refused when its relative standard uncertainty exceeds this
@@ -337,88 +348,80 @@ def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str
 
     Lines are believed only on evidence: each family's peak must stand
     ``MIN_PEAK_TO_NOISE`` times above the transform's median at the same spatial
-    frequency, span ``MIN_LINES`` lines or more, and the parts of the image (3 x 3 tiles,
-    five stretches along a ruler) must agree on the spacing about a smooth trend within
-    ``MAX_PART_MISFIT_BINS`` of a part's frequency bin; the scale's uncertainty and its
-    variation over the pattern must stay under ``GRATING_MAX_REL_SD`` and
-    ``GRATING_MAX_VARIATION``. Noise, a movie of the tube, a speckled beam or a
-    checkerboard's diagonals pass none or few of these.
+    frequency, span ``MIN_LINES`` lines or more, and the parts of the image (tiles,
+    stretches along a ruler) must agree on the spacing about the fitted map (perspective and
+    the lens's distortion) within ``MAX_PART_MISFIT_BINS`` of a part's frequency bin; the
+    scale's uncertainty and its variation over the pattern must stay under
+    ``GRATING_MAX_REL_SD`` and ``GRATING_MAX_VARIATION``. Noise, a movie of the tube, a
+    speckled beam or a checkerboard's diagonals pass none or few of these.
+
+    The lines are then read at their finest level (:func:`_grating_levels`): the pitch given is
+    that of the finest lines (ticks), which graph paper and rulers mark by bolder (longer) lines
+    every 5th or 10th; lines without that hierarchy, or with bolder ones every 2nd only (the 5 mm
+    level of graph paper whose 1 mm lines are not seen), are refused.
 
     Returns
     -------
     Calibration or str
         The calibration, or why the lines were not believed ("" when none were seen at all).
     """
-    from .periodic import (
-        MAX_PART_MISFIT_BINS,
-        MIN_LINES,
-        MIN_PEAK_TO_NOISE,
-        find_gratings,
-        local_frequencies,
-        part_misfit,
-    )
+    from .periodic import MIN_LINES, MIN_PEAK_TO_NOISE, Gratings, find_gratings
 
     found = find_gratings(grey, families=1 if kind == "ruler" else 2)
     if found is None or (kind == "graph" and len(found.freqs) < 2):
         return ""
-    freqs = found.freqs
-    graph = len(freqs) == 2
-    box = found.box
+    graph = len(found.freqs) == 2
     lines = "lines" if graph else "ticks"
-    spacing = 1.0 / float(np.hypot(*freqs[0]))
+    spacing = 1.0 / float(np.hypot(*found.freqs[0]))
     for snr, count in zip(found.peak_to_noise, found.lines, strict=True):
         if snr < MIN_PEAK_TO_NOISE:
             return (f"the strongest repeat, every {spacing:.3g} px, stands only {snr:.0f} times above the image's "
                     f"noise; {lines} stand {MIN_PEAK_TO_NOISE:.0f} times or more")
-        if count < MIN_LINES:
+        if count < MIN_LINES / 2:  # graph paper's bold lines may be found first: MIN_LINES of the finest, below
             return (f"the strongest repeat, every {spacing:.3g} px, makes only {count:.0f} {lines}; "
                     f"at least {MIN_LINES} are needed")
-    where, parts, sizes = local_frequencies(grey, found)
-    misfit = part_misfit(where, parts, sizes)
-    if not misfit <= MAX_PART_MISFIT_BINS:
-        detail = ("it fills too little of the image to be checked" if not math.isfinite(misfit)
-                  else f"its spacing differs between parts of the image by {misfit:.2f} of a frequency bin, "
-                       f"{lines} agree within {MAX_PART_MISFIT_BINS:g}")
-        return f"the strongest repeat, every {spacing:.3g} px, is not a pattern of {lines}: {detail}"
-    f1 = freqs[0]
+    if graph:  # the second family's axis, oriented so that the map keeps the image's handedness
+        f1, f2 = found.freqs
+        if f1[0] * f2[1] - f1[1] * f2[0] < 0:
+            found = dataclasses.replace(found, freqs=[f1, -f2])
+    mapped = _grating_map(grey, found, graph=graph)
+    if isinstance(mapped, str):
+        return f"the strongest repeat, every {spacing:.3g} px, is not a pattern of {lines}: {mapped}"
+    levels = _grating_levels(grey, found, mapped.plane_map, graph=graph)
+    if isinstance(levels, str):
+        return levels
+    finer, phases, bolder = levels
+    if min(found.lines) * finer < MIN_LINES:
+        return (f"the strongest repeat, every {spacing / finer:.3g} px, makes only {min(found.lines) * finer:.0f} "
+                f"{lines}; at least {MIN_LINES} are needed")
+    if abs(finer - 1) > 1e-9:  # the finest lines, measured again at their own frequency
+        base = mapped.plane_map
+        fine = Gratings([np.asarray(f, float) * finer for f in found.freqs], found.support, found.box,
+                        found.peak_to_noise, found.lines)
+        refined = _grating_map(grey, fine, graph=graph, start=base, factor=finer)
+        mapped = refined if not isinstance(refined, str) else _scaled_fit(mapped, finer)
+    pm = mapped.plane_map
+    y0, y1, x0, x1 = found.box
+    centre = np.array([0.5 * (x0 + x1 - 1), 0.5 * (y0 + y1 - 1)])
+    J = pitch_mm * pm.jacobian(centre.reshape(1, 2))[0]
+    scale = float(math.sqrt(abs(np.linalg.det(J))))
+    local = pm.scale(mapped.centres) * pitch_mm if len(mapped.centres) else np.array([scale])
+    variation = float((local.max() - local.min()) / local.mean()) if len(local) > 1 else 0.0
+
+    rel_sd = float(math.hypot(mapped.rel_sd, 1e-4))
+    H = np.diag([pitch_mm, pitch_mm, 1.0]) @ np.linalg.inv(pm.homography)  # ideal px -> plane mm
+    homography = np.linalg.inv(H)
+    f1 = J[0] / pitch_mm
     u = f1 / np.hypot(*f1)
     perp = np.array([-u[1], u[0]])
-    if graph:
-        f2 = freqs[1]
-        # the second family's axis, oriented so that the map keeps the image's handedness
-        if f1[0] * f2[1] - f1[1] * f2[0] < 0:
-            f2 = -f2
-        F = np.vstack([f1, f2])
-    else:
-        F = np.vstack([f1, np.hypot(*f1) * perp])
-    J = pitch_mm * F
-    scale = float(math.sqrt(abs(np.linalg.det(J))))
-
-    def part_scale(v: np.ndarray) -> float:
-        if graph:
-            return float(pitch_mm * math.sqrt(abs(v[0] * v[3] - v[1] * v[2])))
-        return float(pitch_mm * np.hypot(v[0], v[1]))
-
-    local = np.array([part_scale(v) for v in parts]) if len(parts) else np.array([scale])
-    variation = float((local.max() - local.min()) / local.mean()) if len(local) > 1 else 0.0
-    # the uncertainty: the local scales' scatter about a plane (perspective is a smooth trend, the
-    # variation above), as the standard error of the mean
-    rel_sd = 1e-4
-    if len(local) > 3:
-        A = np.column_stack([np.ones(len(local)), where - where.mean(axis=0)])
-        coef, *_ = np.linalg.lstsq(A, local, rcond=None)
-        dof = max(len(local) - np.linalg.matrix_rank(A), 1)
-        resid = local - A @ coef
-        rel_sd = float(math.hypot(math.sqrt(float(resid @ resid) / dof / len(local)) / scale, 1e-4))
-    y0, y1, x0, x1 = box
-    centre = np.array([0.5 * (x0 + x1 - 1), 0.5 * (y0 + y1 - 1)])
-    Ji = np.linalg.inv(J)
-    H = np.array([[Ji[0, 0], Ji[0, 1], centre[0]], [Ji[1, 0], Ji[1, 1], centre[1]], [0.0, 0.0, 1.0]])
-    points = _grating_points(grey, F, centre, box, graph=graph, support=found.support)
     tilt = math.degrees(math.atan2(-perp[1], perp[0]))  # the lines' direction, as the board's rows
     tilt = (tilt + 45.0) % 90.0 - 45.0
     mm_x, mm_y = float(np.hypot(*J[:, 0])), float(np.hypot(*J[:, 1]))
-    warnings = []
+    points = _grating_points(pm, phases, found.box, graph=graph, support=found.support, centre=centre)
+    warnings: list[str] = []
+    said = _distortion_warning(pm.k1, pm.k2)
+    if said:
+        warnings.append(said)
     if not graph:
         warnings.append("a ruler gives the scale along its length only: pixels are taken as square — lay the "
                         "ruler along the tube's axis (or use graph paper or a checkerboard)")
@@ -439,35 +442,171 @@ def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str
         rel_sd=rel_sd, tilt_deg=float(tilt), scale_variation=variation, rms_residual_px=0.0,
         n_points=len(points), pattern="graph" if graph else "ruler", pitch_mm=float(pitch_mm),
         image_shape=(int(grey.shape[0]), int(grey.shape[1])), centre_px=(float(centre[0]), float(centre[1])),
-        homography=tuple(tuple(float(x) for x in row) for row in H), image=dict(identity),
+        homography=tuple(tuple(float(x) for x in row) for row in homography), image=dict(identity),
         warnings=tuple(warnings), points_px=tuple((float(x), float(y)) for x, y in points),
+        distortion_k1=float(pm.k1), distortion_k2=float(pm.k2), distortion_centre_px=tuple(pm.centre),
+        distortion_radius_px=float(pm.radius), levels=tuple(bolder),
     )
 
 
-def _grating_points(grey: np.ndarray, F: np.ndarray, centre: np.ndarray, box: tuple[int, int, int, int], *,
-                    graph: bool, support: np.ndarray) -> np.ndarray:
-    """Where the lines cross (graph paper) or the ticks are (a ruler, along the middle of its box), for the
-    figure: the lines are the dark phase of each family's wave."""
-    y0, y1, x0, x1 = box
-    g = grey[y0:y1, x0:x1].astype(np.float64)
-    g -= g.mean()
-    yy, xx = np.mgrid[y0:y1, x0:x1]
-    phases = []
-    for f in F[: 2 if graph else 1]:
-        s = np.sum(g * np.exp(-2j * np.pi * (f[0] * (xx - centre[0]) + f[1] * (yy - centre[1]))))
-        phases.append((np.pi - np.angle(s)) / (2 * np.pi))  # f.(r - c) of a dark line, modulo 1
-    corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=float) - centre
+@dataclass(frozen=True)
+class _GratingFit:
+    """A map fitted to line gratings' local frequencies (plane unit: one period of the lines fitted)."""
+
+    plane_map: PlaneMap
+    centres: np.ndarray
+    misfit: float
+    rel_sd: float
+
+
+def _scaled_fit(mapped: _GratingFit, factor: float) -> _GratingFit:
+    """The same map with its plane unit ``factor`` times finer."""
+    pm = mapped.plane_map
+    H = np.asarray(pm.homography) @ np.diag([1.0 / factor, 1.0 / factor, 1.0])
+    return dataclasses.replace(mapped, plane_map=dataclasses.replace(pm, homography=H))
+
+
+def _grating_map(grey: np.ndarray, found, *, graph: bool, start: PlaneMap | None = None,
+                 factor: float = 1.0) -> _GratingFit | str:
+    """The map (perspective and the lens's distortion) whose derivative matches the lines' local frequencies.
+
+    The frequencies are measured in tiles (stretches along a ruler), each started where the map fitted
+    so far puts it (``start``, scaled by ``factor``; else the whole image's), twice. Returns why the lines
+    are not believed when their parts disagree about the map by more than ``MAX_PART_MISFIT_BINS``.
+    """
+    from .distortion import fit_gradients
+    from .periodic import MAX_PART_MISFIT_BINS, model_misfit, tile_frequencies
+
+    period = 1.0 / float(np.hypot(*found.freqs[0]))
+    y0, y1, x0, x1 = found.box
     if graph:
-        span = corners @ F.T
-        k1 = np.arange(np.floor(span[:, 0].min()), np.ceil(span[:, 0].max()) + 1)
-        k2 = np.arange(np.floor(span[:, 1].min()), np.ceil(span[:, 1].max()) + 1)
-        K1, K2 = np.meshgrid(k1 + phases[0], k2 + phases[1])
-        pts = np.linalg.solve(F, np.vstack([K1.ravel(), K2.ravel()])).T + centre
+        grid = int(np.clip(min(y1 - y0, x1 - x0) / max(64.0, 10 * period), 3, 6))
     else:
-        f = F[0]
-        span = corners @ f
-        k = np.arange(np.floor(span.min()), np.ceil(span.max()) + 1) + phases[0]
-        pts = (k[:, None] / float(f @ f)) * f[None, :] + centre
+        length = max(y1 - y0, x1 - x0)
+        grid = int(np.clip(length / max(48.0, 8 * period), 5, 10))
+    shape = grey.shape
+    model = start
+    mfactor = factor
+    fitted = None
+    for _ in range(2):
+        predict = None
+        if model is not None:
+            def predict(c: np.ndarray, m: PlaneMap = model, k: float = mfactor) -> np.ndarray:
+                J = m.jacobian(np.asarray(c, float).reshape(1, 2))[0] * k
+                return J[: 2 if graph else 1]
+        centres, freqs, sizes, weights = tile_frequencies(grey, found, grid=grid, predict=predict)
+        n_min = 9 if graph else 6
+        distortion = len(centres) >= n_min and _reach(centres, shape) >= MIN_REACH_DISTORTION
+        if len(centres) < 4:
+            return "it fills too little of the image to be checked"
+        try:
+            fitted = fit_gradients(centres, freqs, shape=shape, weights=weights, ruler=not graph,
+                                   distortion=distortion)
+        except (np.linalg.LinAlgError, ValueError):
+            return "no smooth map of the image fits its parts' spacings"
+        model, mfactor = fitted.plane_map, 1.0
+    J = fitted.plane_map.jacobian(centres)
+    rows = J[:, 0, :] if not graph else J.reshape(len(centres), 4)
+    misfit = model_misfit(freqs, rows, sizes, n_params=len(fitted.params))
+    if not misfit <= MAX_PART_MISFIT_BINS:
+        if not math.isfinite(misfit):
+            return "it fills too little of the image to be checked"
+        return (f"its spacing differs between parts of the image by {misfit:.2f} of a frequency bin about the "
+                f"best smooth map, lines agree within {MAX_PART_MISFIT_BINS:g}")
+    # the scale's uncertainty: the parts' relative scatter about the map, as the standard error of their mean
+    families = 2 if graph else 1
+    model_mag = np.concatenate([np.hypot(rows[:, 2 * k], rows[:, 2 * k + 1]) for k in range(families)])
+    mag = np.concatenate([np.hypot(freqs[:, 2 * k], freqs[:, 2 * k + 1]) for k in range(families)])
+    resid = mag / model_mag - 1
+    dof = max(len(resid) - len(fitted.params), 1)
+    rel_sd = math.sqrt(float(resid @ resid) / dof / len(centres))
+    return _GratingFit(fitted.plane_map, centres, misfit, rel_sd)
+
+
+def _grating_levels(grey: np.ndarray, found, pm: PlaneMap, *,
+                    graph: bool) -> tuple[float, list[float], list[int]] | str:
+    """The lines' hierarchy: how many finest lines per line fitted, where they are, and every how many a bolder one.
+
+    The image is folded over ``FOLD_PERIODS`` periods of each family through the fitted map
+    (:func:`grainplug.calibration.periodic.fold`), and the fold read by
+    :func:`grainplug.calibration.periodic.read_levels`.
+
+    Returns
+    -------
+    (finer, phases, bolder) or str
+        ``finer`` finest lines per period fitted, each family's finest lines' phase (in their own
+        periods), the levels of bolder lines among them; or why the lines are refused.
+    """
+    import cv2
+
+    from .periodic import coarsest_period, fold, read_levels
+
+    h, w = grey.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    mask = found.support > 0.5
+    period = 1.0 / float(np.hypot(*found.freqs[0]))
+    if not graph:  # a ruler's longer ticks reach beyond the band of its shortest ones
+        along = max(float(found.lines[0]) * period, 1.0)
+        thickness = float(mask.sum()) / along
+        k = max(3, int(round(1.5 * thickness + 2 * period)) | 1)
+        mask = cv2.dilate(mask.astype(np.uint8), np.ones((k, k), np.uint8)) > 0
+    pts = np.column_stack([xx[mask], yy[mask]]).astype(float)
+    plane = np.full((h, w, 2), np.nan)
+    plane[mask] = pm.to_plane(pts)
+    bins = max(4, int(period))  # bins of a pixel or more: a ruler along the rows fills no finer ones
+    # each pixel against its surroundings over a period (the paper, the bench, the light's gradient)
+    g = grey.astype(np.float32)
+    detail = (g - cv2.GaussianBlur(g, (0, 0), period)).astype(np.float64)[mask]
+    read, spans = [], []
+    for axis in range(2 if graph else 1):
+        coordinate = plane[..., axis][mask]
+        span = coarsest_period(coordinate, detail, bins=bins, period_px=period)
+        read.append(read_levels(fold(detail, coordinate, span=span, bins=bins, period_px=period)))
+        spans.append(span)
+    finer = {r.finer / sp for r, sp in zip(read, spans, strict=True)}
+    lines = "lines" if graph else "ticks"
+    what = "graph paper's" if graph else "a ruler's"
+    if max(finer) > 1.02 * min(finer):
+        return (f"{what} two families of lines, every {period:.3g} px, show finer lines in one direction only "
+                "— retake the image in focus and evenly lit")
+    m = read[0].finer / spans[0]  # finest lines per period fitted
+    bolder = sorted(set.intersection(*[set(r.bolder) for r in read]))
+    fine_px = period / m
+    if 5 in bolder or 10 in bolder:
+        phases = [float(np.mod(r.phase * m, 1.0)) for r in read]
+        log.info("%s: finest %s every %.3g px, %.3g per period fitted, bolder every %s", what, lines, fine_px, m,
+                 bolder)
+        return m, phases, bolder
+    if bolder == [2]:
+        return (f"{what} {lines} were found every {fine_px:.3g} px with every 2nd bolder: that is its 5 mm level (10 "
+                "mm every 2nd), its finest 1 mm lines are not seen (too faint, or too fine at this magnification) — "
+                "photograph it closer, in focus and evenly lit; or, if those are 5 mm apart, give the analysis "
+                f"--mm-per-px {5.0 / fine_px:.4g}")
+    return (f"{lines} were found every {fine_px:.3g} px, but no bolder (longer) one every 5th or 10th: graph paper "
+            "and rulers mark their 5 and 10 mm lines so, and without them the lines seen may be those 5 or 10 mm "
+            "apart (the finest not seen) — photograph the pattern closer, in focus and evenly lit, or use a "
+            "checkerboard")
+
+
+def _grating_points(pm: PlaneMap, phases: list[float], box: tuple[int, int, int, int], *, graph: bool,
+                    support: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Where the finest lines cross (graph paper) or the ticks are (a ruler, across the middle of its box), for
+    the figure: the fitted map's integer lines (in finest periods, at the lines' phase) seen in the image."""
+    y0, y1, x0, x1 = box
+    corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1], [0.5 * (x0 + x1), y0], [0.5 * (x0 + x1), y1],
+                        [x0, 0.5 * (y0 + y1)], [x1, 0.5 * (y0 + y1)]], dtype=float)
+    span = pm.to_plane(corners)
+    k1 = np.arange(np.floor(span[:, 0].min()) - 1, np.ceil(span[:, 0].max()) + 2) + phases[0]
+    if graph:
+        k2 = np.arange(np.floor(span[:, 1].min()) - 1, np.ceil(span[:, 1].max()) + 2) + phases[1]
+        if len(k1) * len(k2) > 40000:
+            return np.zeros((0, 2))
+        K1, K2 = np.meshgrid(k1, k2)
+        plane = np.column_stack([K1.ravel(), K2.ravel()])
+    else:
+        mid = pm.to_plane(centre.reshape(1, 2))[0, 1]
+        plane = np.column_stack([k1, np.full(len(k1), mid)])
+    pts = pm.to_image(plane)
     inside = (pts[:, 0] >= x0) & (pts[:, 0] < x1) & (pts[:, 1] >= y0) & (pts[:, 1] < y1)
     pts = pts[inside]
     if graph:  # only where the paper is
@@ -549,6 +688,43 @@ def _checkerboard_corners(g: np.ndarray, *, smooth_px: float) -> tuple[np.ndarra
         return None
     inner = refined[_x_corners(g, refined, radius=radius)]
     return index_lattice(inner[:, ::-1]) if len(inner) >= 9 else None
+
+
+def _alternates(grey: np.ndarray, index: np.ndarray, points: np.ndarray) -> bool:
+    """Whether a lattice of corners bounds squares alternately dark and light, each even (a checkerboard).
+
+    Each square whose four corners were found is sampled at 3 x 3 points over its middle half
+    (bilinear between its corners); the squares of the two colours must differ by more than 3
+    times the spread of the samples within a square and of the squares within a colour, and by
+    10 grey levels. Graph paper's crossings bound squares of paper crossed by lines (or, taken
+    along the diagonals, squares with a crossing in the middle), all alike or uneven. True when
+    fewer than 4 squares can be checked.
+    """
+    from scipy import ndimage
+
+    where = {(int(i), int(j)): k for k, (i, j) in enumerate(np.rint(index).astype(int))}
+    g = grey.astype(np.float64)
+    a, b = np.meshgrid([0.25, 0.5, 0.75], [0.25, 0.5, 0.75])
+    a, b = a.ravel(), b.ravel()
+    means, spreads, parity = [], [], []
+    for (i, j), k in where.items():
+        ks = [where.get(q) for q in ((i + 1, j), (i, j + 1), (i + 1, j + 1))]
+        if None in ks:
+            continue
+        p00, p10, p01, p11 = points[[k, *ks]]
+        xy = (np.outer((1 - a) * (1 - b), p00) + np.outer(a * (1 - b), p10) + np.outer((1 - a) * b, p01)
+              + np.outer(a * b, p11))
+        v = ndimage.map_coordinates(g, [xy[:, 1], xy[:, 0]], order=1, mode="nearest")
+        means.append(float(v.mean()))
+        spreads.append(float(v.std()))
+        parity.append((i + j) % 2)
+    if len(means) < 4 or len(set(parity)) < 2:
+        return True
+    v, p = np.asarray(means), np.asarray(parity)
+    dark, light = v[p == 0], v[p == 1]
+    spread = max(math.sqrt(0.5 * (float(np.var(dark)) + float(np.var(light)))), float(np.median(spreads)))
+    gap = abs(float(dark.mean()) - float(light.mean()))
+    return gap > 3 * spread and gap > 10.0
 
 
 def _x_corners(g: np.ndarray, rc: np.ndarray, *, radius: float) -> np.ndarray:

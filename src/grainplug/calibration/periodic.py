@@ -50,11 +50,14 @@ warning says so.
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 #: the fundamental must reach this share of the strongest harmonic's height
 FUNDAMENTAL_SHARE = 0.35
@@ -443,14 +446,55 @@ def model_misfit(freqs: np.ndarray, model: np.ndarray, sizes: np.ndarray, *, n_p
     return worst
 
 
-#: the fold spans this many periods of the lines first found (graph paper repeats every 10 mm)
-FOLD_PERIODS = 10
-#: finer lines are looked for at these fractions of the period first found (1 mm in 5 or 10 mm; 5 in 10)
-FINER_FACTORS = (10, 5, 2)
+#: the pattern's whole period, in periods of the lines first found (graph paper's 10 mm lines in its 1 mm, 5 mm
+#: lines, or in the 2nd harmonic of its 5 mm ones; a ruler's 10 mm in its half-millimetre ticks)
+COARSE_PERIODS = (2, 4, 5, 10, 20)
+#: periods no pattern has, folded to see how much a fold over a long period scatters by chance
+CONTROL_PERIODS = (3, 7)
+#: ... and must repeat at least this many times across the image
+MIN_COARSE_CYCLES = 2.0
+#: a coarser repeat must stand this many times above the profile's noise (and 3 % of the lines' own); one found
+#: wrongly is harmless: the fold then shows no level of bolder lines, and the lines are refused
+COARSE_Z = 4.0
 #: finer lines closer than this (px) cannot be resolved
 MIN_FINE_PX = 2.4
 #: a level of bolder lines (every 2nd, 5th, 10th...) and finer lines must stand this many standard errors out
 LEVEL_Z = 5.0
+
+
+def coarsest_period(coordinate: np.ndarray, values: np.ndarray, *, bins: int, period_px: float) -> int:
+    """The pattern's whole period, in periods of the lines first found: graph paper whose 1 mm lines were found
+    repeats every 10 (its 10 mm lines; every 5 when they are not bolder than the 5 mm ones), one whose 5 mm
+    lines were found every 2, a ruler with half-millimetre ticks every 20, a grating without bolder lines 1.
+
+    Phase dispersion: the pixels (``values`` at ``coordinate``, in periods from a fitted map, perspective and
+    the lens's distortion undone) are folded over ``j`` periods (``j`` in ``COARSE_PERIODS``, repeating
+    ``MIN_COARSE_CYCLES`` times or more across the image) and each period of the fold compared with the
+    fold over one: the mean square difference ``D_j`` is the structure that repeats every ``j`` periods and
+    not every one. The pattern's period is the smallest ``j`` with ``D_j`` at least 80 % of the largest,
+    when that stands ``COARSE_Z`` times above the ``D`` of periods that do not divide into it or it into
+    them (3 and 7, never a pattern's, among them: with few repeats across the image, a fold over any long
+    period scatters); else 1.
+    """
+    length = float(np.ptp(coordinate))
+    one = fold(values, coordinate, span=1, bins=bins, period_px=period_px)
+    dispersion = {}
+    for j in sorted({*COARSE_PERIODS, *CONTROL_PERIODS}):
+        if length < MIN_COARSE_CYCLES * j:
+            continue
+        fj = fold(values, coordinate, span=j, bins=bins, period_px=period_px)
+        diff = fj.profile.reshape(j, bins) - one.profile[None, :]
+        dispersion[j] = float(np.nanmean(diff**2))
+    log.debug("phase dispersion by period: %s", {j: round(d, 2) for j, d in dispersion.items()})
+    candidates = {j: d for j, d in dispersion.items() if j in COARSE_PERIODS}
+    if not candidates:
+        return 1
+    top = max(candidates.values())
+    j0 = min(j for j, d in candidates.items() if d >= 0.8 * top)
+    others = [d for j, d in dispersion.items() if j % j0 and j0 % j]
+    if not others:
+        return 1
+    return j0 if candidates[j0] > COARSE_Z * float(np.median(others)) else 1
 
 
 @dataclass(frozen=True)
@@ -469,6 +513,9 @@ class Fold:
         Bins per period.
     period_px : float
         The period in px (at the pattern's centre).
+    halves : tuple of ndarray
+        The profiles of the two halves of the image across the lines, for the reproducibility of what
+        is read in the fold.
     """
 
     profile: np.ndarray
@@ -476,50 +523,86 @@ class Fold:
     span: int
     bins: int
     period_px: float
+    halves: tuple[np.ndarray, ...] = ()
 
-    def at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The profile and its standard error at positions ``x`` (periods), linearly interpolated, circular."""
+    def at(self, x: np.ndarray, *, profile: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The profile (or another over the same bins) and its standard error at positions ``x`` (periods),
+        linearly interpolated, circular."""
         n = len(self.profile)
         t = np.mod(np.asarray(x, float) * self.bins - 0.5, n)
         i = np.floor(t).astype(int)
         a = t - i
+        i %= n  # np.mod of a tiny negative number can give n itself
         j = (i + 1) % n
-        value = (1 - a) * self.profile[i] + a * self.profile[j]
+        p = self.profile if profile is None else profile
+        value = (1 - a) * p[i] + a * p[j]
         se = np.hypot((1 - a) * self.se[i], a * self.se[j])
         return value, se
 
 
-def fold(grey: np.ndarray, mask: np.ndarray, coordinate: np.ndarray, *, span: int, bins: int,
-         period_px: float) -> Fold:
-    """Fold the image's pixels in ``mask`` by their ``coordinate`` (periods, from a fitted map) modulo ``span``."""
-    g = grey[mask].astype(np.float64)
-    b = np.floor(np.mod(coordinate[mask], span) * bins).astype(np.int64) % (span * bins)
-    n = np.bincount(b, minlength=span * bins).astype(float)
-    s1 = np.bincount(b, weights=g, minlength=span * bins)
-    s2 = np.bincount(b, weights=g * g, minlength=span * bins)
+def fold(values: np.ndarray, coordinate: np.ndarray, *, span: int, bins: int, period_px: float) -> Fold:
+    """Fold pixels' ``values`` by their ``coordinate`` (periods, from a fitted map) modulo ``span`` periods.
+
+    The standard error is the folds' own: half the robust spread of the difference between the folds of
+    the two halves of the image across the lines (noise, and the map's misfit), the same for every bin
+    but for its count of pixels.
+    """
+    n_bins = span * bins
+    v = np.asarray(values, np.float64)
+    c = np.asarray(coordinate, np.float64)
+    b = np.floor(np.mod(c, span) * bins).astype(np.int64) % n_bins
+
+    def mean_of(sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = np.bincount(b[sel], minlength=n_bins).astype(float)
+        s1 = np.bincount(b[sel], weights=v[sel], minlength=n_bins)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(n > 0, s1 / n, np.nan), n
+
+    everything = np.ones(len(v), bool)
+    mean, n = mean_of(everything)
+    half = c < np.median(c)
+    a_mean, _ = mean_of(half)
+    b_mean, _ = mean_of(~half)
+    d = np.abs(a_mean - b_mean)
+    ok = np.isfinite(d)
+    # each half's mean has twice the variance of the whole's: sd(whole) = sd(a - b) / 2
+    spread = 1.4826 * float(np.median(d[ok])) / 2.0 if ok.any() else np.inf
+    mean_n = float(np.mean(n[n > 0])) if np.any(n > 0) else 1.0
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = s1 / n
-        var = np.maximum(s2 / n - mean**2, 0.0) * n / np.maximum(n - 1, 1)
-        se = np.sqrt(var / n)
-    empty = n < 3
+        se = spread * np.sqrt(mean_n / n)
+    empty = n < 1
     mean[empty], se[empty] = np.nan, np.nan
-    return Fold(mean, se, span, bins, period_px)
+    return Fold(mean, se, span, bins, period_px, (a_mean, b_mean))
 
 
 def _dips(f: Fold, x: np.ndarray, half: float) -> tuple[np.ndarray, np.ndarray]:
-    """How much darker the profile is at ``x`` than ``half`` a period either side, and its standard error."""
-    centre, se0 = f.at(x)
-    left, se1 = f.at(x - half)
-    right, se2 = f.at(x + half)
-    return 0.5 * (left + right) - centre, np.sqrt(se0**2 + 0.25 * (se1**2 + se2**2))
+    """How much darker the profile is at ``x`` than ``half`` a period either side, and its standard error: half
+    the robust spread of the same dips measured in the two halves of the image (noise, and the fitted map's
+    misfit between them), the same for every position."""
+    def dip(profile: np.ndarray | None) -> np.ndarray:
+        centre, _ = f.at(x, profile=profile)
+        left, _ = f.at(x - half, profile=profile)
+        right, _ = f.at(x + half, profile=profile)
+        return 0.5 * (left + right) - centre
+
+    d = dip(None)
+    if len(f.halves) == 2:
+        gap = np.abs(dip(f.halves[0]) - dip(f.halves[1]))
+        gap = gap[np.isfinite(gap)]
+        se = 1.4826 * float(np.median(gap)) / 2.0 if len(gap) else math.inf
+        se = max(se, 1e-9)
+    else:
+        se = float(np.nanmedian(f.at(x)[1]))
+    return d, np.full(len(d), se)
 
 
 def _line_phase(f: Fold, m: int) -> float:
-    """Where the dark lines repeating ``m`` times per period are, in periods (modulo ``1 / m``)."""
+    """Where the dark lines repeating ``m`` times over the fold are, in periods (modulo ``span / m``)."""
     x = (np.arange(len(f.profile)) + 0.5) / f.bins
     ok = np.isfinite(f.profile)
-    c = np.sum((f.profile[ok] - np.mean(f.profile[ok])) * np.exp(-2j * np.pi * m * x[ok]))
-    return float(np.mod((np.pi - np.angle(c)) / (2 * np.pi * m), 1.0 / m))
+    nu = m / f.span
+    c = np.sum((f.profile[ok] - np.mean(f.profile[ok])) * np.exp(-2j * np.pi * nu * x[ok]))
+    return float(np.mod((np.pi - np.angle(c)) / (2 * np.pi * nu), 1.0 / nu))
 
 
 @dataclass(frozen=True)
@@ -529,9 +612,9 @@ class Levels:
     Attributes
     ----------
     finer : int
-        The finest lines seen are this many per period first found (1: those).
+        The finest lines seen are this many per fold (the pattern's whole period).
     phase : float
-        Where a finest line is, in periods first found (modulo ``1 / finer``).
+        Where a finest line is, in periods first found (modulo ``span / finer``).
     bolder : tuple of int
         Every how many finest lines a bolder (longer) one comes, for each level seen (2, 5, 10).
     dips : ndarray
@@ -545,43 +628,38 @@ class Levels:
 
 
 def read_levels(f: Fold) -> Levels:
-    """The finest lines in a fold and the bolder lines among them.
+    """The finest lines in a fold over the pattern's whole period, and the bolder lines among them.
 
-    Finer lines are looked for at ``1 / m`` of the period first found (``m`` in ``FINER_FACTORS``,
-    where they would be at least ``MIN_FINE_PX`` apart): they are there when the profile dips at
-    the positions between the lines first found, by ``LEVEL_Z`` standard errors in the median and at
-    9 positions in 10. Among the finest lines, a level of bolder ones every ``r`` (2, 5, 10) is
-    seen when every line of one class modulo ``r`` dips deeper than any other's, by ``LEVEL_Z``
-    standard errors and a quarter of the others' depth.
+    The finest lines are ``m`` per fold, for the largest ``m`` (their spacing at least
+    ``MIN_FINE_PX``) at which the profile dips at every one of the ``m`` evenly spaced positions:
+    by ``LEVEL_Z`` standard errors in the median and by 2 at 9 positions in 10 (at ``m`` too large,
+    half the positions fall between lines). Among them, a level of bolder ones every ``r`` (2, 5,
+    10, 20) is seen when every line of one class modulo ``r`` dips deeper than any other's, by
+    ``LEVEL_Z`` standard errors or a quarter of the others' median depth, whichever is more.
     """
+    max_m = int(min(40, f.span * f.period_px / MIN_FINE_PX))
     finer, phase = 1, _line_phase(f, 1)
-    for m in FINER_FACTORS:
-        if f.period_px / m < MIN_FINE_PX:
-            continue
+    for m in range(max(max_m, 1), 0, -1):
         x0 = _line_phase(f, m)
-        x = x0 + np.arange(f.span * m) / m
-        between = np.abs(np.mod(x - phase + 0.5, 1.0) - 0.5) > 0.5 / m
-        d, se = _dips(f, x[between], 0.5 / m)
+        x = x0 + np.arange(m) * f.span / m
+        d, se = _dips(f, x, 0.5 * f.span / m)
         ok = np.isfinite(d) & np.isfinite(se) & (se > 0)
-        if ok.sum() < 0.5 * between.sum() or not between.any():
+        if ok.sum() < 0.9 * m:
             continue
         z = d[ok] / se[ok]
         if np.median(z) >= LEVEL_Z and np.mean(z > 2.0) >= 0.9:
             finer, phase = m, x0
             break
-    if finer == 1:
-        phase = _line_phase(f, 1)
-    k = f.span * finer
-    x = phase + np.arange(k) / finer
-    d, se = _dips(f, x, 0.5 / finer)
+    x = phase + np.arange(finer) * f.span / finer
+    d, se = _dips(f, x, 0.5 * f.span / finer)
     bolder = []
-    for r in (2, 5, 10):
-        if k < r or k % r or not np.all(np.isfinite(d)):
+    for r in (2, 5, 10, 20):
+        if finer < r or finer % r or not np.all(np.isfinite(d)):
             continue
         classes = [d[c::r] for c in range(r)]
         best = int(np.argmax([float(np.mean(c)) for c in classes]))
         others = np.concatenate([c for i, c in enumerate(classes) if i != best])
-        margin = LEVEL_Z * float(np.median(se)) + 0.25 * max(float(np.median(others)), 0.0)
+        margin = max(LEVEL_Z * float(np.median(se)), 0.25 * max(float(np.median(others)), 0.0))
         if float(np.min(classes[best])) > float(np.max(others)) + margin:
             bolder.append(r)
     return Levels(finer, float(phase), tuple(bolder), d)
