@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 #: the lens's distortion at the frame's corners (optics' sign: negative is barrel)
-DISTORTIONS = (-0.05, -0.025, -0.015, 0.0, 0.015, 0.025, 0.05)
+DISTORTIONS = (-0.05, -0.035, -0.025, -0.015, 0.0, 0.015, 0.025, 0.035, 0.05)
 
 
 def sweep_cases() -> list[tuple[str, dict]]:
@@ -30,7 +30,7 @@ def sweep_cases() -> list[tuple[str, dict]]:
                                              int(field_mm[0] * 0.95 / pitch) // 2 * 2 + 1))
             elif pattern == "graph":
                 kw.update(pitch_mm=1.0, n=(int(field_mm[1] * 1.2), int(field_mm[0] * 1.2)),
-                          thin_contrast=float(rng.choice([0.06, 0.12, 0.25, 0.45])))
+                          thin_contrast=(0.05, 0.1, 0.2, 0.45)[k // 4 % 4])
             else:
                 kw.update(pitch_mm=1.0, n=(int(field_mm[1] * 1.2), 12), roll_deg=float(rng.uniform(-4, 4)))
             name = f"{k:02d} {pattern} {100 * distortion:+.1f}% {mm_per_px} mm/px"

@@ -631,7 +631,8 @@ def read_levels(f: Fold) -> Levels:
     """The finest lines in a fold over the pattern's whole period, and the bolder lines among them.
 
     The finest lines are ``m`` per fold, for the largest ``m`` (their spacing at least
-    ``MIN_FINE_PX``) at which the profile dips at every one of the ``m`` evenly spaced positions:
+    ``MIN_FINE_PX``) at which the profile dips (against a quarter of their spacing either side, clear of a
+    bold neighbour's edge) at every one of the ``m`` evenly spaced positions:
     by ``LEVEL_Z`` standard errors in the median and by 2 at 9 positions in 10 (at ``m`` too large,
     half the positions fall between lines). Among them, a level of bolder ones every ``r`` (2, 5,
     10, 20) is seen when every line of one class modulo ``r`` dips deeper than any other's, by
@@ -642,7 +643,7 @@ def read_levels(f: Fold) -> Levels:
     for m in range(max(max_m, 1), 0, -1):
         x0 = _line_phase(f, m)
         x = x0 + np.arange(m) * f.span / m
-        d, se = _dips(f, x, 0.5 * f.span / m)
+        d, se = _dips(f, x, 0.25 * f.span / m)
         ok = np.isfinite(d) & np.isfinite(se) & (se > 0)
         if ok.sum() < 0.9 * m:
             continue
