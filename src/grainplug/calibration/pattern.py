@@ -7,10 +7,12 @@ hidden part of it needs to be known), then a plane-to-image homography is fitted
 them by least squares (OpenCV). Its local derivative gives the mm per
 pixel along the image's axes at the pattern's centre, the spread of that derivative
 over the pattern says how much the scale varies over the field by perspective, and the
-fit's residuals give the scale's uncertainty. Lens distortion, which no homography
-holds, is measured between each point's lattice neighbours: a smooth surface fitted to
-the measured scale over the homography's corrects the scale at the centre and adds to
-the variation (docs/calibration.md, "Lens distortion").
+fit's residuals give the scale's uncertainty. The lens's radial distortion (k1, k2 about
+the frame's centre) is fitted with the homography (:mod:`grainplug.calibration.distortion`),
+so that the scale is known anywhere in the frame (:meth:`Calibration.scale_at`); what
+remains is measured between each point's lattice neighbours (a smooth surface fitted to
+the measured scale over the map's) and corrects the scale at the centre (docs/calibration.md,
+"Lens distortion"). Graph paper and rulers: :func:`_grating`.
 """
 
 from __future__ import annotations
@@ -387,7 +389,7 @@ def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str
     mapped = _grating_map(grey, found, graph=graph)
     if isinstance(mapped, str):
         return f"the strongest repeat, every {spacing:.3g} px, is not a pattern of {lines}: {mapped}"
-    levels = _grating_levels(grey, found, mapped.plane_map, graph=graph)
+    levels = _grating_levels(grey, found, mapped.fold_map, graph=graph)
     if isinstance(levels, str):
         return levels
     finer, phases, bolder = levels
@@ -400,7 +402,7 @@ def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str
                         found.peak_to_noise, found.lines)
         refined = _grating_map(grey, fine, graph=graph, start=base, factor=finer)
         mapped = refined if not isinstance(refined, str) else _scaled_fit(mapped, finer)
-    pm = mapped.plane_map
+    pm = _whole_image_level(grey, found, mapped, finer=finer, graph=graph)
     y0, y1, x0, x1 = found.box
     centre = np.array([0.5 * (x0 + x1 - 1), 0.5 * (y0 + y1 - 1)])
     J = pitch_mm * pm.jacobian(centre.reshape(1, 2))[0]
@@ -457,6 +459,52 @@ class _GratingFit:
     centres: np.ndarray
     misfit: float
     rel_sd: float
+    fold_map: PlaneMap  # with the lens's terms whether or not they are significant: to align the fold
+
+
+#: the whole image's peak sets the map's level when the lines' frequency spreads over less than this many of its
+#: bins (variation x lines): the peak is then the lines' mean frequency, more precise than the parts'
+WHOLE_IMAGE_SPREAD_BINS = 0.5
+
+
+def _whole_image_level(grey: np.ndarray, found, mapped: _GratingFit, *, finer: float, graph: bool) -> PlaneMap:
+    """The fitted map, its level set by the whole image's peak when the scale varies little over the lines.
+
+    Each part's peak is pulled a little by the sidebands of the bolder lines every 5th and 10th (a tenth of
+    the frequency away, a bin or two in a part); the whole image resolves them. When the frequency spreads
+    over less than ``WHOLE_IMAGE_SPREAD_BINS`` of the whole image's bins, its peak is the mean of the map's
+    frequency over the lines (weighted as in the transform), and each family's axis of the map is rescaled to
+    it: the map keeps its shape (perspective, distortion), the whole image its level. With more spread (a lens
+    distorting by a percent or more), the peak is no longer the mean, and the map is kept as fitted.
+    """
+    from .periodic import _prepare, _refine, _window
+
+    pm = mapped.plane_map
+    h, w = grey.shape
+    yy, xx = np.mgrid[0:h:4, 0:w:4]
+    weight = (_window(grey.shape) * found.support)[::4, ::4]
+    keep = weight > 1e-3 * weight.max()
+    pts = np.column_stack([xx[keep], yy[keep]]).astype(float)
+    wts = weight[keep]
+    J = pm.jacobian(pts)  # rows: the families' frequencies (finest periods per px)
+    families = 2 if graph else 1
+    mags = np.hypot(J[:, :families, 0], J[:, :families, 1])
+    spread = float(np.max((mags.max(axis=0) - mags.min(axis=0)) / np.mean(mags, axis=0)))
+    log.debug("frequency spread %.3g over %.0f lines", spread, min(found.lines) * finer)
+    if spread * min(found.lines) * finer >= WHOLE_IMAGE_SPREAD_BINS:
+        return pm
+    gw = _prepare(grey) * _window(grey.shape) * found.support
+    bin_size = 0.5 / max(grey.shape)
+    factors = []
+    for k in range(families):
+        mean = np.sum(J[:, k, :] * wts[:, None], axis=0) / wts.sum()
+        peak = _refine(gw, mean, bin_size)
+        factors.append(float(np.hypot(*peak) / np.hypot(*mean)))
+    if not graph:
+        factors.append(factors[0])
+    log.info("the whole image's peak sets the lines' level: %s", [f"{f - 1:+.2e}" for f in factors])
+    H = np.asarray(pm.homography) @ np.diag([1.0 / factors[0], 1.0 / factors[1], 1.0])
+    return dataclasses.replace(pm, homography=H)
 
 
 def _scaled_fit(mapped: _GratingFit, factor: float) -> _GratingFit:
@@ -488,26 +536,44 @@ def _grating_map(grey: np.ndarray, found, *, graph: bool, start: PlaneMap | None
     model = start
     mfactor = factor
     fitted = None
-    for _ in range(2):
+    # started from the whole image's frequencies: coarse tiles first, then the grid from the map they give;
+    # from a map already fitted: the grid at once
+    for tiles in ((grid,) if start is not None else (3 if graph else 5, grid)):
         predict = None
         if model is not None:
             def predict(c: np.ndarray, m: PlaneMap = model, k: float = mfactor) -> np.ndarray:
                 J = m.jacobian(np.asarray(c, float).reshape(1, 2))[0] * k
                 return J[: 2 if graph else 1]
-        centres, freqs, sizes, weights = tile_frequencies(grey, found, grid=grid, predict=predict)
+        centres, freqs, sizes, weights = tile_frequencies(grey, found, grid=tiles, predict=predict)
         n_min = 9 if graph else 6
         distortion = len(centres) >= n_min and _reach(centres, shape) >= MIN_REACH_DISTORTION
         if len(centres) < 4:
             return "it fills too little of the image to be checked"
         try:
-            fitted = fit_gradients(centres, freqs, shape=shape, weights=weights, ruler=not graph,
-                                   distortion=distortion)
+            fitted = fit_gradients(centres, freqs, shape=shape, weights=weights, ruler=not graph, distortion=False)
+            richest = fitted
+            if distortion:  # the lens's terms only when the parts ask for them (an F test), not to fit their noise
+                bent = fit_gradients(centres, freqs, shape=shape, weights=weights, ruler=not graph, distortion=True)
+                n_obs = len(centres) * (2 if graph else 1) * 2
+                rss0, rss1 = fitted.rms**2 * n_obs, bent.rms**2 * n_obs
+                dof = max(n_obs - len(bent.params), 1)
+                richest = bent
+                if rss1 <= 0 or (rss0 - rss1) / 2 / (rss1 / dof) > DISTORTION_F:
+                    fitted = bent
         except (np.linalg.LinAlgError, ValueError):
             return "no smooth map of the image fits its parts' spacings"
-        model, mfactor = fitted.plane_map, 1.0
-    J = fitted.plane_map.jacobian(centres)
-    rows = J[:, 0, :] if not graph else J.reshape(len(centres), 4)
-    misfit = model_misfit(freqs, rows, sizes, n_params=len(fitted.params))
+        model, mfactor = richest.plane_map, 1.0
+    # the evidence: the parts agree with the map; a map without the lens's terms that does not fit them gives
+    # way to the one with (an F test short of significance does not make a misfitting map right)
+    def misfit_of(fit) -> tuple[float, np.ndarray]:
+        J = fit.plane_map.jacobian(centres)
+        rows = J[:, 0, :] if not graph else J.reshape(len(centres), 4)
+        return model_misfit(freqs, rows, sizes, n_params=len(fit.params)), rows
+
+    misfit, rows = misfit_of(fitted)
+    if not misfit <= MAX_PART_MISFIT_BINS and richest is not fitted:
+        fitted = richest
+        misfit, rows = misfit_of(fitted)
     if not misfit <= MAX_PART_MISFIT_BINS:
         if not math.isfinite(misfit):
             return "it fills too little of the image to be checked"
@@ -520,15 +586,16 @@ def _grating_map(grey: np.ndarray, found, *, graph: bool, start: PlaneMap | None
     resid = mag / model_mag - 1
     dof = max(len(resid) - len(fitted.params), 1)
     rel_sd = math.sqrt(float(resid @ resid) / dof / len(centres))
-    return _GratingFit(fitted.plane_map, centres, misfit, rel_sd)
+    return _GratingFit(fitted.plane_map, centres, misfit, rel_sd, richest.plane_map)
 
 
 def _grating_levels(grey: np.ndarray, found, pm: PlaneMap, *,
                     graph: bool) -> tuple[float, list[float], list[int]] | str:
     """The lines' hierarchy: how many finest lines per line fitted, where they are, and every how many a bolder one.
 
-    The image is folded over ``FOLD_PERIODS`` periods of each family through the fitted map
-    (:func:`grainplug.calibration.periodic.fold`), and the fold read by
+    The pattern's whole period is found by phase dispersion
+    (:func:`grainplug.calibration.periodic.coarsest_period`), the image folded over it through the fitted
+    map (:func:`grainplug.calibration.periodic.fold`), and the fold read by
     :func:`grainplug.calibration.periodic.read_levels`.
 
     Returns
@@ -578,10 +645,10 @@ def _grating_levels(grey: np.ndarray, found, pm: PlaneMap, *,
                  bolder)
         return m, phases, bolder
     if bolder == [2]:
-        return (f"{what} {lines} were found every {fine_px:.3g} px with every 2nd bolder: that is its 5 mm level (10 "
-                "mm every 2nd), its finest 1 mm lines are not seen (too faint, or too fine at this magnification) — "
-                "photograph it closer, in focus and evenly lit; or, if those are 5 mm apart, give the analysis "
-                f"--mm-per-px {5.0 / fine_px:.4g}")
+        return (f"{what} {lines} were found every {fine_px:.3g} px with every 2nd bolder (longer): that is its 5 mm "
+                f"level (10 mm every 2nd), its finest {lines} are not seen (too faint, or too fine at this "
+                "magnification) — photograph it closer, in focus and evenly lit; or, if those are 5 mm apart, give "
+                f"the analysis --mm-per-px {5.0 / fine_px:.4g}")
     return (f"{lines} were found every {fine_px:.3g} px, but no bolder (longer) one every 5th or 10th: graph paper "
             "and rulers mark their 5 and 10 mm lines so, and without them the lines seen may be those 5 or 10 mm "
             "apart (the finest not seen) — photograph the pattern closer, in focus and evenly lit, or use a "
@@ -736,7 +803,9 @@ def _x_corners(g: np.ndarray, rc: np.ndarray, *, radius: float) -> np.ndarray:
     cols = rc[:, 1:] + radius * np.cos(theta)
     ring = ndimage.map_coordinates(g, [rows.ravel(), cols.ravel()], order=1, mode="nearest").reshape(rows.shape)
     f = np.abs(np.fft.rfft(ring, axis=1))
-    return (f[:, 2] > f[:, 1]) & (f[:, 2] > 2 * f[:, 3])
+    # a board's corner is a square wave of two cycles around the ring: no fourth harmonic; where two lines cross
+    # (graph paper, one line bolder than the other) the fourth is as strong as the second
+    return (f[:, 2] > f[:, 1]) & (f[:, 2] > 2 * f[:, 3]) & (f[:, 2] > 2 * f[:, 4])
 
 
 def _dot_points(grey: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -919,6 +988,9 @@ MIN_REACH_DISTORTION = 0.3
 MIN_POINTS_DISTORTION = 16
 #: a lens distorting more than this at the frame's corners (either sign) is said
 DISTORTION_SAY = 0.005
+#: the lens's two terms are kept when they lower the residuals (points', or lines' parts') this much: F statistic
+#: of the two terms (else the homography alone: the terms would fit the noise)
+DISTORTION_F = 10.0
 
 
 def _reach(points: np.ndarray, shape: tuple[int, int]) -> float:
@@ -940,8 +1012,15 @@ def _distortion_warning(k1: float, k2: float) -> str | None:
 
 def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str, shape: tuple[int, int],
          identity: dict[str, object]) -> Calibration:
-    distortion = len(world) >= MIN_POINTS_DISTORTION and _reach(image_pts, shape) >= MIN_REACH_DISTORTION
-    fit = fit_points(world, image_pts, shape=shape, distortion=distortion)
+    fit = fit_points(world, image_pts, shape=shape, distortion=False)
+    distortion = False
+    if len(world) >= MIN_POINTS_DISTORTION and _reach(image_pts, shape) >= MIN_REACH_DISTORTION:
+        # the lens's terms when the points ask for them (an F test), not to fit their noise
+        bent = fit_points(world, image_pts, shape=shape, distortion=True)
+        n_obs = 2 * len(world)
+        rss0, rss1 = fit.rms**2 * n_obs, bent.rms**2 * n_obs
+        if rss1 <= 0 or (rss0 - rss1) / 2 / (rss1 / max(n_obs - len(bent.params), 1)) > DISTORTION_F:
+            fit, distortion = bent, True
     pm = fit.plane_map
     if not np.all(np.isfinite(pm.homography)):
         raise CalibrationError("the pattern's points do not fit a plane seen by a camera — retake the image")
@@ -956,11 +1035,14 @@ def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str
     variation = float((local.max() - local.min()) / local.mean())
     # what the fitted map cannot show (a lens's distortion of another form, a card not flat): the scale measured
     # between each point's lattice neighbours, against the map's at the same place
+    # (with the lens's distortion fitted, the map holds it: the field then only adds its noise to the scale, and
+    # is kept for the variation it measures)
     field_fit = _local_scale_field(world, image_pts, proj, pitch_mm=pitch_mm)
     if field_fit is not None:
         at_centre, field_sd, field_variation = field_fit(centre)
-        J = J * at_centre
-        mm_x, mm_y, scale = mm_x * at_centre, mm_y * at_centre, scale * at_centre
+        if not distortion:
+            J = J * at_centre
+            mm_x, mm_y, scale = mm_x * at_centre, mm_y * at_centre, scale * at_centre
         variation = max(variation, field_variation)
     # pattern rows in the image: the image of the plane's X axis
     d = pm.to_image(np.array([centre_world, centre_world + np.array([pitch_mm, 0.0])]))
@@ -972,7 +1054,7 @@ def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str
             return float(m.scale(m.to_image(centre_world.reshape(1, 2)))[0])
 
         rel_sd = max(rel_sd, fit.rel_sd_of(centre_scale))
-    if field_fit is not None:
+    if field_fit is not None and not distortion:
         rel_sd = math.hypot(rel_sd, field_sd)
     warnings = []
     said = _distortion_warning(pm.k1, pm.k2)

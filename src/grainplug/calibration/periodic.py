@@ -29,22 +29,27 @@ pull a peak. Before refining, the image is weighted by where the gratings are: i
 local amplitude at the coarse frequencies (demodulated, low-passed over 1.5
 periods), so that the refinement sees the lines and not what surrounds them.
 
-*Uncertainty and variation.* The frequencies are measured again in a 3 x 3 grid of
-tiles over the pattern (five stretches along a ruler): the spread of the local
-scales is the variation over the field (perspective, lens distortion), their
-robust standard error the uncertainty.
+*The map over the field.* The frequencies are measured again in tiles (up to 6 x 6; stretches along
+a ruler), each started where the map fitted so far expects it, and a map from the image to the
+pattern's plane (a homography after the lens's radial distortion is undone,
+:mod:`grainplug.calibration.distortion`) is fitted to them: the frequency vectors are the rows of its
+derivative. The tiles' scatter about it is the evidence that these are lines
+(:func:`model_misfit`), and gives the uncertainty; the map gives the scale anywhere, and its variation.
+
+*The finest level.* Graph paper has thin lines every millimetre and bolder ones every 5 and 10; a
+ruler, longer ticks. The lines first found may be any level (the bold ones, or a harmonic of theirs).
+The pattern's whole period is found by phase dispersion (:func:`coarsest_period`), the image is
+folded over it through the map (:func:`fold`: every pixel at its position across the lines, so that
+the faintest lines add up over the whole image), and the fold read (:func:`read_levels`): the finest
+lines are the most numerous evenly spaced dips it shows, the bolder levels the classes of them that
+dip deeper.
 
 *Evidence.* Every image has a strongest peak; lines are believed only when each
 family's peak stands ``MIN_PEAK_TO_NOISE`` times above the transform's median at
 the same spatial frequency, makes ``MIN_LINES`` lines or more across where it was
-found, and the parts agree on the spacing (:func:`part_misfit`); the caller
-(:func:`grainplug.calibration.pattern.calibrate_image`) refuses otherwise.
-
-*The map.* With the families' frequency vectors ``f1``, ``f2`` as rows of ``F``,
-plane coordinates are ``(X, Y) = pitch * F (r - r0)``, so the Jacobian (mm per px)
-is ``pitch * F``; a ruler gives only ``f1``: pixels are then taken as square
-(``J = pitch |f1| R``, with ``R`` the rotation to the ruler's direction) and a
-warning says so.
+found, and the parts agree on the spacing about the map (:func:`model_misfit`); the caller
+(:func:`grainplug.calibration.pattern.calibrate_image`) refuses otherwise, and refuses lines whose
+hierarchy does not show them to be the finest.
 """
 
 from __future__ import annotations
@@ -85,12 +90,17 @@ def _window(shape: tuple[int, int]) -> np.ndarray:
 
 def _dtft_power(g: np.ndarray, f: np.ndarray) -> float:
     h, w = g.shape
-    ex = np.exp(-2j * np.pi * f[0] * (np.arange(w) - (w - 1) / 2))
-    ey = np.exp(-2j * np.pi * f[1] * (np.arange(h) - (h - 1) / 2))
-    return float(abs(ey @ (g @ ex)) ** 2)
+    px = 2 * np.pi * f[0] * (np.arange(w) - (w - 1) / 2)
+    py = 2 * np.pi * f[1] * (np.arange(h) - (h - 1) / 2)
+    # g @ exp(-i px) with real products (no complex copy of the image)
+    a, b = g @ np.cos(px), g @ np.sin(px)
+    cy, sy = np.cos(py), np.sin(py)
+    re = cy @ a - sy @ b
+    im = -(cy @ b + sy @ a)
+    return float(re * re + im * im)
 
 
-def _refine(g: np.ndarray, f0: np.ndarray, bin_size: float) -> np.ndarray:
+def _refine(g: np.ndarray, f0: np.ndarray, bin_size: float, *, xatol: float = 1e-4, fatol: float = 1e-12) -> np.ndarray:
     from scipy.optimize import minimize
 
     scale = 1.0 / max(_dtft_power(g, f0), 1e-300)
@@ -98,7 +108,7 @@ def _refine(g: np.ndarray, f0: np.ndarray, bin_size: float) -> np.ndarray:
     simplex = np.array([f0, f0 + np.array([step, 0.0]), f0 + np.array([0.0, step])])
     res = minimize(lambda f: -_dtft_power(g, f) * scale, f0, method="Nelder-Mead",
                    options={"initial_simplex": simplex,
-                            "xatol": 1e-4 * bin_size, "fatol": 1e-12, "maxiter": 400})
+                            "xatol": xatol * bin_size, "fatol": fatol, "maxiter": 400})
     return np.asarray(res.x, dtype=float)
 
 
@@ -387,16 +397,22 @@ def tile_frequencies(grey: np.ndarray, found: Gratings, *, grid: int,
     """
     y0, y1, x0, x1 = found.box
     freqs = found.freqs
+
+    def spans(lo: int, hi: int) -> list[slice]:
+        edges = np.linspace(lo, hi, grid + 1)
+        half = 0.5 * (hi - lo) / grid
+        out = []
+        for mid in 0.5 * (edges[:-1] + edges[1:]):
+            a = int(round(min(max(mid - half, lo), hi - 2 * half)))
+            out.append(slice(a, int(round(a + 2 * half))))
+        return out
+
     if len(freqs) >= 2:
-        ycuts, xcuts = np.linspace(y0, y1, grid + 1).astype(int), np.linspace(x0, x1, grid + 1).astype(int)
-        parts = [(slice(a, b), slice(c, d)) for a, b in itertools.pairwise(ycuts)
-                 for c, d in itertools.pairwise(xcuts)]
+        parts = [(ys, xs) for ys in spans(y0, y1) for xs in spans(x0, x1)]
     elif abs(freqs[0][0]) >= abs(freqs[0][1]):
-        cuts = np.linspace(x0, x1, grid + 1).astype(int)
-        parts = [(slice(y0, y1), slice(a, b)) for a, b in itertools.pairwise(cuts)]
+        parts = [(slice(y0, y1), xs) for xs in spans(x0, x1)]
     else:
-        cuts = np.linspace(y0, y1, grid + 1).astype(int)
-        parts = [(slice(a, b), slice(x0, x1)) for a, b in itertools.pairwise(cuts)]
+        parts = [(ys, slice(x0, x1)) for ys in spans(y0, y1)]
     sums = [float(found.support[ys, xs].sum()) for ys, xs in parts]
     centres, out, sizes, weights = [], [], [], []
     for (ys, xs), wsum in zip(parts, sums, strict=True):
@@ -410,7 +426,7 @@ def tile_frequencies(grey: np.ndarray, found: Gratings, *, grid: int,
                  else np.asarray(freqs, float))
         gw = _prepare(part) * _window(part.shape) * weight
         bin_size = 0.5 / max(part.shape)
-        out.append(np.concatenate([_refine(gw, f, bin_size) for f in start]))
+        out.append(np.concatenate([_refine(gw, f, bin_size, xatol=1e-3, fatol=1e-8) for f in start]))
         centres.append(centre)
         sizes.append(part.shape)
         weights.append(wsum)
