@@ -7,7 +7,7 @@ naming its flags), while the sentence is for people and may be reworded. :data:`
 code with its meaning and fix; ``docs/analysis.md`` shows the same table (a test keeps them equal).
 
 The codes are ``area.kind``: ``shake.*``, ``movie.*`` (what a file says of itself), ``window.*``, ``tube.*``,
-``scale.*``, ``light.*``, ``frames.*``, ``time.*``, ``flow.*``, ``plugs.*``, ``still.*``,
+``scale.*``, ``calibration.*``, ``light.*``, ``frames.*``, ``time.*``, ``flow.*``, ``plugs.*``, ``still.*``,
 ``corrections.*``, ``manifest.*``. A warning read back from an older ``result.npz`` (saved as plain text) has the
 code ``legacy.uncoded``.
 """
@@ -65,6 +65,15 @@ CODES: dict[str, tuple[str, str]] = {
                                   "check the pattern's plane and pitch, and the tube's diameter"),
     "scale.calibration": ("the calibration image itself is doubtful (not flat, tilted, varying scale)",
                           "as the sentence says; take the calibration image again"),
+    "scale.calibration_varies_along_tube": ("the calibration's scale varies by more than 0.3 % along the tube "
+                                            "(the lens's distortion, perspective): lengths far from the middle "
+                                            "are off by up to half that",
+                                            "map positions through Calibration.plane_mm (docs/calibration.md), "
+                                            "or frame the tube near the image's centre"),
+    # what a calibration image says of itself (grainplug calibrate)
+    "calibration.lens_distortion": ("the lens distorts the calibration image (barrel or pincushion): fitted, and "
+                                    "the scale corrected for it", "none needed; the analysis takes the scale "
+                                    "where the tube is"),
     # light
     "light.background": ("the background (light calibration) leaves something doubtful", "as the sentence says"),
     "light.saturated": ("part of the tube's pixels are at the camera's top value",

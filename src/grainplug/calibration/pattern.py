@@ -7,21 +7,29 @@ hidden part of it needs to be known), then a plane-to-image homography is fitted
 them by least squares (OpenCV). Its local derivative gives the mm per
 pixel along the image's axes at the pattern's centre, the spread of that derivative
 over the pattern says how much the scale varies over the field by perspective, and the
-fit's residuals give the scale's uncertainty. Lens distortion, which no homography
-holds, is measured between each point's lattice neighbours: a smooth surface fitted to
-the measured scale over the homography's corrects the scale at the centre and adds to
-the variation (docs/calibration.md, "Lens distortion").
+fit's residuals give the scale's uncertainty. The lens's radial distortion (k1, k2 about
+the frame's centre) is fitted with the homography (:mod:`grainplug.calibration.distortion`),
+so that the scale is known anywhere in the frame (:meth:`Calibration.scale_at`); what
+remains is measured between each point's lattice neighbours (a smooth surface fitted to
+the measured scale over the map's) and corrects the scale at the centre (docs/calibration.md,
+"Lens distortion"). Graph paper and rulers: :func:`_grating`.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import logging
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import GrainplugError
+from ..warning_codes import CODES, coded
+from .distortion import PlaneMap, fit_points, frame_centre_and_radius
+
+log = logging.getLogger(__name__)
 
 #: version of the calibration.json layout
 CALIBRATION_FORMAT = 1
@@ -85,6 +93,20 @@ class Calibration:
         The calibration file this was read from (absolute path, set by
         :func:`grainplug.load_calibration`), for the analysis's provenance; empty when made
         in memory. Not written into the calibration file, and not compared.
+    distortion_k1, distortion_k2 : float
+        The lens's radial distortion fitted with the map (0 for a pinhole, and in files written
+        before it was fitted): an image point ``p`` is seen where a pinhole would put
+        ``c + (p - c)(1 + k1 rho^2 + k2 rho^4)``, ``rho = |p - c| / distortion_radius_px``
+        (:mod:`grainplug.calibration.distortion`); ``homography`` then maps the plane to those
+        undistorted pixels. ``k1 > 0`` is barrel distortion.
+    distortion_centre_px : tuple of float or None
+        The distortion's centre ``c`` (x, y), the frame's centre; None in files written before the
+        distortion was fitted.
+    distortion_radius_px : float
+        The radius of ``rho = 1``: from the centre to the frame's corner (0 when not fitted).
+    levels : tuple of int
+        Graph paper and rulers: every how many finest lines (ticks) a bolder (longer) one was seen,
+        e.g. ``(5, 10)``; empty for checkerboards and dot grids.
     """
 
     mm_per_px: float
@@ -105,6 +127,11 @@ class Calibration:
     warnings: tuple[str, ...] = ()
     points_px: tuple[tuple[float, float], ...] = ()
     source: str = field(default="", compare=False)
+    distortion_k1: float = 0.0
+    distortion_k2: float = 0.0
+    distortion_centre_px: tuple[float, float] | None = None
+    distortion_radius_px: float = 0.0
+    levels: tuple[int, ...] = ()
 
     def mm_per_px_along(self, direction_xy: tuple[float, float]) -> float:
         """mm per pixel along an image direction ``(dx, dy)`` (e.g. the tube's axis)."""
@@ -112,10 +139,58 @@ class Calibration:
         u = u / np.hypot(*u)
         return float(np.hypot(*(np.asarray(self.jacobian_mm_per_px) @ u)))
 
+    def plane_map(self) -> PlaneMap:
+        """The map from the calibration image's pixels to the pattern's plane (mm): the lens's distortion undone,
+        then the homography (:class:`grainplug.calibration.distortion.PlaneMap`)."""
+        centre = self.distortion_centre_px or (0.0, 0.0)
+        return PlaneMap(np.asarray(self.homography, float), float(self.distortion_k1), float(self.distortion_k2),
+                        (float(centre[0]), float(centre[1])), float(self.distortion_radius_px) or 1.0)
+
+    @property
+    def corner_distortion(self) -> float:
+        """The lens's distortion at the frame's corners as optics states it: (r_image - r_pinhole) / r_pinhole,
+        negative for barrel, positive for pincushion (0 when none was fitted)."""
+        return 1.0 / (1.0 + self.distortion_k1 + self.distortion_k2) - 1.0
+
+    def scale_at(self, x_px: float | np.ndarray, y_px: float | np.ndarray,
+                 direction_xy: tuple[float, float]) -> float | np.ndarray:
+        """mm per pixel along an image direction at image points, through the lens's distortion and perspective.
+
+        Equal to :meth:`mm_per_px_along` at the pattern's centre; elsewhere that value times the fitted map's
+        change of scale between the centre and the point (a ruler: along its length, pixels taken as square).
+
+        Parameters
+        ----------
+        x_px, y_px : float or ndarray
+            Image points (px), in the calibration image's frame.
+        direction_xy : (float, float)
+            The direction ``(dx, dy)`` (e.g. the tube's axis).
+
+        Returns
+        -------
+        float or ndarray
+            mm per px at each point (a float for scalar coordinates).
+        """
+        x, y = np.broadcast_arrays(np.asarray(x_px, float), np.asarray(y_px, float))
+        pm = self.plane_map()
+        pts = np.column_stack([x.ravel(), y.ravel()])
+        local = pm.scale_along(pts, direction_xy)
+        at_centre = float(pm.scale_along(np.asarray([self.centre_px], float), direction_xy)[0])
+        out = (self.mm_per_px_along(direction_xy) * local / at_centre).reshape(x.shape)
+        return float(out) if out.ndim == 0 else out
+
+    def plane_mm(self, points_px: np.ndarray) -> np.ndarray:
+        """Where image points (N, 2) lie on the pattern's plane (mm), through the distortion and the homography,
+        rescaled so that the map's scale at the pattern's centre is :attr:`mm_per_px`."""
+        pm = self.plane_map()
+        at_centre = float(pm.scale(np.asarray([self.centre_px], float))[0])
+        return pm.to_plane(np.asarray(points_px, float).reshape(-1, 2)) * (self.mm_per_px / at_centre)
+
     def as_dict(self) -> dict[str, object]:
         """JSON-ready, with the layout's version."""
         d = dataclasses.asdict(self)
         d.pop("source")  # where a file is, is not in it
+        d["warning_codes"] = [getattr(w, "code", None) for w in self.warnings]
         return {"format": "grainplug-calibration", "version": CALIBRATION_FORMAT, **d}
 
     @classmethod
@@ -139,8 +214,17 @@ class Calibration:
             kw["homography"] = tuple(tuple(float(x) for x in row) for row in kw["homography"])
             kw["image_shape"] = tuple(int(x) for x in kw["image_shape"])
             kw["centre_px"] = tuple(float(x) for x in kw["centre_px"])
-            kw["warnings"] = tuple(kw.get("warnings", ()))
+            codes = list(data.get("warning_codes") or [])
+            kw["warnings"] = tuple(coded(c, w) if isinstance(c, str) and c in CODES else w
+                                   for w, c in itertools.zip_longest(kw.get("warnings", ()), codes[:len(
+                                       kw.get("warnings", ()))]))
             kw["points_px"] = tuple(tuple(float(x) for x in p) for p in kw.get("points_px", ()))
+            if kw.get("distortion_centre_px") is not None:
+                kw["distortion_centre_px"] = tuple(float(x) for x in kw["distortion_centre_px"])
+            for name in ("distortion_k1", "distortion_k2", "distortion_radius_px"):
+                if name in kw:
+                    kw[name] = float(kw[name])
+            kw["levels"] = tuple(int(x) for x in kw.get("levels", ()))
             cal = cls(**kw)
         except (KeyError, TypeError, ValueError) as exc:
             raise CalibrationError(f"the calibration is incomplete or damaged ({exc}) — redo it with "
@@ -201,13 +285,22 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
         if found is None:
             continue
         index, points = found
+        if kind == "checkerboard" and not _alternates(grey, index, points):
+            # corners on a lattice whose squares are all alike: line crossings (graph paper), not a board
+            log.info("a lattice of %d corners whose squares do not alternate: not a checkerboard", len(points))
+            if pattern == "checkerboard":
+                raise CalibrationError(
+                    f"a lattice of {len(points)} corners was found, but its squares are not alternately dark and "
+                    "light: it is not a checkerboard (graph paper's crossings?) — name the right pattern "
+                    "(--pattern graph) or photograph a checkerboard")
+            continue
         cal = _fit(index * pitch_mm, points, pitch_mm=pitch_mm, kind=kind, shape=grey.shape,
                    identity=identity or {})
         # a lattice read wrongly (the corners between dots taken for a board...) is not square
         # (lens distortion bends the lattice by a few per cent of its pitch: allowed, and warned of)
         # (pixels far from square are believed when the pattern is named: auto mode must tell readings apart)
         pitch_px = pitch_mm / cal.mm_per_px
-        aspect = abs(cal.mm_per_px_x / cal.mm_per_px_y - 1)
+        aspect = round(abs(cal.mm_per_px_x / cal.mm_per_px_y - 1), 6)  # 10 % is 10 %, not 0.0999999
         if aspect < (ASPECT_LIMIT_AUTO if pattern == "auto" else ASPECT_LIMIT_NAMED) \
                 and cal.rms_residual_px < max(1.0, 0.06 * pitch_px):
             fits.append(cal)
@@ -241,7 +334,9 @@ def calibrate_image(image: np.ndarray, *, pitch_mm: float, pattern: str = "auto"
                 "dots": "dot grid", "graph": "graph paper (two families of lines)", "ruler": "ruler's ticks"}[pattern]
         raise CalibrationError(f"no {what} was found in the image{why} — make sure the pattern "
                                "is in focus, evenly lit and fills a good part of the frame")
-    return fits[0]  # a checkerboard where one was found: its squares could pass for a grid of dots
+    # the lattice of most points: a few corners of a dot grid's edges taken for a board lose to its dots (a
+    # checkerboard's squares are not taken for dots: a dot must be round); a tie goes to the checkerboard
+    return max(fits, key=lambda c: (c.n_points, c.pattern == "checkerboard"))
 
 
 #: a scale from lines is refused when its relative standard uncertainty exceeds this
@@ -255,88 +350,80 @@ def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str
 
     Lines are believed only on evidence: each family's peak must stand
     ``MIN_PEAK_TO_NOISE`` times above the transform's median at the same spatial
-    frequency, span ``MIN_LINES`` lines or more, and the parts of the image (3 x 3 tiles,
-    five stretches along a ruler) must agree on the spacing about a smooth trend within
-    ``MAX_PART_MISFIT_BINS`` of a part's frequency bin; the scale's uncertainty and its
-    variation over the pattern must stay under ``GRATING_MAX_REL_SD`` and
-    ``GRATING_MAX_VARIATION``. Noise, a movie of the tube, a speckled beam or a
-    checkerboard's diagonals pass none or few of these.
+    frequency, span ``MIN_LINES`` lines or more, and the parts of the image (tiles,
+    stretches along a ruler) must agree on the spacing about the fitted map (perspective and
+    the lens's distortion) within ``MAX_PART_MISFIT_BINS`` of a part's frequency bin; the
+    scale's uncertainty and its variation over the pattern must stay under
+    ``GRATING_MAX_REL_SD`` and ``GRATING_MAX_VARIATION``. Noise, a movie of the tube, a
+    speckled beam or a checkerboard's diagonals pass none or few of these.
+
+    The lines are then read at their finest level (:func:`_grating_levels`): the pitch given is
+    that of the finest lines (ticks), which graph paper and rulers mark by bolder (longer) lines
+    every 5th or 10th; lines without that hierarchy, or with bolder ones every 2nd only (the 5 mm
+    level of graph paper whose 1 mm lines are not seen), are refused.
 
     Returns
     -------
     Calibration or str
         The calibration, or why the lines were not believed ("" when none were seen at all).
     """
-    from .periodic import (
-        MAX_PART_MISFIT_BINS,
-        MIN_LINES,
-        MIN_PEAK_TO_NOISE,
-        find_gratings,
-        local_frequencies,
-        part_misfit,
-    )
+    from .periodic import MIN_LINES, MIN_PEAK_TO_NOISE, Gratings, find_gratings
 
     found = find_gratings(grey, families=1 if kind == "ruler" else 2)
     if found is None or (kind == "graph" and len(found.freqs) < 2):
         return ""
-    freqs = found.freqs
-    graph = len(freqs) == 2
-    box = found.box
+    graph = len(found.freqs) == 2
     lines = "lines" if graph else "ticks"
-    spacing = 1.0 / float(np.hypot(*freqs[0]))
+    spacing = 1.0 / float(np.hypot(*found.freqs[0]))
     for snr, count in zip(found.peak_to_noise, found.lines, strict=True):
         if snr < MIN_PEAK_TO_NOISE:
             return (f"the strongest repeat, every {spacing:.3g} px, stands only {snr:.0f} times above the image's "
                     f"noise; {lines} stand {MIN_PEAK_TO_NOISE:.0f} times or more")
-        if count < MIN_LINES:
+        if count < MIN_LINES / 2:  # graph paper's bold lines may be found first: MIN_LINES of the finest, below
             return (f"the strongest repeat, every {spacing:.3g} px, makes only {count:.0f} {lines}; "
                     f"at least {MIN_LINES} are needed")
-    where, parts, sizes = local_frequencies(grey, found)
-    misfit = part_misfit(where, parts, sizes)
-    if not misfit <= MAX_PART_MISFIT_BINS:
-        detail = ("it fills too little of the image to be checked" if not math.isfinite(misfit)
-                  else f"its spacing differs between parts of the image by {misfit:.2f} of a frequency bin, "
-                       f"{lines} agree within {MAX_PART_MISFIT_BINS:g}")
-        return f"the strongest repeat, every {spacing:.3g} px, is not a pattern of {lines}: {detail}"
-    f1 = freqs[0]
+    if graph:  # the second family's axis, oriented so that the map keeps the image's handedness
+        f1, f2 = found.freqs
+        if f1[0] * f2[1] - f1[1] * f2[0] < 0:
+            found = dataclasses.replace(found, freqs=[f1, -f2])
+    mapped = _grating_map(grey, found, graph=graph)
+    if isinstance(mapped, str):
+        return f"the strongest repeat, every {spacing:.3g} px, is not a pattern of {lines}: {mapped}"
+    levels = _grating_levels(grey, found, mapped.fold_map, graph=graph)
+    if isinstance(levels, str):
+        return levels
+    finer, phases, bolder = levels
+    if min(found.lines) * finer < MIN_LINES:
+        return (f"the strongest repeat, every {spacing / finer:.3g} px, makes only {min(found.lines) * finer:.0f} "
+                f"{lines}; at least {MIN_LINES} are needed")
+    if abs(finer - 1) > 1e-9:  # the finest lines, measured again at their own frequency
+        base = mapped.plane_map
+        fine = Gratings([np.asarray(f, float) * finer for f in found.freqs], found.support, found.box,
+                        found.peak_to_noise, found.lines)
+        refined = _grating_map(grey, fine, graph=graph, start=base, factor=finer)
+        mapped = refined if not isinstance(refined, str) else _scaled_fit(mapped, finer)
+    pm = _whole_image_level(grey, found, mapped, finer=finer, graph=graph)
+    y0, y1, x0, x1 = found.box
+    centre = np.array([0.5 * (x0 + x1 - 1), 0.5 * (y0 + y1 - 1)])
+    J = pitch_mm * pm.jacobian(centre.reshape(1, 2))[0]
+    scale = float(math.sqrt(abs(np.linalg.det(J))))
+    local = pm.scale(mapped.centres) * pitch_mm if len(mapped.centres) else np.array([scale])
+    variation = float((local.max() - local.min()) / local.mean()) if len(local) > 1 else 0.0
+
+    rel_sd = float(math.hypot(mapped.rel_sd, 1e-4))
+    H = np.diag([pitch_mm, pitch_mm, 1.0]) @ np.linalg.inv(pm.homography)  # ideal px -> plane mm
+    homography = np.linalg.inv(H)
+    f1 = J[0] / pitch_mm
     u = f1 / np.hypot(*f1)
     perp = np.array([-u[1], u[0]])
-    if graph:
-        f2 = freqs[1]
-        # the second family's axis, oriented so that the map keeps the image's handedness
-        if f1[0] * f2[1] - f1[1] * f2[0] < 0:
-            f2 = -f2
-        F = np.vstack([f1, f2])
-    else:
-        F = np.vstack([f1, np.hypot(*f1) * perp])
-    J = pitch_mm * F
-    scale = float(math.sqrt(abs(np.linalg.det(J))))
-
-    def part_scale(v: np.ndarray) -> float:
-        if graph:
-            return float(pitch_mm * math.sqrt(abs(v[0] * v[3] - v[1] * v[2])))
-        return float(pitch_mm * np.hypot(v[0], v[1]))
-
-    local = np.array([part_scale(v) for v in parts]) if len(parts) else np.array([scale])
-    variation = float((local.max() - local.min()) / local.mean()) if len(local) > 1 else 0.0
-    # the uncertainty: the local scales' scatter about a plane (perspective is a smooth trend, the
-    # variation above), as the standard error of the mean
-    rel_sd = 1e-4
-    if len(local) > 3:
-        A = np.column_stack([np.ones(len(local)), where - where.mean(axis=0)])
-        coef, *_ = np.linalg.lstsq(A, local, rcond=None)
-        dof = max(len(local) - np.linalg.matrix_rank(A), 1)
-        resid = local - A @ coef
-        rel_sd = float(math.hypot(math.sqrt(float(resid @ resid) / dof / len(local)) / scale, 1e-4))
-    y0, y1, x0, x1 = box
-    centre = np.array([0.5 * (x0 + x1 - 1), 0.5 * (y0 + y1 - 1)])
-    Ji = np.linalg.inv(J)
-    H = np.array([[Ji[0, 0], Ji[0, 1], centre[0]], [Ji[1, 0], Ji[1, 1], centre[1]], [0.0, 0.0, 1.0]])
-    points = _grating_points(grey, F, centre, box, graph=graph, support=found.support)
     tilt = math.degrees(math.atan2(-perp[1], perp[0]))  # the lines' direction, as the board's rows
     tilt = (tilt + 45.0) % 90.0 - 45.0
     mm_x, mm_y = float(np.hypot(*J[:, 0])), float(np.hypot(*J[:, 1]))
-    warnings = []
+    points = _grating_points(pm, phases, found.box, graph=graph, support=found.support, centre=centre)
+    warnings: list[str] = []
+    said = _distortion_warning(pm.k1, pm.k2)
+    if said:
+        warnings.append(said)
     if not graph:
         warnings.append("a ruler gives the scale along its length only: pixels are taken as square — lay the "
                         "ruler along the tube's axis (or use graph paper or a checkerboard)")
@@ -357,35 +444,236 @@ def _grating(grey: np.ndarray, *, pitch_mm: float, kind: str, identity: dict[str
         rel_sd=rel_sd, tilt_deg=float(tilt), scale_variation=variation, rms_residual_px=0.0,
         n_points=len(points), pattern="graph" if graph else "ruler", pitch_mm=float(pitch_mm),
         image_shape=(int(grey.shape[0]), int(grey.shape[1])), centre_px=(float(centre[0]), float(centre[1])),
-        homography=tuple(tuple(float(x) for x in row) for row in H), image=dict(identity),
+        homography=tuple(tuple(float(x) for x in row) for row in homography), image=dict(identity),
         warnings=tuple(warnings), points_px=tuple((float(x), float(y)) for x, y in points),
+        distortion_k1=float(pm.k1), distortion_k2=float(pm.k2), distortion_centre_px=tuple(pm.centre),
+        distortion_radius_px=float(pm.radius), levels=tuple(bolder),
     )
 
 
-def _grating_points(grey: np.ndarray, F: np.ndarray, centre: np.ndarray, box: tuple[int, int, int, int], *,
-                    graph: bool, support: np.ndarray) -> np.ndarray:
-    """Where the lines cross (graph paper) or the ticks are (a ruler, along the middle of its box), for the
-    figure: the lines are the dark phase of each family's wave."""
-    y0, y1, x0, x1 = box
-    g = grey[y0:y1, x0:x1].astype(np.float64)
-    g -= g.mean()
-    yy, xx = np.mgrid[y0:y1, x0:x1]
-    phases = []
-    for f in F[: 2 if graph else 1]:
-        s = np.sum(g * np.exp(-2j * np.pi * (f[0] * (xx - centre[0]) + f[1] * (yy - centre[1]))))
-        phases.append((np.pi - np.angle(s)) / (2 * np.pi))  # f.(r - c) of a dark line, modulo 1
-    corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=float) - centre
+@dataclass(frozen=True)
+class _GratingFit:
+    """A map fitted to line gratings' local frequencies (plane unit: one period of the lines fitted)."""
+
+    plane_map: PlaneMap
+    centres: np.ndarray
+    misfit: float
+    rel_sd: float
+    fold_map: PlaneMap  # with the lens's terms whether or not they are significant: to align the fold
+
+
+#: the whole image's peak sets the map's level when the lines' frequency spreads over less than this many of its
+#: bins (variation x lines): the peak is then the lines' mean frequency, more precise than the parts'
+WHOLE_IMAGE_SPREAD_BINS = 0.5
+
+
+def _whole_image_level(grey: np.ndarray, found, mapped: _GratingFit, *, finer: float, graph: bool) -> PlaneMap:
+    """The fitted map, its level set by the whole image's peak when the scale varies little over the lines.
+
+    Each part's peak is pulled a little by the sidebands of the bolder lines every 5th and 10th (a tenth of
+    the frequency away, a bin or two in a part); the whole image resolves them. When the frequency spreads
+    over less than ``WHOLE_IMAGE_SPREAD_BINS`` of the whole image's bins, its peak is the mean of the map's
+    frequency over the lines (weighted as in the transform), and each family's axis of the map is rescaled to
+    it: the map keeps its shape (perspective, distortion), the whole image its level. With more spread (a lens
+    distorting by a percent or more), the peak is no longer the mean, and the map is kept as fitted.
+    """
+    from .periodic import _prepare, _refine, _window
+
+    pm = mapped.plane_map
+    h, w = grey.shape
+    yy, xx = np.mgrid[0:h:4, 0:w:4]
+    weight = (_window(grey.shape) * found.support)[::4, ::4]
+    keep = weight > 1e-3 * weight.max()
+    pts = np.column_stack([xx[keep], yy[keep]]).astype(float)
+    wts = weight[keep]
+    J = pm.jacobian(pts)  # rows: the families' frequencies (finest periods per px)
+    families = 2 if graph else 1
+    mags = np.hypot(J[:, :families, 0], J[:, :families, 1])
+    spread = float(np.max((mags.max(axis=0) - mags.min(axis=0)) / np.mean(mags, axis=0)))
+    log.debug("frequency spread %.3g over %.0f lines", spread, min(found.lines) * finer)
+    if spread * min(found.lines) * finer >= WHOLE_IMAGE_SPREAD_BINS:
+        return pm
+    gw = _prepare(grey) * _window(grey.shape) * found.support
+    bin_size = 0.5 / max(grey.shape)
+    factors = []
+    for k in range(families):
+        mean = np.sum(J[:, k, :] * wts[:, None], axis=0) / wts.sum()
+        peak = _refine(gw, mean, bin_size)
+        factors.append(float(np.hypot(*peak) / np.hypot(*mean)))
+    if not graph:
+        factors.append(factors[0])
+    log.info("the whole image's peak sets the lines' level: %s", [f"{f - 1:+.2e}" for f in factors])
+    H = np.asarray(pm.homography) @ np.diag([1.0 / factors[0], 1.0 / factors[1], 1.0])
+    return dataclasses.replace(pm, homography=H)
+
+
+def _scaled_fit(mapped: _GratingFit, factor: float) -> _GratingFit:
+    """The same map with its plane unit ``factor`` times finer."""
+    pm = mapped.plane_map
+    H = np.asarray(pm.homography) @ np.diag([1.0 / factor, 1.0 / factor, 1.0])
+    return dataclasses.replace(mapped, plane_map=dataclasses.replace(pm, homography=H))
+
+
+def _grating_map(grey: np.ndarray, found, *, graph: bool, start: PlaneMap | None = None,
+                 factor: float = 1.0) -> _GratingFit | str:
+    """The map (perspective and the lens's distortion) whose derivative matches the lines' local frequencies.
+
+    The frequencies are measured in tiles (stretches along a ruler), each started where the map fitted
+    so far puts it (``start``, scaled by ``factor``; else the whole image's), twice. Returns why the lines
+    are not believed when their parts disagree about the map by more than ``MAX_PART_MISFIT_BINS``.
+    """
+    from .distortion import fit_gradients
+    from .periodic import MAX_PART_MISFIT_BINS, model_misfit, tile_frequencies
+
+    period = 1.0 / float(np.hypot(*found.freqs[0]))
+    y0, y1, x0, x1 = found.box
     if graph:
-        span = corners @ F.T
-        k1 = np.arange(np.floor(span[:, 0].min()), np.ceil(span[:, 0].max()) + 1)
-        k2 = np.arange(np.floor(span[:, 1].min()), np.ceil(span[:, 1].max()) + 1)
-        K1, K2 = np.meshgrid(k1 + phases[0], k2 + phases[1])
-        pts = np.linalg.solve(F, np.vstack([K1.ravel(), K2.ravel()])).T + centre
+        grid = int(np.clip(min(y1 - y0, x1 - x0) / max(64.0, 10 * period), 3, 6))
     else:
-        f = F[0]
-        span = corners @ f
-        k = np.arange(np.floor(span.min()), np.ceil(span.max()) + 1) + phases[0]
-        pts = (k[:, None] / float(f @ f)) * f[None, :] + centre
+        length = max(y1 - y0, x1 - x0)
+        grid = int(np.clip(length / max(48.0, 8 * period), 5, 10))
+    shape = grey.shape
+    model = start
+    mfactor = factor
+    fitted = None
+    # started from the whole image's frequencies: coarse tiles first, then the grid from the map they give;
+    # from a map already fitted: the grid at once
+    for tiles in ((grid,) if start is not None else (3 if graph else 5, grid)):
+        predict = None
+        if model is not None:
+            def predict(c: np.ndarray, m: PlaneMap = model, k: float = mfactor) -> np.ndarray:
+                J = m.jacobian(np.asarray(c, float).reshape(1, 2))[0] * k
+                return J[: 2 if graph else 1]
+        centres, freqs, sizes, weights = tile_frequencies(grey, found, grid=tiles, predict=predict)
+        n_min = 9 if graph else 6
+        distortion = len(centres) >= n_min and _reach(centres, shape) >= MIN_REACH_DISTORTION
+        if len(centres) < 4:
+            return "it fills too little of the image to be checked"
+        try:
+            fitted = fit_gradients(centres, freqs, shape=shape, weights=weights, ruler=not graph, distortion=False)
+            richest = fitted
+            if distortion:  # the lens's terms only when the parts ask for them (an F test), not to fit their noise
+                bent = fit_gradients(centres, freqs, shape=shape, weights=weights, ruler=not graph, distortion=True)
+                n_obs = len(centres) * (2 if graph else 1) * 2
+                rss0, rss1 = fitted.rms**2 * n_obs, bent.rms**2 * n_obs
+                dof = max(n_obs - len(bent.params), 1)
+                richest = bent
+                if rss1 <= 0 or (rss0 - rss1) / 2 / (rss1 / dof) > DISTORTION_F:
+                    fitted = bent
+        except (np.linalg.LinAlgError, ValueError):
+            return "no smooth map of the image fits its parts' spacings"
+        model, mfactor = richest.plane_map, 1.0
+    # the evidence: the parts agree with the map; a map without the lens's terms that does not fit them gives
+    # way to the one with (an F test short of significance does not make a misfitting map right)
+    def misfit_of(fit) -> tuple[float, np.ndarray]:
+        J = fit.plane_map.jacobian(centres)
+        rows = J[:, 0, :] if not graph else J.reshape(len(centres), 4)
+        return model_misfit(freqs, rows, sizes, n_params=len(fit.params)), rows
+
+    misfit, rows = misfit_of(fitted)
+    if not misfit <= MAX_PART_MISFIT_BINS and richest is not fitted:
+        fitted = richest
+        misfit, rows = misfit_of(fitted)
+    if not misfit <= MAX_PART_MISFIT_BINS:
+        if not math.isfinite(misfit):
+            return "it fills too little of the image to be checked"
+        return (f"its spacing differs between parts of the image by {misfit:.2f} of a frequency bin about the "
+                f"best smooth map, lines agree within {MAX_PART_MISFIT_BINS:g}")
+    # the scale's uncertainty: the parts' relative scatter about the map, as the standard error of their mean
+    families = 2 if graph else 1
+    model_mag = np.concatenate([np.hypot(rows[:, 2 * k], rows[:, 2 * k + 1]) for k in range(families)])
+    mag = np.concatenate([np.hypot(freqs[:, 2 * k], freqs[:, 2 * k + 1]) for k in range(families)])
+    resid = mag / model_mag - 1
+    dof = max(len(resid) - len(fitted.params), 1)
+    rel_sd = math.sqrt(float(resid @ resid) / dof / len(centres))
+    return _GratingFit(fitted.plane_map, centres, misfit, rel_sd, richest.plane_map)
+
+
+def _grating_levels(grey: np.ndarray, found, pm: PlaneMap, *,
+                    graph: bool) -> tuple[float, list[float], list[int]] | str:
+    """The lines' hierarchy: how many finest lines per line fitted, where they are, and every how many a bolder one.
+
+    The pattern's whole period is found by phase dispersion
+    (:func:`grainplug.calibration.periodic.coarsest_period`), the image folded over it through the fitted
+    map (:func:`grainplug.calibration.periodic.fold`), and the fold read by
+    :func:`grainplug.calibration.periodic.read_levels`.
+
+    Returns
+    -------
+    (finer, phases, bolder) or str
+        ``finer`` finest lines per period fitted, each family's finest lines' phase (in their own
+        periods), the levels of bolder lines among them; or why the lines are refused.
+    """
+    import cv2
+
+    from .periodic import coarsest_period, fold, read_levels
+
+    h, w = grey.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    mask = found.support > 0.5
+    period = 1.0 / float(np.hypot(*found.freqs[0]))
+    if not graph:  # a ruler's longer ticks reach beyond the band of its shortest ones
+        along = max(float(found.lines[0]) * period, 1.0)
+        thickness = float(mask.sum()) / along
+        k = max(3, int(round(1.5 * thickness + 2 * period)) | 1)
+        mask = cv2.dilate(mask.astype(np.uint8), np.ones((k, k), np.uint8)) > 0
+    pts = np.column_stack([xx[mask], yy[mask]]).astype(float)
+    plane = np.full((h, w, 2), np.nan)
+    plane[mask] = pm.to_plane(pts)
+    bins = max(4, int(period))  # bins of a pixel or more: a ruler along the rows fills no finer ones
+    # each pixel against its surroundings over a period (the paper, the bench, the light's gradient)
+    g = grey.astype(np.float32)
+    detail = (g - cv2.GaussianBlur(g, (0, 0), period)).astype(np.float64)[mask]
+    read, spans = [], []
+    for axis in range(2 if graph else 1):
+        coordinate = plane[..., axis][mask]
+        span = coarsest_period(coordinate, detail, bins=bins, period_px=period)
+        read.append(read_levels(fold(detail, coordinate, span=span, bins=bins, period_px=period)))
+        spans.append(span)
+    finer = {r.finer / sp for r, sp in zip(read, spans, strict=True)}
+    lines = "lines" if graph else "ticks"
+    what = "graph paper's" if graph else "a ruler's"
+    if max(finer) > 1.02 * min(finer):
+        return (f"{what} two families of lines, every {period:.3g} px, show finer lines in one direction only "
+                "— retake the image in focus and evenly lit")
+    m = read[0].finer / spans[0]  # finest lines per period fitted
+    bolder = sorted(set.intersection(*[set(r.bolder) for r in read]))
+    fine_px = period / m
+    if 5 in bolder or 10 in bolder:
+        phases = [float(np.mod(r.phase * m, 1.0)) for r in read]
+        log.info("%s: finest %s every %.3g px, %.3g per period fitted, bolder every %s", what, lines, fine_px, m,
+                 bolder)
+        return m, phases, bolder
+    if bolder == [2]:
+        return (f"{what} {lines} were found every {fine_px:.3g} px with every 2nd bolder (longer): that is its 5 mm "
+                f"level (10 mm every 2nd), its finest {lines} are not seen (too faint, or too fine at this "
+                "magnification) — photograph it closer, in focus and evenly lit; or, if those are 5 mm apart, give "
+                f"the analysis --mm-per-px {5.0 / fine_px:.4g}")
+    return (f"{lines} were found every {fine_px:.3g} px, but no bolder (longer) one every 5th or 10th: graph paper "
+            "and rulers mark their 5 and 10 mm lines so, and without them the lines seen may be those 5 or 10 mm "
+            "apart (the finest not seen) — photograph the pattern closer, in focus and evenly lit, or use a "
+            "checkerboard")
+
+
+def _grating_points(pm: PlaneMap, phases: list[float], box: tuple[int, int, int, int], *, graph: bool,
+                    support: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Where the finest lines cross (graph paper) or the ticks are (a ruler, across the middle of its box), for
+    the figure: the fitted map's integer lines (in finest periods, at the lines' phase) seen in the image."""
+    y0, y1, x0, x1 = box
+    corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1], [0.5 * (x0 + x1), y0], [0.5 * (x0 + x1), y1],
+                        [x0, 0.5 * (y0 + y1)], [x1, 0.5 * (y0 + y1)]], dtype=float)
+    span = pm.to_plane(corners)
+    k1 = np.arange(np.floor(span[:, 0].min()) - 1, np.ceil(span[:, 0].max()) + 2) + phases[0]
+    if graph:
+        k2 = np.arange(np.floor(span[:, 1].min()) - 1, np.ceil(span[:, 1].max()) + 2) + phases[1]
+        if len(k1) * len(k2) > 40000:
+            return np.zeros((0, 2))
+        K1, K2 = np.meshgrid(k1, k2)
+        plane = np.column_stack([K1.ravel(), K2.ravel()])
+    else:
+        mid = pm.to_plane(centre.reshape(1, 2))[0, 1]
+        plane = np.column_stack([k1, np.full(len(k1), mid)])
+    pts = pm.to_image(plane)
     inside = (pts[:, 0] >= x0) & (pts[:, 0] < x1) & (pts[:, 1] >= y0) & (pts[:, 1] < y1)
     pts = pts[inside]
     if graph:  # only where the paper is
@@ -469,6 +757,43 @@ def _checkerboard_corners(g: np.ndarray, *, smooth_px: float) -> tuple[np.ndarra
     return index_lattice(inner[:, ::-1]) if len(inner) >= 9 else None
 
 
+def _alternates(grey: np.ndarray, index: np.ndarray, points: np.ndarray) -> bool:
+    """Whether a lattice of corners bounds squares alternately dark and light, each even (a checkerboard).
+
+    Each square whose four corners were found is sampled at 3 x 3 points over its middle half
+    (bilinear between its corners); the squares of the two colours must differ by more than 3
+    times the spread of the samples within a square and of the squares within a colour, and by
+    10 grey levels. Graph paper's crossings bound squares of paper crossed by lines (or, taken
+    along the diagonals, squares with a crossing in the middle), all alike or uneven. True when
+    fewer than 4 squares can be checked.
+    """
+    from scipy import ndimage
+
+    where = {(int(i), int(j)): k for k, (i, j) in enumerate(np.rint(index).astype(int))}
+    g = grey.astype(np.float64)
+    a, b = np.meshgrid([0.25, 0.5, 0.75], [0.25, 0.5, 0.75])
+    a, b = a.ravel(), b.ravel()
+    means, spreads, parity = [], [], []
+    for (i, j), k in where.items():
+        ks = [where.get(q) for q in ((i + 1, j), (i, j + 1), (i + 1, j + 1))]
+        if None in ks:
+            continue
+        p00, p10, p01, p11 = points[[k, *ks]]
+        xy = (np.outer((1 - a) * (1 - b), p00) + np.outer(a * (1 - b), p10) + np.outer((1 - a) * b, p01)
+              + np.outer(a * b, p11))
+        v = ndimage.map_coordinates(g, [xy[:, 1], xy[:, 0]], order=1, mode="nearest")
+        means.append(float(v.mean()))
+        spreads.append(float(v.std()))
+        parity.append((i + j) % 2)
+    if len(means) < 4 or len(set(parity)) < 2:
+        return True
+    v, p = np.asarray(means), np.asarray(parity)
+    dark, light = v[p == 0], v[p == 1]
+    spread = max(math.sqrt(0.5 * (float(np.var(dark)) + float(np.var(light)))), float(np.median(spreads)))
+    gap = abs(float(dark.mean()) - float(light.mean()))
+    return gap > 3 * spread and gap > 10.0
+
+
 def _x_corners(g: np.ndarray, rc: np.ndarray, *, radius: float) -> np.ndarray:
     """Which points ``(row, col)`` are inner (X-shaped) checkerboard corners."""
     from scipy import ndimage
@@ -478,7 +803,9 @@ def _x_corners(g: np.ndarray, rc: np.ndarray, *, radius: float) -> np.ndarray:
     cols = rc[:, 1:] + radius * np.cos(theta)
     ring = ndimage.map_coordinates(g, [rows.ravel(), cols.ravel()], order=1, mode="nearest").reshape(rows.shape)
     f = np.abs(np.fft.rfft(ring, axis=1))
-    return (f[:, 2] > f[:, 1]) & (f[:, 2] > 2 * f[:, 3])
+    # a board's corner is a square wave of two cycles around the ring: no fourth harmonic; where two lines cross
+    # (graph paper, one line bolder than the other) the fourth is as strong as the second
+    return (f[:, 2] > f[:, 1]) & (f[:, 2] > 2 * f[:, 3]) & (f[:, 2] > 2 * f[:, 4])
 
 
 def _dot_points(grey: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -655,39 +982,84 @@ def _drop_inconsistent(ij: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.
 
 
 # -- the fit ----------------------------------------------------------------------------------
+#: the lens's distortion is fitted when the points reach this far from the frame's centre (share of its corner's
+#: distance) and number at least MIN_POINTS_DISTORTION
+MIN_REACH_DISTORTION = 0.3
+MIN_POINTS_DISTORTION = 16
+#: a lens distorting more than this at the frame's corners (either sign) is said
+DISTORTION_SAY = 0.005
+#: the lens's two terms are kept when they lower the residuals (points', or lines' parts') this much: F statistic
+#: of the two terms (else the homography alone: the terms would fit the noise)
+DISTORTION_F = 10.0
+
+
+def _reach(points: np.ndarray, shape: tuple[int, int]) -> float:
+    """How far the points reach from the frame's centre, as a share of its corner's distance."""
+    centre, radius = frame_centre_and_radius(shape)
+    return float(np.max(np.hypot(*(np.asarray(points, float) - np.asarray(centre)).T)) / radius)
+
+
+def _distortion_warning(k1: float, k2: float) -> str | None:
+    corner = 1.0 / (1.0 + k1 + k2) - 1.0
+    if abs(corner) <= DISTORTION_SAY:
+        return None
+    kind = "barrel" if corner < 0 else "pincushion"
+    return coded("calibration.lens_distortion",
+                 f"the lens distorts the image by {100 * corner:+.1f} % at the frame's corners ({kind}; fitted k1 "
+                 f"{k1:+.4f}, k2 {k2:+.4f}): the scale is corrected at the pattern's centre, and the analysis "
+                 "takes it where the tube is (Calibration.scale_at)")
+
+
 def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str, shape: tuple[int, int],
          identity: dict[str, object]) -> Calibration:
-    import cv2
-
-    H, _ = cv2.findHomography(world.astype(np.float64), image_pts.astype(np.float64), 0)
-    if H is None:
+    fit = fit_points(world, image_pts, shape=shape, distortion=False)
+    distortion = False
+    if len(world) >= MIN_POINTS_DISTORTION and _reach(image_pts, shape) >= MIN_REACH_DISTORTION:
+        # the lens's terms when the points ask for them (an F test), not to fit their noise
+        bent = fit_points(world, image_pts, shape=shape, distortion=True)
+        n_obs = 2 * len(world)
+        rss0, rss1 = fit.rms**2 * n_obs, bent.rms**2 * n_obs
+        if rss1 <= 0 or (rss0 - rss1) / 2 / (rss1 / max(n_obs - len(bent.params), 1)) > DISTORTION_F:
+            fit, distortion = bent, True
+    pm = fit.plane_map
+    if not np.all(np.isfinite(pm.homography)):
         raise CalibrationError("the pattern's points do not fit a plane seen by a camera — retake the image")
-    proj = cv2.perspectiveTransform(world.reshape(-1, 1, 2), H).reshape(-1, 2)
-    rms = float(np.sqrt(np.mean(np.sum((proj - image_pts) ** 2, axis=1))))
+    proj = pm.to_image(world)
+    rms = fit.rms
     centre_world = world.mean(axis=0)
-    J = _inverse_jacobian(H, centre_world)
+    centre = pm.to_image(centre_world.reshape(1, 2))[0]
+    J = pm.jacobian(centre.reshape(1, 2))[0]
     mm_x, mm_y = float(np.hypot(*J[:, 0])), float(np.hypot(*J[:, 1]))
     scale = float(math.sqrt(abs(np.linalg.det(J))))
-    local = np.array([math.sqrt(abs(np.linalg.det(_inverse_jacobian(H, w)))) for w in world])
+    local = pm.scale(image_pts)
     variation = float((local.max() - local.min()) / local.mean())
-    # what a plane seen by a pinhole cannot show (lens distortion): the scale measured between
-    # each point's lattice neighbours, against the homography's at the same place
-    field = _local_scale_field(world, image_pts, proj, pitch_mm=pitch_mm)
-    if field is not None:
-        at_centre, field_sd, field_variation = field(cv2.perspectiveTransform(centre_world.reshape(1, 1, 2),
-                                                                              H).reshape(2))
-        J = J * at_centre
-        mm_x, mm_y, scale = mm_x * at_centre, mm_y * at_centre, scale * at_centre
+    # what the fitted map cannot show (a lens's distortion of another form, a card not flat): the scale measured
+    # between each point's lattice neighbours, against the map's at the same place
+    # (with the lens's distortion fitted, the map holds it: the field then only adds its noise to the scale, and
+    # is kept for the variation it measures)
+    field_fit = _local_scale_field(world, image_pts, proj, pitch_mm=pitch_mm)
+    if field_fit is not None:
+        at_centre, field_sd, field_variation = field_fit(centre)
+        if not distortion:
+            J = J * at_centre
+            mm_x, mm_y, scale = mm_x * at_centre, mm_y * at_centre, scale * at_centre
         variation = max(variation, field_variation)
     # pattern rows in the image: the image of the plane's X axis
-    d = cv2.perspectiveTransform(np.array([[centre_world, centre_world + np.array([pitch_mm, 0.0])]]), H)[0]
+    d = pm.to_image(np.array([centre_world, centre_world + np.array([pitch_mm, 0.0])]))
     tilt = float(math.degrees(math.atan2(-(d[1, 1] - d[0, 1]), d[1, 0] - d[0, 0])))
     tilt = (tilt + 45.0) % 90.0 - 45.0  # a square grid looks the same turned by a quarter
     rel_sd = _affine_scale_rel_sd(world, image_pts, residual_mm=rms * scale)
-    if field is not None:
+    if distortion:  # the distortion's coefficients are uncertain too
+        def centre_scale(m: PlaneMap) -> float:
+            return float(m.scale(m.to_image(centre_world.reshape(1, 2)))[0])
+
+        rel_sd = max(rel_sd, fit.rel_sd_of(centre_scale))
+    if field_fit is not None and not distortion:
         rel_sd = math.hypot(rel_sd, field_sd)
-    centre = cv2.perspectiveTransform(centre_world.reshape(1, 1, 2), H).reshape(2)
     warnings = []
+    said = _distortion_warning(pm.k1, pm.k2)
+    if said:
+        warnings.append(said)
     if variation > SCALE_VARIATION_WARN:
         warnings.append(f"the scale varies by {100 * variation:.1f} % over the pattern (perspective or lens "
                         "distortion): hold the pattern square to the camera, at the tube's plane, and use the "
@@ -704,8 +1076,10 @@ def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str
         rel_sd=rel_sd, tilt_deg=tilt, scale_variation=variation, rms_residual_px=rms, n_points=len(world),
         pattern=kind, pitch_mm=float(pitch_mm), image_shape=(int(shape[0]), int(shape[1])),
         centre_px=(float(centre[0]), float(centre[1])),
-        homography=tuple(tuple(float(x) for x in row) for row in H), image=dict(identity),
+        homography=tuple(tuple(float(x) for x in row) for row in pm.homography), image=dict(identity),
         warnings=tuple(warnings), points_px=tuple((float(x), float(y)) for x, y in image_pts),
+        distortion_k1=float(pm.k1), distortion_k2=float(pm.k2), distortion_centre_px=tuple(pm.centre),
+        distortion_radius_px=float(pm.radius),
     )
 
 

@@ -29,31 +29,40 @@ pull a peak. Before refining, the image is weighted by where the gratings are: i
 local amplitude at the coarse frequencies (demodulated, low-passed over 1.5
 periods), so that the refinement sees the lines and not what surrounds them.
 
-*Uncertainty and variation.* The frequencies are measured again in a 3 x 3 grid of
-tiles over the pattern (five stretches along a ruler): the spread of the local
-scales is the variation over the field (perspective, lens distortion), their
-robust standard error the uncertainty.
+*The map over the field.* The frequencies are measured again in tiles (up to 6 x 6; stretches along
+a ruler), each started where the map fitted so far expects it, and a map from the image to the
+pattern's plane (a homography after the lens's radial distortion is undone,
+:mod:`grainplug.calibration.distortion`) is fitted to them: the frequency vectors are the rows of its
+derivative. The tiles' scatter about it is the evidence that these are lines
+(:func:`model_misfit`), and gives the uncertainty; the map gives the scale anywhere, and its variation.
+
+*The finest level.* Graph paper has thin lines every millimetre and bolder ones every 5 and 10; a
+ruler, longer ticks. The lines first found may be any level (the bold ones, or a harmonic of theirs).
+The pattern's whole period is found by phase dispersion (:func:`coarsest_period`), the image is
+folded over it through the map (:func:`fold`: every pixel at its position across the lines, so that
+the faintest lines add up over the whole image), and the fold read (:func:`read_levels`): the finest
+lines are the most numerous evenly spaced dips it shows, the bolder levels the classes of them that
+dip deeper.
 
 *Evidence.* Every image has a strongest peak; lines are believed only when each
 family's peak stands ``MIN_PEAK_TO_NOISE`` times above the transform's median at
 the same spatial frequency, makes ``MIN_LINES`` lines or more across where it was
-found, and the parts agree on the spacing (:func:`part_misfit`); the caller
-(:func:`grainplug.calibration.pattern.calibrate_image`) refuses otherwise.
-
-*The map.* With the families' frequency vectors ``f1``, ``f2`` as rows of ``F``,
-plane coordinates are ``(X, Y) = pitch * F (r - r0)``, so the Jacobian (mm per px)
-is ``pitch * F``; a ruler gives only ``f1``: pixels are then taken as square
-(``J = pitch |f1| R``, with ``R`` the rotation to the ruler's direction) and a
-warning says so.
+found, and the parts agree on the spacing about the map (:func:`model_misfit`); the caller
+(:func:`grainplug.calibration.pattern.calibrate_image`) refuses otherwise, and refuses lines whose
+hierarchy does not show them to be the finest.
 """
 
 from __future__ import annotations
 
 import itertools
+import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 #: the fundamental must reach this share of the strongest harmonic's height
 FUNDAMENTAL_SHARE = 0.35
@@ -81,12 +90,17 @@ def _window(shape: tuple[int, int]) -> np.ndarray:
 
 def _dtft_power(g: np.ndarray, f: np.ndarray) -> float:
     h, w = g.shape
-    ex = np.exp(-2j * np.pi * f[0] * (np.arange(w) - (w - 1) / 2))
-    ey = np.exp(-2j * np.pi * f[1] * (np.arange(h) - (h - 1) / 2))
-    return float(abs(ey @ (g @ ex)) ** 2)
+    px = 2 * np.pi * f[0] * (np.arange(w) - (w - 1) / 2)
+    py = 2 * np.pi * f[1] * (np.arange(h) - (h - 1) / 2)
+    # g @ exp(-i px) with real products (no complex copy of the image)
+    a, b = g @ np.cos(px), g @ np.sin(px)
+    cy, sy = np.cos(py), np.sin(py)
+    re = cy @ a - sy @ b
+    im = -(cy @ b + sy @ a)
+    return float(re * re + im * im)
 
 
-def _refine(g: np.ndarray, f0: np.ndarray, bin_size: float) -> np.ndarray:
+def _refine(g: np.ndarray, f0: np.ndarray, bin_size: float, *, xatol: float = 1e-4, fatol: float = 1e-12) -> np.ndarray:
     from scipy.optimize import minimize
 
     scale = 1.0 / max(_dtft_power(g, f0), 1e-300)
@@ -94,7 +108,7 @@ def _refine(g: np.ndarray, f0: np.ndarray, bin_size: float) -> np.ndarray:
     simplex = np.array([f0, f0 + np.array([step, 0.0]), f0 + np.array([0.0, step])])
     res = minimize(lambda f: -_dtft_power(g, f) * scale, f0, method="Nelder-Mead",
                    options={"initial_simplex": simplex,
-                            "xatol": 1e-4 * bin_size, "fatol": 1e-12, "maxiter": 400})
+                            "xatol": xatol * bin_size, "fatol": fatol, "maxiter": 400})
     return np.asarray(res.x, dtype=float)
 
 
@@ -360,3 +374,309 @@ def part_misfit(centres: np.ndarray, freqs: np.ndarray, sizes: np.ndarray) -> fl
         extent = u[:, 0] * sizes[:, 1] + u[:, 1] * sizes[:, 0]  # each part's length along f, px
         worst = max(worst, math.sqrt(float(resid @ resid) / dof) * float(np.mean(extent)))
     return worst
+
+
+# -- the map over the field (lens distortion, perspective) and the lines' hierarchy -------------------------
+def tile_frequencies(grey: np.ndarray, found: Gratings, *, grid: int,
+                     predict: Callable[[np.ndarray], np.ndarray] | None = None,
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The families' frequencies refined in ``grid`` x ``grid`` tiles of the gratings' box (``grid`` stretches
+    along a ruler), each started from ``predict(centre)`` (the frequencies a map fitted already expects there)
+    or from the whole image's.
+
+    Returns
+    -------
+    centres : ndarray, (n, 2)
+        Each part's weighted centre (x, y) in px.
+    freqs : ndarray, (n, 2 * families)
+        Its families' frequency vectors (cycles/px), end to end.
+    sizes : ndarray, (n, 2)
+        Its height and width in px.
+    weights : ndarray, (n,)
+        Its share of the gratings (sum of the support).
+    """
+    y0, y1, x0, x1 = found.box
+    freqs = found.freqs
+
+    def spans(lo: int, hi: int) -> list[slice]:
+        edges = np.linspace(lo, hi, grid + 1)
+        half = 0.5 * (hi - lo) / grid
+        out = []
+        for mid in 0.5 * (edges[:-1] + edges[1:]):
+            a = int(round(min(max(mid - half, lo), hi - 2 * half)))
+            out.append(slice(a, int(round(a + 2 * half))))
+        return out
+
+    if len(freqs) >= 2:
+        parts = [(ys, xs) for ys in spans(y0, y1) for xs in spans(x0, x1)]
+    elif abs(freqs[0][0]) >= abs(freqs[0][1]):
+        parts = [(slice(y0, y1), xs) for xs in spans(x0, x1)]
+    else:
+        parts = [(ys, slice(x0, x1)) for ys in spans(y0, y1)]
+    sums = [float(found.support[ys, xs].sum()) for ys, xs in parts]
+    centres, out, sizes, weights = [], [], [], []
+    for (ys, xs), wsum in zip(parts, sums, strict=True):
+        part = grey[ys, xs]
+        weight = found.support[ys, xs]
+        if min(part.shape) < 16 or wsum < 0.3 * max(sums):
+            continue
+        yy, xx = np.mgrid[ys, xs]
+        centre = np.array([float((xx * weight).sum() / wsum), float((yy * weight).sum() / wsum)])
+        start = (np.asarray(predict(centre), float).reshape(-1, 2) if predict is not None
+                 else np.asarray(freqs, float))
+        gw = _prepare(part) * _window(part.shape) * weight
+        bin_size = 0.5 / max(part.shape)
+        out.append(np.concatenate([_refine(gw, f, bin_size, xatol=1e-3, fatol=1e-8) for f in start]))
+        centres.append(centre)
+        sizes.append(part.shape)
+        weights.append(wsum)
+    n = len(out)
+    return (np.asarray(centres, dtype=float).reshape(-1, 2), np.asarray(out, dtype=float).reshape(n, 2 * len(freqs)),
+            np.asarray(sizes, dtype=float).reshape(-1, 2), np.asarray(weights, dtype=float))
+
+
+def model_misfit(freqs: np.ndarray, model: np.ndarray, sizes: np.ndarray, *, n_params: int) -> float:
+    """How far the parts' line spacings scatter about a fitted map's, in frequency bins of a part.
+
+    As :func:`part_misfit`, with the map fitted to the parts (perspective and the lens's distortion) as the
+    smooth trend: each family's ``|f|`` against the map's at the same place, the residuals' standard
+    deviation (``n_params`` shared between the families) in units of one over a part's extent along ``f``.
+
+    Returns
+    -------
+    float
+        The largest misfit over the families (inf when there are no more parts than parameters).
+    """
+    n, families = len(freqs), freqs.shape[1] // 2
+    dof = n - n_params / families
+    if dof < 1:
+        return math.inf
+    worst = 0.0
+    for k in range(families):
+        f = freqs[:, 2 * k: 2 * k + 2]
+        mag = np.hypot(f[:, 0], f[:, 1])
+        resid = mag - np.hypot(model[:, 2 * k], model[:, 2 * k + 1])
+        u = np.abs(f / mag[:, None])
+        extent = u[:, 0] * sizes[:, 1] + u[:, 1] * sizes[:, 0]
+        worst = max(worst, math.sqrt(float(resid @ resid) / dof) * float(np.mean(extent)))
+    return worst
+
+
+#: the pattern's whole period, in periods of the lines first found (graph paper's 10 mm lines in its 1 mm, 5 mm
+#: lines, or in the 2nd harmonic of its 5 mm ones; a ruler's 10 mm in its half-millimetre ticks)
+COARSE_PERIODS = (2, 4, 5, 10, 20)
+#: periods no pattern has, folded to see how much a fold over a long period scatters by chance
+CONTROL_PERIODS = (3, 7)
+#: ... and must repeat at least this many times across the image
+MIN_COARSE_CYCLES = 2.0
+#: a coarser repeat must stand this many times above the profile's noise (and 3 % of the lines' own); one found
+#: wrongly is harmless: the fold then shows no level of bolder lines, and the lines are refused
+COARSE_Z = 4.0
+#: finer lines closer than this (px) cannot be resolved
+MIN_FINE_PX = 2.4
+#: a level of bolder lines (every 2nd, 5th, 10th...) and finer lines must stand this many standard errors out
+LEVEL_Z = 5.0
+
+
+def coarsest_period(coordinate: np.ndarray, values: np.ndarray, *, bins: int, period_px: float) -> int:
+    """The pattern's whole period, in periods of the lines first found: graph paper whose 1 mm lines were found
+    repeats every 10 (its 10 mm lines; every 5 when they are not bolder than the 5 mm ones), one whose 5 mm
+    lines were found every 2, a ruler with half-millimetre ticks every 20, a grating without bolder lines 1.
+
+    Phase dispersion: the pixels (``values`` at ``coordinate``, in periods from a fitted map, perspective and
+    the lens's distortion undone) are folded over ``j`` periods (``j`` in ``COARSE_PERIODS``, repeating
+    ``MIN_COARSE_CYCLES`` times or more across the image) and each period of the fold compared with the
+    fold over one: the mean square difference ``D_j`` is the structure that repeats every ``j`` periods and
+    not every one. The pattern's period is the smallest ``j`` with ``D_j`` at least 80 % of the largest,
+    when that stands ``COARSE_Z`` times above the ``D`` of periods that do not divide into it or it into
+    them (3 and 7, never a pattern's, among them: with few repeats across the image, a fold over any long
+    period scatters); else 1.
+    """
+    length = float(np.ptp(coordinate))
+    one = fold(values, coordinate, span=1, bins=bins, period_px=period_px)
+    dispersion = {}
+    for j in sorted({*COARSE_PERIODS, *CONTROL_PERIODS}):
+        if length < MIN_COARSE_CYCLES * j:
+            continue
+        fj = fold(values, coordinate, span=j, bins=bins, period_px=period_px)
+        diff = fj.profile.reshape(j, bins) - one.profile[None, :]
+        dispersion[j] = float(np.nanmean(diff**2))
+    log.debug("phase dispersion by period: %s", {j: round(d, 2) for j, d in dispersion.items()})
+    candidates = {j: d for j, d in dispersion.items() if j in COARSE_PERIODS}
+    if not candidates:
+        return 1
+    top = max(candidates.values())
+    j0 = min(j for j, d in candidates.items() if d >= 0.8 * top)
+    others = [d for j, d in dispersion.items() if j % j0 and j0 % j]
+    if not others:
+        return 1
+    return j0 if candidates[j0] > COARSE_Z * float(np.median(others)) else 1
+
+
+@dataclass(frozen=True)
+class Fold:
+    """The image's mean grey level against the position across one family of lines, modulo ``span`` periods.
+
+    Attributes
+    ----------
+    profile : ndarray, (span * bins,)
+        Mean grey in each bin (nan where no pixel fell).
+    se : ndarray
+        Its standard error.
+    span : int
+        Periods folded.
+    bins : int
+        Bins per period.
+    period_px : float
+        The period in px (at the pattern's centre).
+    halves : tuple of ndarray
+        The profiles of the two halves of the image across the lines, for the reproducibility of what
+        is read in the fold.
+    """
+
+    profile: np.ndarray
+    se: np.ndarray
+    span: int
+    bins: int
+    period_px: float
+    halves: tuple[np.ndarray, ...] = ()
+
+    def at(self, x: np.ndarray, *, profile: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The profile (or another over the same bins) and its standard error at positions ``x`` (periods),
+        linearly interpolated, circular."""
+        n = len(self.profile)
+        t = np.mod(np.asarray(x, float) * self.bins - 0.5, n)
+        i = np.floor(t).astype(int)
+        a = t - i
+        i %= n  # np.mod of a tiny negative number can give n itself
+        j = (i + 1) % n
+        p = self.profile if profile is None else profile
+        value = (1 - a) * p[i] + a * p[j]
+        se = np.hypot((1 - a) * self.se[i], a * self.se[j])
+        return value, se
+
+
+def fold(values: np.ndarray, coordinate: np.ndarray, *, span: int, bins: int, period_px: float) -> Fold:
+    """Fold pixels' ``values`` by their ``coordinate`` (periods, from a fitted map) modulo ``span`` periods.
+
+    The standard error is the folds' own: half the robust spread of the difference between the folds of
+    the two halves of the image across the lines (noise, and the map's misfit), the same for every bin
+    but for its count of pixels.
+    """
+    n_bins = span * bins
+    v = np.asarray(values, np.float64)
+    c = np.asarray(coordinate, np.float64)
+    b = np.floor(np.mod(c, span) * bins).astype(np.int64) % n_bins
+
+    def mean_of(sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = np.bincount(b[sel], minlength=n_bins).astype(float)
+        s1 = np.bincount(b[sel], weights=v[sel], minlength=n_bins)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(n > 0, s1 / n, np.nan), n
+
+    everything = np.ones(len(v), bool)
+    mean, n = mean_of(everything)
+    half = c < np.median(c)
+    a_mean, _ = mean_of(half)
+    b_mean, _ = mean_of(~half)
+    d = np.abs(a_mean - b_mean)
+    ok = np.isfinite(d)
+    # each half's mean has twice the variance of the whole's: sd(whole) = sd(a - b) / 2
+    spread = 1.4826 * float(np.median(d[ok])) / 2.0 if ok.any() else np.inf
+    mean_n = float(np.mean(n[n > 0])) if np.any(n > 0) else 1.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        se = spread * np.sqrt(mean_n / n)
+    empty = n < 1
+    mean[empty], se[empty] = np.nan, np.nan
+    return Fold(mean, se, span, bins, period_px, (a_mean, b_mean))
+
+
+def _dips(f: Fold, x: np.ndarray, half: float) -> tuple[np.ndarray, np.ndarray]:
+    """How much darker the profile is at ``x`` than ``half`` a period either side, and its standard error: half
+    the robust spread of the same dips measured in the two halves of the image (noise, and the fitted map's
+    misfit between them), the same for every position."""
+    def dip(profile: np.ndarray | None) -> np.ndarray:
+        centre, _ = f.at(x, profile=profile)
+        left, _ = f.at(x - half, profile=profile)
+        right, _ = f.at(x + half, profile=profile)
+        return 0.5 * (left + right) - centre
+
+    d = dip(None)
+    if len(f.halves) == 2:
+        gap = np.abs(dip(f.halves[0]) - dip(f.halves[1]))
+        gap = gap[np.isfinite(gap)]
+        se = 1.4826 * float(np.median(gap)) / 2.0 if len(gap) else math.inf
+        se = max(se, 1e-9)
+    else:
+        se = float(np.nanmedian(f.at(x)[1]))
+    return d, np.full(len(d), se)
+
+
+def _line_phase(f: Fold, m: int) -> float:
+    """Where the dark lines repeating ``m`` times over the fold are, in periods (modulo ``span / m``)."""
+    x = (np.arange(len(f.profile)) + 0.5) / f.bins
+    ok = np.isfinite(f.profile)
+    nu = m / f.span
+    c = np.sum((f.profile[ok] - np.mean(f.profile[ok])) * np.exp(-2j * np.pi * nu * x[ok]))
+    return float(np.mod((np.pi - np.angle(c)) / (2 * np.pi * nu), 1.0 / nu))
+
+
+@dataclass(frozen=True)
+class Levels:
+    """The lines' hierarchy read in a :class:`Fold`.
+
+    Attributes
+    ----------
+    finer : int
+        The finest lines seen are this many per fold (the pattern's whole period).
+    phase : float
+        Where a finest line is, in periods first found (modulo ``span / finer``).
+    bolder : tuple of int
+        Every how many finest lines a bolder (longer) one comes, for each level seen (2, 5, 10).
+    dips : ndarray
+        The finest lines' depths over the fold (grey levels), for the record.
+    """
+
+    finer: int
+    phase: float
+    bolder: tuple[int, ...]
+    dips: np.ndarray
+
+
+def read_levels(f: Fold) -> Levels:
+    """The finest lines in a fold over the pattern's whole period, and the bolder lines among them.
+
+    The finest lines are ``m`` per fold, for the largest ``m`` (their spacing at least
+    ``MIN_FINE_PX``) at which the profile dips (against a quarter of their spacing either side, clear of a
+    bold neighbour's edge) at every one of the ``m`` evenly spaced positions:
+    by ``LEVEL_Z`` standard errors in the median and by 2 at 9 positions in 10 (at ``m`` too large,
+    half the positions fall between lines). Among them, a level of bolder ones every ``r`` (2, 5,
+    10, 20) is seen when every line of one class modulo ``r`` dips deeper than any other's, by
+    ``LEVEL_Z`` standard errors or a quarter of the others' median depth, whichever is more.
+    """
+    max_m = int(min(40, f.span * f.period_px / MIN_FINE_PX))
+    finer, phase = 1, _line_phase(f, 1)
+    for m in range(max(max_m, 1), 0, -1):
+        x0 = _line_phase(f, m)
+        x = x0 + np.arange(m) * f.span / m
+        d, se = _dips(f, x, 0.25 * f.span / m)
+        ok = np.isfinite(d) & np.isfinite(se) & (se > 0)
+        if ok.sum() < 0.9 * m:
+            continue
+        z = d[ok] / se[ok]
+        if np.median(z) >= LEVEL_Z and np.mean(z > 2.0) >= 0.9:
+            finer, phase = m, x0
+            break
+    x = phase + np.arange(finer) * f.span / finer
+    d, se = _dips(f, x, 0.5 * f.span / finer)
+    bolder = []
+    for r in (2, 5, 10, 20):
+        if finer < r or finer % r or not np.all(np.isfinite(d)):
+            continue
+        classes = [d[c::r] for c in range(r)]
+        best = int(np.argmax([float(np.mean(c)) for c in classes]))
+        others = np.concatenate([c for i, c in enumerate(classes) if i != best])
+        margin = max(LEVEL_Z * float(np.median(se)), 0.25 * max(float(np.median(others)), 0.0))
+        if float(np.min(classes[best])) > float(np.max(others)) + margin:
+            bolder.append(r)
+    return Levels(finer, float(phase), tuple(bolder), d)

@@ -14,6 +14,8 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
+import numpy as np
+
 from ..warning_codes import all_coded, coded
 from .pattern import Calibration
 from .tube import TubeGeometry
@@ -174,22 +176,106 @@ def tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, facts: TubeFacts) 
             f"be out of view and the scale from its width wrong — {fix}"))
     return out
 
+#: the calibration's scale may vary by this share along the tube before a warning (lengths near the ends are then off
+#: by up to half of it)
+ALONG_TUBE_VARIATION_WARN = 0.003
+
+
+def axis_points_px(tube: TubeGeometry, axis_px: np.ndarray) -> np.ndarray:
+    """Frame coordinates ``(x, y)`` (px) of the points on the tube's axis at distances ``axis_px`` along it from the top
+    (left) edge of the view, as :func:`grainplug.diagram.extract.band_along_tube` places its samples."""
+    s = np.asarray(axis_px, float)
+    rows = s * math.cos(math.radians(tube.tilt_deg)) - 0.5
+    cols = tube.axis_x(rows)
+    pts = np.column_stack([cols, rows])
+    return pts[:, ::-1].copy() if tube.orientation == "horizontal" else pts
+
+
+def axis_mm(cal: Calibration, tube: TubeGeometry, axis_px: np.ndarray) -> np.ndarray:
+    """Positions along the tube (mm from the top or left edge of the view) of the points at ``axis_px`` px along its
+    axis, through the calibration's lens distortion and perspective (:meth:`Calibration.plane_mm`).
+
+    The analysis takes positions as ``axis_px * mm_per_px``; where the scale varies along the tube by more than
+    ``ALONG_TUBE_VARIATION_WARN`` (warned), these are the positions to use instead: lengths and celerities near
+    the ends are then right to the calibration's accuracy rather than off by up to half the variation. Valid
+    only when the movie's frames are the calibration image's frame (same size, no region of interest).
+
+    Parameters
+    ----------
+    cal : Calibration
+        A calibration of an image of the movie's frame size.
+    tube : TubeGeometry
+        The tube found in the frames.
+    axis_px : ndarray
+        Increasing distances along the axis (px), e.g. the second output of
+        :func:`grainplug.diagram.extract.band_along_tube`.
+
+    Returns
+    -------
+    ndarray
+        The same positions in mm along the tube (arc length on the pattern's plane from ``axis_px = 0``).
+    """
+    s = np.concatenate([[0.0], np.asarray(axis_px, float)])
+    plane = cal.plane_mm(axis_points_px(tube, s))
+    steps = np.hypot(*np.diff(plane, axis=0).T)
+    return np.cumsum(steps)
+
+
+def along_tube(cal: Calibration, tube: TubeGeometry, *, samples: int = 64) -> tuple[float, float]:
+    """The calibration's mean scale along the tube's axis over the view, and its relative variation there.
+
+    Returns
+    -------
+    (mm_per_px, variation)
+        The mean of :meth:`Calibration.scale_at` along the axis (so that the length of the tube in view is
+        right) and (max - min) / mean of it.
+    """
+    h = tube.canonical_shape[0]
+    cos_t = math.cos(math.radians(tube.tilt_deg))
+    s = (np.linspace(0, h - 1, samples) + 0.5) / cos_t
+    pts = axis_points_px(tube, s)
+    slope = math.tan(math.radians(tube.tilt_deg))
+    axis = (slope, 1.0) if tube.orientation == "vertical" else (1.0, slope)
+    local = np.asarray(cal.scale_at(pts[:, 0], pts[:, 1], axis), float)
+    mean = float(np.mean(local))
+    return mean, float((local.max() - local.min()) / mean)
+
+
 def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[int, int], from_tube: float,
                       diameter_mm: float, bore: BoreEstimate) -> tuple[float, str, float, list[str]]:
     """The calibration's scale along the tube's axis, its uncertainty, and what is doubtful.
 
-    The uncertainty combines the fit's with the scale's variation over the pattern
-    (the tube may lie anywhere in it: a uniform spread, ``variation / sqrt(12)``).
+    When the movie's frames are the calibration image's size, the scale is taken where the tube is: the mean
+    of :meth:`Calibration.scale_at` along its axis over the view (the lens's distortion and perspective make it
+    vary over the field), and the uncertainty combines the fit's with its variation along the tube
+    (``variation / sqrt(12)``); a variation above ``ALONG_TUBE_VARIATION_WARN`` is warned of, with the way to
+    map positions through it (:func:`axis_mm`). Otherwise (another size: a crop, a region of interest) the
+    scale at the pattern's centre along the tube's axis is taken, with the variation over the whole pattern in
+    the uncertainty (the tube may lie anywhere in it).
     """
     slope = math.tan(math.radians(tube.tilt_deg))
     axis = (slope, 1.0) if tube.orientation == "vertical" else (1.0, slope)
-    mm_per_px = cal.mm_per_px_along(axis)
-    rel_sd = math.hypot(cal.rel_sd, cal.scale_variation / math.sqrt(12.0))
     name = cal.image.get("name")
-    source = (f"calibration image{' ' + name if name else ''} ({cal.pattern}, {cal.n_points} points "
-              f"{cal.pitch_mm:g} mm apart, along the tube's axis)")
     warnings = all_coded("scale.calibration", cal.warnings)
-    if tuple(cal.image_shape) != tuple(frame_shape):
+    same_frame = tuple(cal.image_shape) == tuple(frame_shape)
+    if same_frame:
+        mm_per_px, variation = along_tube(cal, tube)
+        rel_sd = math.hypot(cal.rel_sd, variation / math.sqrt(12.0))
+        where = "along the tube's axis where the tube is"
+        if variation > ALONG_TUBE_VARIATION_WARN:
+            warnings.append(coded("scale.calibration_varies_along_tube",
+                f"the calibration's scale varies by {100 * variation:.2g} % along the tube (the lens's distortion "
+                "or perspective): its mean along the tube is used, so lengths and celerities near the ends of the "
+                f"view are off by up to {50 * variation:.2g} % — frame the tube near the image's centre, or map "
+                "positions through the calibration (grainplug.calibration.scale.axis_mm)"))
+    else:
+        mm_per_px = cal.mm_per_px_along(axis)
+        rel_sd = math.hypot(cal.rel_sd, cal.scale_variation / math.sqrt(12.0))
+        where = "along the tube's axis"
+    log.info("calibrated scale %.6g mm/px (%s)", mm_per_px, where)
+    source = (f"calibration image{' ' + name if name else ''} ({cal.pattern}, {cal.n_points} points "
+              f"{cal.pitch_mm:g} mm apart, {where})")
+    if not same_frame:
         warnings.append(coded("scale.calibration_size",
             f"the calibration image is {cal.image_shape[1]} x {cal.image_shape[0]} px but the movie's "
             f"frames are {frame_shape[1]} x {frame_shape[0]}: its scale holds only if the camera, lens, "
