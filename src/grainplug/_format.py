@@ -2,6 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
+
+def rounded(x: float | None, nd: int = 6) -> float | None:
+    """``x`` rounded to ``nd`` decimals for JSON, None for a missing or non-finite one."""
+    return None if x is None or not math.isfinite(x) else round(float(x), nd)
+
 
 def signed(value: float, decimals: int) -> str:
     """``value`` with its sign and ``decimals`` decimals; one that rounds to zero has no sign (not ``-0.0000``)."""

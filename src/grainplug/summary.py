@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._format import rounded
 from ._version import __version__
 from .measures.tracks import edge_speed_mm_s
 from .params import runs_backwards
@@ -95,8 +96,7 @@ def track_rows(res: AnalysisResult) -> list[dict[str, Any]]:
     return rows
 
 
-def _r(x: float | None, nd: int = 6) -> float | None:
-    return None if x is None or not np.isfinite(x) else round(float(x), nd)
+_r = rounded
 
 
 def _tube_model(res: AnalysisResult) -> dict[str, object] | None:

@@ -131,14 +131,11 @@ class Probes:
         :data:`BESIDE_STEP` positions along it (-1 where neither is in the frame).
     across : ndarray, shape (n_profiles, n_offsets)
         Profiles across the tube at a few heights along it (each sample averages a few rows).
-    across_offsets_px : ndarray
-        The offsets from the axis of those samples, px.
     """
 
     core: slice
     beside: np.ndarray
     across: np.ndarray
-    across_offsets_px: np.ndarray
     #: the position (in samples along the tube) of each sample beside it
     beside_at: np.ndarray
 
@@ -233,6 +230,5 @@ def probes_along_tube(tube: TubeGeometry, *,
     ww = np.concatenate([core.weights, *groups_w]) if groups_w else core.weights
     band = Band(cc, rr, np.ascontiguousarray(ww), (w, h)) if horizontal else \
         Band(rr, cc, np.ascontiguousarray(ww), (h, w))
-    probes = Probes(slice(0, n), beside, np.stack(across) if across else np.zeros((0, 0), np.int64),
-                    offsets.astype(float), beside_at)
+    probes = Probes(slice(0, n), beside, np.stack(across) if across else np.zeros((0, 0), np.int64), beside_at)
     return band, axis_px, probes

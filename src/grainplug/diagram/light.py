@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._format import rounded
+
 #: the background beside the tube must be at least this share of the tube's brightest contents to be a lamp
 LAMP_SHARE = 0.5
 #: a lamp dimmer than this share of its median (a clamp's shadow on the probes) is not trusted there
@@ -48,11 +50,8 @@ class Lamp:
     shadow_depth: float | None = None
 
     def as_dict(self) -> dict[str, object]:
-        def r(x: float | None) -> float | None:
-            return None if x is None or not np.isfinite(x) else round(float(x), 4)
-
-        return {"corrected": self.corrected, "source": self.source, "ripple_rms": r(self.ripple_rms),
-                "shadow_depth": r(self.shadow_depth)}
+        return {"corrected": self.corrected, "source": self.source, "ripple_rms": rounded(self.ripple_rms, 4),
+                "shadow_depth": rounded(self.shadow_depth, 4)}
 
 
 def lamp_light(beside: np.ndarray, at: np.ndarray, n_positions: int) -> np.ndarray | None:
@@ -60,13 +59,18 @@ def lamp_light(beside: np.ndarray, at: np.ndarray, n_positions: int) -> np.ndarr
     samples at positions ``at``, each the mean over a few positions), linearly interpolated between them and held
     beyond them; None when they cover too little of the tube."""
     at = np.asarray(at, float)
-    if beside.shape[1] != len(at) or len(at) < 4 or np.ptp(at) < 0.5 * n_positions:
+    if not _covers(beside, at, n_positions):
         return None
     idx = np.arange(n_positions, dtype=float)
     j = np.clip(np.searchsorted(at, idx) - 1, 0, len(at) - 2)
     f = np.clip((idx - at[j]) / np.maximum(at[j + 1] - at[j], 1e-9), 0.0, 1.0).astype(np.float32)
     b = np.asarray(beside, np.float32)
     return b[:, j] * (1 - f) + b[:, j + 1] * f
+
+
+def _covers(beside: np.ndarray, at: np.ndarray, n_positions: int) -> bool:
+    """Whether the samples beside the tube (at positions ``at``) reach over half of its view."""
+    return beside.shape[1] == len(at) and len(at) >= 4 and float(np.ptp(at)) >= 0.5 * n_positions
 
 
 def divide_by_lamp(values: np.ndarray, beside: np.ndarray, at: np.ndarray, *,
@@ -78,7 +82,7 @@ def divide_by_lamp(values: np.ndarray, beside: np.ndarray, at: np.ndarray, *,
         return v, Lamp(False, "front light (no lamp beside the tube): the ripple and drift from the diagram's own "
                               "per-frame gain; a passing shadow is not corrected")
     b = np.asarray(beside, np.float32)
-    if b.shape[1] != len(at) or len(at) < 4 or np.ptp(np.asarray(at, float)) < 0.5 * v.shape[1]:
+    if not _covers(b, np.asarray(at, float), v.shape[1]):
         return v, Lamp(False, "no background beside the tube in the frame: the ripple and drift from the "
                               "diagram's own per-frame gain; a passing shadow is not corrected")
     few = b[:: max(1, len(b) // 500)]  # the light's figures, on at most 500 frames

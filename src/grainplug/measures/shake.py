@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._format import rounded
+
 #: a profile across the tube whose shift's standard error (px) exceeds this does not measure the motion
 MEASURABLE_SD_PX = 0.5
 #: the same along the tube, stricter: a shadow passing along the background beside the tube is structure that
@@ -72,11 +74,9 @@ class Shake:
     wander_hz: float | None = None
 
     def as_dict(self) -> dict[str, object]:
-        def r(x: float | None) -> float | None:
-            return None if x is None or not np.isfinite(x) else round(float(x), 4)
-
-        return {"shaking": self.shaking, "rms_across_px": r(self.rms_across_px), "rms_along_px": r(self.rms_along_px),
-                "frequency_hz": r(self.frequency_hz), "wander_hz": r(self.wander_hz),
+        return {"shaking": self.shaking, "rms_across_px": rounded(self.rms_across_px, 4),
+                "rms_along_px": rounded(self.rms_along_px, 4), "frequency_hz": rounded(self.frequency_hz, 4),
+                "wander_hz": rounded(self.wander_hz, 4),
                 "along_measured": self.along_px is not None, "along_source": self.along_source}
 
 
