@@ -63,6 +63,10 @@ CODES: dict[str, tuple[str, str]] = {
                                "check the camera, lens, focus and distance did not change"),
     "scale.calibration_vs_tube": ("the tube's bore and the calibration disagree on the scale",
                                   "check the pattern's plane and pitch, and the tube's diameter"),
+    "scale.calibration_doubted": ("the calibration and the tube disagree by more than the tube's optics allow: "
+                                  "one of them is wrong, and the intervals carry the disagreement",
+                                  "check the figure the sentence names (the pattern's pitch and level, "
+                                  "tube_diameter_mm=, that the image is of this set-up)"),
     "scale.calibration": ("the calibration image itself is doubtful (not flat, tilted, varying scale)",
                           "as the sentence says; take the calibration image again"),
     "scale.calibration_varies_along_tube": ("the calibration's scale varies by more than 0.3 % along the tube "

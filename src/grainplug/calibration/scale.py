@@ -111,6 +111,9 @@ def bore_source(bore: BoreEstimate, facts: TubeFacts) -> str:
     if bore.method == "outer":
         return (f"tube model: outer silhouette ({facts.tube_outer_diameter_mm:g} mm = "
                 f"{bore.diameter_px * facts.tube_outer_diameter_mm / facts.tube_diameter_mm:.2f} px), {d}")
+    if bore.method == "outer and stripe":
+        return (f"tube model: outer silhouette ({facts.tube_outer_diameter_mm:g} mm) and refraction stripes "
+                f"({glass}) combined, {d}")
     if bore.method == "stripe + outer":
         return f"tube model: refraction stripes and outer silhouette ({glass}), {d}"
     if bore.method == "stripe":
@@ -241,6 +244,51 @@ def along_tube(cal: Calibration, tube: TubeGeometry, *, samples: int = 64) -> tu
     return mean, float((local.max() - local.min()) / mean)
 
 
+#: how much narrower than its bore a back-lit tube's contents can look (the lamp's angular size; the tube model's
+#: renderers: up to 35 %)
+BACK_LIT_NARROWING = 0.35
+
+#: ratios of scales that a pattern read at another level of its lines, or in other units, gives
+LEVEL_RATIOS = {2.0: "2", 2.5: "2.5", 4.0: "4", 5.0: "5", 10.0: "10", 25.4: "25.4 (mm against inches)",
+                2.54: "2.54 (mm against tenths of an inch)"}
+
+
+#: a calibration is never doubted for disagreeing with the tube by less than this (the tube model's estimates have
+#: been within 2 % on the optical renderer, 3 % on the synthetic one)
+DOUBT_AT_LEAST = 0.05
+
+
+def optics_allow(bore: BoreEstimate, *, back_lit: bool, cal_rel_sd: float) -> tuple[float, float]:
+    """The range of ``scale_from_tube / calibrated_scale - 1`` that the tube's optics and the two estimates'
+    uncertainties allow: three standard deviations (at least ``DOUBT_AT_LEAST``) either way, and in back light,
+    when the bore comes from the contents' width alone, up to ``BACK_LIT_NARROWING`` narrower."""
+    k = max(DOUBT_AT_LEAST, 3 * math.hypot(bore.rel_sd if math.isfinite(bore.rel_sd) else 0.1, cal_rel_sd))
+    hi = k
+    if back_lit and bore.method == "contents":
+        hi = 1 / (1 - BACK_LIT_NARROWING) - 1 + k
+    return -k, hi
+
+
+def doubt_sentence(cal: Calibration, bore: BoreEstimate, mm_per_px: float, diameter_mm: float, disagree: float,
+                   allowed: tuple[float, float]) -> str:
+    """Why a calibration that the tube contradicts is doubted, and which figure to check first."""
+    ratio = 1 + disagree
+    r = max(ratio, 1 / ratio)
+    near = next((words for level, words in LEVEL_RATIOS.items() if abs(r / level - 1) < 0.04), None)
+    bore_mm = bore.diameter_px * mm_per_px
+    first = (f"check the pattern's pitch first: the scales differ by a factor {r:.2f}, close to {near}, as when a "
+             f"pattern is read at another level of its lines (graph paper's 1 mm lines against its 5 mm ones, a "
+             f"ruler's mm against its cm) or in other units — the calibration took the {cal.pattern}'s points to be "
+             f"{cal.pitch_mm:g} mm apart (pitch_mm= of grainplug calibrate)" if near else
+             f"check the calibration's pitch ({cal.pitch_mm:g} mm, {cal.pattern}) and that the image is of this "
+             f"camera, lens and distance, then tube_diameter_mm= ({diameter_mm:g} mm)")
+    return (f"the calibration and the tube disagree by {100 * disagree:+.0f} % in scale, more than the tube's "
+            f"optics allow ({100 * allowed[0]:+.0f} % to {100 * allowed[1]:+.0f} %): at the calibration's "
+            f"{mm_per_px:.4g} mm/px the bore ({bore.diameter_px:.1f} px) would be {bore_mm:.2f} mm, not "
+            f"{diameter_mm:g} mm — {first}; the calibration's scale is used, with this disagreement in its "
+            "intervals")
+
+
 def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[int, int], from_tube: float,
                       diameter_mm: float, bore: BoreEstimate) -> tuple[float, str, float, list[str]]:
     """The calibration's scale along the tube's axis, its uncertainty, and what is doubtful.
@@ -281,7 +329,13 @@ def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[in
             f"frames are {frame_shape[1]} x {frame_shape[0]}: its scale holds only if the camera, lens, "
             "focus and distance did not change (a crop is fine)"))
     disagree = from_tube / mm_per_px - 1
-    if abs(disagree) > 0.03:
+    lo, hi = optics_allow(bore, back_lit=bool(tube.back_lit), cal_rel_sd=rel_sd)
+    if not lo <= disagree <= hi:
+        warnings.insert(0, coded("scale.calibration_doubted", doubt_sentence(cal, bore, mm_per_px, diameter_mm,
+                                                                             disagree, (lo, hi))))
+        # one of the two is wrong and which cannot be told from the movie: the intervals carry it
+        rel_sd = math.hypot(rel_sd, abs(math.log1p(disagree)) / 2)
+    elif abs(disagree) > 0.03:
         if disagree > 0:  # the bore reads narrower than the calibration says
             advice = ("back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
                       "the tube's plane, else check tube_diameter_mm= (and tube_outer_diameter_mm=)")
