@@ -48,6 +48,11 @@ class Scale:
         What is doubtful about it, each with what to do.
     bore : BoreEstimate or None
         The tube model's estimates of the bore (None when the scale was given).
+    map_through : Calibration or None
+        A calibration of the movie's frame whose scale varies along the tube by more than
+        ``ALONG_TUBE_VARIATION_WARN`` (the lens's distortion, perspective): the samples along the tube are to be
+        placed through it (:func:`uniform_samples`) so that they are ``mm_per_px`` apart on the tube. None: one
+        scale holds over the view.
     """
 
     mm_per_px: float
@@ -55,6 +60,7 @@ class Scale:
     rel_sd: float
     warnings: tuple[str, ...] = ()
     bore: BoreEstimate | None = None
+    map_through: Calibration | None = None
 
 
 def decide_scale(tube: TubeGeometry, facts: TubeFacts, *, mm_per_px: float | None = None,
@@ -84,7 +90,34 @@ def decide_scale(tube: TubeGeometry, facts: TubeFacts, *, mm_per_px: float | Non
                      bore)
     value, source, rel_sd, warnings = calibrated_scale(calibration, tube, frame_shape, from_tube,
                                                        facts.tube_diameter_mm, bore)
-    return Scale(value, source, rel_sd, tuple(warnings), bore)
+    return Scale(value, source, rel_sd, tuple(warnings), bore,
+                 calibration if maps_along_tube(calibration, tube, frame_shape) else None)
+
+
+def maps_along_tube(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[int, int]) -> bool:
+    """Whether positions along the tube are mapped through the calibration: it is of the movie's frame and its
+    scale varies along the tube by more than ``ALONG_TUBE_VARIATION_WARN``."""
+    return tuple(cal.image_shape) == tuple(frame_shape) and along_tube(cal, tube)[1] > ALONG_TUBE_VARIATION_WARN
+
+
+def uniform_samples(cal: Calibration, tube: TubeGeometry, axis_px: np.ndarray, mm_per_px: float) -> np.ndarray:
+    """Where to read the samples along the tube so that they lie ``mm_per_px`` apart on it.
+
+    The band's samples are evenly spaced in pixels along the axis (``axis_px``), which a lens's distortion or a
+    perspective makes unevenly spaced in mm. This gives, for each sample ``k``, the fractional sample index at
+    which the tube is at ``axis_px[k] * mm_per_px`` mm from the view's top (left) edge, through
+    :func:`axis_mm`: reading the band there (:func:`grainplug.diagram.extract.resample_positions`) makes every
+    position of the analysis (``axis_px * mm_per_px``) right to the calibration's accuracy. Targets beyond the
+    ends are read at the ends.
+
+    Returns
+    -------
+    ndarray
+        Fractional indices into ``axis_px``, increasing, one per sample.
+    """
+    axis = np.asarray(axis_px, float)
+    mm = axis_mm(cal, tube, axis)
+    return np.interp(axis * mm_per_px, mm, np.arange(len(axis), dtype=float))
 
 
 #: the contents' change at a side of the frame the tube reaches, as a share of the most they change, above which the
@@ -295,11 +328,11 @@ def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[in
 
     When the movie's frames are the calibration image's size, the scale is taken where the tube is: the mean
     of :meth:`Calibration.scale_at` along its axis over the view (the lens's distortion and perspective make it
-    vary over the field), and the uncertainty combines the fit's with its variation along the tube
-    (``variation / sqrt(12)``); a variation above ``ALONG_TUBE_VARIATION_WARN`` is warned of, with the way to
-    map positions through it (:func:`axis_mm`). Otherwise (another size: a crop, a region of interest) the
-    scale at the pattern's centre along the tube's axis is taken, with the variation over the whole pattern in
-    the uncertainty (the tube may lie anywhere in it).
+    vary over the field); a variation above ``ALONG_TUBE_VARIATION_WARN`` is taken out by mapping the positions
+    through the calibration (:func:`uniform_samples`, said in the source) and the uncertainty is the fit's, else
+    the uncertainty combines the fit's with the variation (``variation / sqrt(12)``). Otherwise (another size: a
+    crop, a region of interest) the scale at the pattern's centre along the tube's axis is taken, with the
+    variation over the whole pattern in the uncertainty (the tube may lie anywhere in it).
     """
     slope = math.tan(math.radians(tube.tilt_deg))
     axis = (slope, 1.0) if tube.orientation == "vertical" else (1.0, slope)
@@ -308,14 +341,13 @@ def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[in
     same_frame = tuple(cal.image_shape) == tuple(frame_shape)
     if same_frame:
         mm_per_px, variation = along_tube(cal, tube)
-        rel_sd = math.hypot(cal.rel_sd, variation / math.sqrt(12.0))
         where = "along the tube's axis where the tube is"
-        if variation > ALONG_TUBE_VARIATION_WARN:
-            warnings.append(coded("scale.calibration_varies_along_tube",
-                f"the calibration's scale varies by {100 * variation:.2g} % along the tube (the lens's distortion "
-                "or perspective): its mean along the tube is used, so lengths and celerities near the ends of the "
-                f"view are off by up to {50 * variation:.2g} % — frame the tube near the image's centre, or map "
-                "positions through the calibration (grainplug.calibration.scale.axis_mm)"))
+        if variation > ALONG_TUBE_VARIATION_WARN:  # positions are mapped through it: the variation is taken out
+            rel_sd = cal.rel_sd
+            where += (f"; its scale varies by {100 * variation:.2g} % along the tube, so positions are mapped "
+                      "through it")
+        else:
+            rel_sd = math.hypot(cal.rel_sd, variation / math.sqrt(12.0))
     else:
         mm_per_px = cal.mm_per_px_along(axis)
         rel_sd = math.hypot(cal.rel_sd, cal.scale_variation / math.sqrt(12.0))
