@@ -522,3 +522,37 @@ def test_the_page_shows_the_oscillation_and_every_track_s_number(tmp_path):
                                ".getContext('2d'); const f = ctx.fillText.bind(ctx); ctx.fillText = (t, x, y) => "
                                "{ out.push(String(t)); f(t, x, y); }; draw(); return out; }")
         assert set(edges) <= set(labels)
+
+
+def test_the_page_shows_and_edits_the_blind_stretches(copy):
+    """Pick two positions on the diagram and mark the stretch between them blind: it is listed, drawn, and the
+    measures are those of the stretch masked; remove it: back to the analysis; reload: as left."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    res = gp.load_result(copy)
+    errors: list[str] = []
+    with (ReviewServer(copy) as srv, sync_api.sync_playwright() as p, chromium_page(p, errors=errors) as page):
+        page.goto(srv.url)
+        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+        assert page.inner_text("#blind") == "none"
+        for share, button in ((0.40, "#bl-start"), (0.47, "#bl-end")):  # about 40 % and 47 % down the view
+            box = page.locator("#diagram").bounding_box()  # where it is now: a notice may move it
+            page.mouse.click(box["x"] + 0.5 * box["width"], box["y"] + share * box["height"])
+            page.click(button)
+        page.wait_for_function("() => document.querySelector('#blind li button') !== null", timeout=20_000)
+        listed = page.inner_text("#blind li")
+        assert "added here" in listed, listed
+        state = get_json(srv, "api/run/run1/state")
+        [b] = state["blind"]  # type: ignore[index]
+        z0, z1 = res.diagram.position_mm[0], res.diagram.position_mm[-1]
+        assert b["from_mm"] == pytest.approx(z0 + 0.40 * (z1 - z0), abs=2.0)
+        assert b["to_mm"] == pytest.approx(z0 + 0.47 * (z1 - z0), abs=2.0)
+        masked = gp.apply_corrections(res, gp.Corrections().add("blind", from_mm=b["from_mm"], to_mm=b["to_mm"]))
+        assert state["measures"]["plug_length_mm"] == pytest.approx(masked.plug_length_mm, rel=1e-4)  # type: ignore[index]
+        page.click("#blind li button")  # remove
+        page.wait_for_function("() => document.getElementById('blind').textContent === 'none'", timeout=20_000)
+        page.reload()
+        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+        assert page.inner_text("#blind") == "none"
+        assert "marked" in page.inner_text("#corrections") and "removed the blind" in page.inner_text("#corrections")
+        assert float(page.get_attribute("#celerity", "data-value")) == pytest.approx(res.celerity_m_s, abs=1e-6)
+    assert errors == []

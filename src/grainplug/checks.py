@@ -176,7 +176,7 @@ def still_regions(blind: tuple[BlindStretch, ...]) -> list[str]:
         f"nothing changes at {where} (from the upstream end of the view) over the whole record while the rest "
         "of the tube does: an object over the tube there (a clamp, a fitting, the tube's end)? It was taken as a "
         "blind stretch: plugs touching it are measured as cut there, and bubbles across it not at all — if it is "
-        "not, or to name others, give mask_mm=")]
+        "not, or to name others, remove or add blind stretches in grainplug review, or give mask_mm=")]
 
 
 #: a track that moves less than this share of what the plug train moves over its life stays put

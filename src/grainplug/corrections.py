@@ -14,7 +14,11 @@ in order on the detected plug tracks:
   that names one end moves that end only, so "start here" then "end here" keep the frames
   between the two (a window with neither end keeps the whole record again);
 - ``no_plugs``: mark a time span as not plugs (a stretch where the flow is compact or
-  the view blocked), and ``clear_no_plugs``.
+  the view blocked), and ``clear_no_plugs``;
+- ``blind``: mark a stretch of the tube (``from_mm`` to ``to_mm`` along it) as blind (a clamp, a
+  label the analysis did not find), and ``unblind``: remove the blind stretches overlapping one
+  (found or added): a plug touching a blind stretch is cut there, and a bubble across it is not
+  measured (:mod:`grainplug.measures.still`).
 
 Track ids in an edit refer to the tracks as they are at that point of the replay (as a
 reviewer sees them), so merges and splits compose. :func:`apply_corrections` replays
@@ -50,9 +54,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import ParameterError
-from .measures.diagram import measure_train
+from .measures.diagram import find_plugs, measure_train
 from .measures.shake import shake_hz
-from .measures.still import blind_positions
+from .measures.still import REVIEW, BlindStretch, blind_positions
 from .plugs import Runs, Tracks
 from .warning_codes import code_of, coded
 
@@ -71,7 +75,9 @@ NOT_APPLIED = "a correction no longer fits this analysis"
 #: the start of the warning about edits without traces replayed by number on a new analysis (recounted at each replay)
 UNCHECKED = "corrections replayed by track number on a new analysis"
 CORRECTIONS_FILE = "corrections.json"
-ACTIONS = ("exclude", "restore", "merge", "split", "window", "no_plugs", "clear_no_plugs")
+ACTIONS = ("exclude", "restore", "merge", "split", "window", "no_plugs", "clear_no_plugs", "blind", "unblind")
+#: the actions that mark or unmark blind stretches along the tube
+BLIND_ACTIONS = ("blind", "unblind")
 #: the actions that name tracks (by their number, checked against where they were when traced)
 TRACK_ACTIONS = ("exclude", "restore", "merge", "split")
 
@@ -89,6 +95,8 @@ class Edit:
     track_trace: tuple[tuple[float, float], ...] | None = None
     other_trace: tuple[tuple[float, float], ...] | None = None
     frame_time_s: float | None = None
+    from_mm: float | None = None
+    to_mm: float | None = None
     at: str = ""
 
     def describe(self) -> str:
@@ -110,6 +118,10 @@ class Edit:
             return f"kept the frames from {self.start_s:g} s to {self.end_s:g} s"
         if a == "no_plugs":
             return f"marked {self.start_s:g}–{self.end_s:g} s as not plugs"
+        if a == "blind":
+            return f"marked {self.from_mm:g}–{self.to_mm:g} mm along the tube as blind"
+        if a == "unblind":
+            return f"removed the blind stretches over {self.from_mm:g}–{self.to_mm:g} mm"
         return "cleared the spans marked as not plugs"
 
     def as_dict(self) -> dict[str, object]:
@@ -138,7 +150,7 @@ class Corrections:
             args = {k: v for k, v in args.items() if k not in ("track_trace", "other_trace", "frame_time_s")}
         edit = _edit(action, at=at or datetime.now(UTC).isoformat(timespec="seconds"), **args)
         if on is not None and action in TRACK_ACTIONS:
-            runs, links = on.detected if on.detected is not None else (on.runs, on.links)
+            runs, links, _ = detection(on, self)
             st = _replay(runs, links, self, on.diagram)
             centre = _centres(runs, on.diagram)
             extra: dict[str, object] = {}
@@ -214,7 +226,8 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
     if unknown:
         raise ParameterError(f"{action}: unknown argument {', '.join(sorted(unknown))}")
     need = {"exclude": ("track",), "restore": ("track",), "merge": ("track", "other"), "split": ("track", "frame"),
-            "window": (), "no_plugs": ("start_s", "end_s"), "clear_no_plugs": ()}[action]
+            "window": (), "no_plugs": ("start_s", "end_s"), "clear_no_plugs": (), "blind": ("from_mm", "to_mm"),
+            "unblind": ("from_mm", "to_mm")}[action]
     for name in need:
         if args.get(name) is None:
             raise ParameterError(f"{action} needs {name}")
@@ -239,12 +252,16 @@ def _edit(action: str, *, at: str, **args: object) -> Edit:
     if args.get("frame_time_s") is not None:
         places["frame_time_s"] = _seconds(action, "frame_time_s", args["frame_time_s"])
     times = {k: (None if args.get(k) is None else _seconds(action, k, args[k])) for k in ("start_s", "end_s")}
+    along = {k: _millimetres(action, k, args[k]) for k in ("from_mm", "to_mm") if args.get(k) is not None}
+    if len(along) == 2 and along["to_mm"] < along["from_mm"]:
+        raise ParameterError(f"{action}: from_mm ({along['from_mm']:g}) must not be past to_mm "
+                             f"({along['to_mm']:g})")
     if times["start_s"] is not None and times["end_s"] is not None and times["end_s"] <= times["start_s"]:
         raise ParameterError(f"{action}: the end ({times['end_s']:g} s) must come after the start "
                              f"({times['start_s']:g} s)")
     if action == "merge" and ints["track"] == ints["other"]:
         raise ParameterError("merge: a track cannot be merged into itself")
-    return Edit(action, at=at, **ints, **times, **places)
+    return Edit(action, at=at, **ints, **times, **places, **along)
 
 
 def _is_number(v: object) -> bool:
@@ -270,6 +287,14 @@ def _seconds(action: str, name: str, v: object) -> float:
         return float(v)  # type: ignore[arg-type]
     raise ParameterError(f"{action}: {name} must be a finite time in seconds written as a number (e.g. 0.5), "
                          f"not {json.dumps(v, default=repr)}")
+
+
+def _millimetres(action: str, name: str, v: object) -> float:
+    """``v`` as a finite position along the tube in mm; raises ParameterError for anything else."""
+    if _is_number(v) and math.isfinite(float(v)):  # type: ignore[arg-type]
+        return float(v)  # type: ignore[arg-type]
+    raise ParameterError(f"{action}: {name} must be a finite position along the tube in mm written as a number "
+                         f"(e.g. 12.5), not {json.dumps(v, default=repr)}")
 
 
 def _both_seen(runs: Runs, track: np.ndarray, time_s: np.ndarray, a: int, b: int) -> str | None:
@@ -394,6 +419,11 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> R
                 made = f" (made on plugs seen {seen})" if seen else ""
                 skipped.append(f"edit {k}, {e.describe()}{made}, was not applied: {why}")
                 continue
+        if e.action in BLIND_ACTIONS:
+            why = _blind_misfit(e, diagram)
+            if why is not None:
+                skipped.append(f"edit {k}, {e.describe()}, was not applied: {why}")
+                continue
         if e.action == "window":  # the ends it names move; the other stays where an earlier window put it
             both = e.start_s is None and e.end_s is None
             start = None if both else e.start_s if e.start_s is not None else window[0]
@@ -425,11 +455,44 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> R
     return Replay(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied), tuple(empty))
 
 
+def _blind_misfit(e: Edit, diagram: Diagram) -> str | None:
+    """Why a ``blind`` or ``unblind`` edit does not fit the analysis' view (None when it does)."""
+    if not len(diagram.position_mm):
+        return None
+    z0, z1 = sorted((float(diagram.position_mm[0]), float(diagram.position_mm[-1])))
+    if e.to_mm < z0 or e.from_mm > z1:  # type: ignore[operator]
+        return f"it is outside the view ({z0:g} to {z1:g} mm)"
+    if e.action == "blind" and e.from_mm <= z0 and e.to_mm >= z1:  # type: ignore[operator]
+        return f"it covers the whole view ({z0:g} to {z1:g} mm), and nothing would be left to measure"
+    return None
+
+
+def detection(res: AnalysisResult, corr: Corrections) -> tuple[Runs, Tracks, tuple[BlindStretch, ...]]:
+    """The plugs and tracks the corrections' track edits apply to, and the blind stretches once they are replayed.
+
+    The analysis' own detection, unless the ``blind`` and ``unblind`` edits change which stretches are blind:
+    the plugs are then found again in the analysis' diagram with those stretches blind (as ``mask_mm=`` given
+    to the analysis would), so that nothing of a clamp marked by hand is taken for a plug and a plug under a
+    stretch unmarked is seen whole. Track edits keep where their tracks were, and are checked against it.
+    """
+    runs, links = res.detected if res.detected is not None else (res.runs, res.links)
+    edits = tuple(e for e in corr.edits if e.action in BLIND_ACTIONS and _blind_misfit(e, res.diagram) is None)
+    stretches = blind_after(res.blind, edits)
+
+    def kept(bs: tuple[BlindStretch, ...]) -> list[tuple[float, float]]:
+        return sorted((b.from_mm, b.to_mm) for b in bs if b.kept)
+
+    if kept(stretches) != kept(blind_after(res.blind, ())) and res.normalized is not None:
+        blind = blind_positions(res.diagram.position_mm, stretches) if kept(stretches) else None
+        runs, links = find_plugs(res.normalized, res.diagram, res.params, blind=blind)
+    return runs, links, stretches
+
+
 def replayed(res: AnalysisResult) -> Replay | None:
     """``res``'s corrections replayed on its detected tracks (None without corrections)."""
     if res.corrections is None:
         return None
-    runs, links = res.detected if res.detected is not None else (res.runs, res.links)
+    runs, links, _ = detection(res, res.corrections)
     return _replay(runs, links, res.corrections, res.diagram)
 
 
@@ -510,7 +573,8 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
         it: a warning says how many were replayed by number. The warning stays on the result
         through later replays while such edits remain, and goes with them.
     """
-    runs, links = res.detected if res.detected is not None else (res.runs, res.links)
+    analysed = res.detected if res.detected is not None else (res.runs, res.links)
+    runs, links, stretches = detection(res, corr)
     st = _replay(runs, links, corr, res.diagram)
     t = res.diagram.time_s[runs.frame]
     keep = ~np.isin(st.run_track, np.fromiter(st.excluded, np.int64, len(st.excluded)))
@@ -531,7 +595,7 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     detected_plugs = len(runs) > 0
     has_plugs = detected_plugs and len(new_runs) > 0
     if has_plugs:  # the analysis' own measuring step, on the corrected tracks
-        blind = blind_positions(res.diagram.position_mm, res.blind) if res.blind else None
+        blind = blind_positions(res.diagram.position_mm, stretches) if any(b.kept for b in stretches) else None
         motion, lengths, statement = measure_train(res.diagram.time_s, new_runs, new_links, fps=res.info.fps,
                                                    mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd,
                                                    blind=blind, not_hz=shake_hz(res.shake))
@@ -552,5 +616,23 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
             "changed since — check them in `grainplug review` (edits made there again keep their "
             "tracks' place)"))
     return dataclasses.replace(res, runs=new_runs, links=new_links, motion=motion, lengths=lengths,
-                               has_plugs=has_plugs, statement=statement, detected=(runs, links),
-                               corrections=corr, warnings=warnings)
+                               has_plugs=has_plugs, statement=statement, detected=analysed,
+                               corrections=corr, warnings=warnings, blind=stretches)
+
+
+def blind_after(found: tuple[BlindStretch, ...], edits: tuple[Edit, ...]) -> tuple[BlindStretch, ...]:
+    """The blind stretches once the ``blind`` and ``unblind`` edits are replayed on those the analysis found or was
+    given (``found``; those a previous replay added or removed are taken back first, so replays never compound).
+
+    A removed stretch stays in the list with ``kept=False`` (the result says what was removed); one added then
+    removed goes."""
+    out = [dataclasses.replace(b, kept=True) for b in found if b.found_by != REVIEW]
+    for e in edits:
+        lo, hi = float(e.from_mm), float(e.to_mm)  # type: ignore[arg-type]
+        if e.action == "blind":
+            out.append(BlindStretch(lo, hi, REVIEW))
+        else:
+            over = [b.kept and b.from_mm <= hi and b.to_mm >= lo for b in out]
+            out = [dataclasses.replace(b, kept=False) if o else b for b, o in zip(out, over, strict=True)
+                   if not (o and b.found_by == REVIEW)]
+    return tuple(sorted(out, key=lambda b: (b.from_mm, b.to_mm)))

@@ -33,7 +33,7 @@ import numpy as np
 
 from .calibration import find_tube
 from .calibration.background import flat_field
-from .calibration.scale import decide_scale
+from .calibration.scale import decide_scale, uniform_samples
 from .checks import (
     check_background,
     check_finite,
@@ -50,7 +50,7 @@ from .checks import (
     still_regions,
 )
 from .diagram import Diagram, normalize
-from .diagram.extract import probes_along_tube
+from .diagram.extract import probes_along_tube, resample_positions
 from .diagram.frames import repair_frames
 from .diagram.light import divide_by_lamp
 from .errors import ParameterError
@@ -161,6 +161,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("fingerprint_s")
     values, repair = repair_frames(values, top=_top_value(info))
     mm_per_px = scale.mm_per_px
+    if scale.map_through is not None:  # the lens's distortion: the samples placed evenly in mm along the tube
+        values = resample_positions(values, uniform_samples(scale.map_through, tube, axis_px, mm_per_px))
     diagram = Diagram(values, time_s, axis_px * mm_per_px, mm_per_px)
     norm = normalize(diagram.values, background_level=tube.background_level,
                      confirm_px=confirm_px(params.min_plug_mm, mm_per_px))

@@ -115,6 +115,25 @@ def _tube_model(res: AnalysisResult) -> dict[str, object] | None:
     }
 
 
+def uncertainty(res: AnalysisResult) -> dict[str, object] | None:
+    """The celerity's and the plug length's standard errors by source — the tracks' scatter and the scale — and
+    which dominates their intervals (for summary.json)."""
+    m, ln, k = res.motion, res.lengths, res.scale_rel_sd
+    if m is None:
+        return None
+
+    def split(tracks: float | None, scale: float | None, unit: str, nd: int) -> dict[str, object] | None:
+        if tracks is None or scale is None or not (np.isfinite(tracks) and np.isfinite(scale)):
+            return None
+        return {f"tracks_se_{unit}": _r(tracks, nd), f"scale_se_{unit}": _r(scale, nd),
+                "dominant": "scale" if scale > tracks else "tracks"}
+
+    out: dict[str, object] = {"celerity": split(m.celerity_se_tracks_m_s, abs(m.celerity_m_s) * k, "m_s", 8)}
+    if ln is not None and ln.plug_length_mm is not None and ln.plug_length_sd_mm is not None and ln.n_plugs_measured:
+        out["plug_length"] = split(ln.plug_length_sd_mm / np.sqrt(ln.n_plugs_measured), ln.plug_length_mm * k, "mm", 4)
+    return out
+
+
 def flow_angle_deg(tube: TubeGeometry, direction: str) -> float:
     """Direction of the flow in the image, degrees from +x towards +y (y down)."""
     a = np.radians(tube.tilt_deg)
@@ -141,6 +160,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "statement": res.statement or None,
         "celerity_m_s": _r(m.celerity_m_s) if m else None,
         "celerity_ci95_m_s": [_r(x) for x in m.celerity_ci95_m_s] if m else None,
+        "uncertainty": uncertainty(res),
         "plug_length_mm": _r(plug_len, 4),
         "plug_length_ci95_mm": [_r(x, 4) for x in ln.plug_length_ci95_mm] if ln and ln.plug_length_ci95_mm else None,
         "plug_length_sd_mm": _r(ln.plug_length_sd_mm, 4) if ln else None,

@@ -63,13 +63,15 @@ CODES: dict[str, tuple[str, str]] = {
                                "check the camera, lens, focus and distance did not change"),
     "scale.calibration_vs_tube": ("the tube's bore and the calibration disagree on the scale",
                                   "check the pattern's plane and pitch, and the tube's diameter"),
+    "scale.calibration_doubted": ("the calibration and the tube disagree by more than the tube's optics allow: "
+                                  "one of them is wrong, and the intervals carry the disagreement",
+                                  "check the figure the sentence names (the pattern's pitch and level, "
+                                  "tube_diameter_mm=, that the image is of this set-up)"),
     "scale.calibration": ("the calibration image itself is doubtful (not flat, tilted, varying scale)",
                           "as the sentence says; take the calibration image again"),
-    "scale.calibration_varies_along_tube": ("the calibration's scale varies by more than 0.3 % along the tube "
-                                            "(the lens's distortion, perspective): lengths far from the middle "
-                                            "are off by up to half that",
-                                            "map positions through Calibration.plane_mm (docs/calibration.md), "
-                                            "or frame the tube near the image's centre"),
+    "scale.calibration_varies_along_tube": ("(older results only) the calibration's scale varied "
+                                            "by more than 0.3 % along the tube, and one scale was used",
+                                            "analyse again: positions are now mapped through the calibration"),
     # what a calibration image says of itself (grainplug calibrate)
     "calibration.lens_distortion": ("the lens distorts the calibration image (barrel or pincushion): fitted, and "
                                     "the scale corrected for it", "none needed; the analysis takes the scale "

@@ -1060,7 +1060,15 @@ def _fit(world: np.ndarray, image_pts: np.ndarray, *, pitch_mm: float, kind: str
     said = _distortion_warning(pm.k1, pm.k2)
     if said:
         warnings.append(said)
-    if variation > SCALE_VARIATION_WARN:
+    # with the lens's distortion fitted, what varies beyond it (the pattern's perspective, the field's own
+    # variation) is what holding the pattern square would fix; the lens's part is taken out where the tube is
+    beyond_lens = variation
+    if distortion:
+        flat = dataclasses.replace(pm, k1=0.0, k2=0.0).scale(image_pts)
+        beyond_lens = float((flat.max() - flat.min()) / flat.mean())
+        if field_fit is not None:
+            beyond_lens = max(beyond_lens, field_variation - (variation - beyond_lens))
+    if beyond_lens > SCALE_VARIATION_WARN:
         warnings.append(f"the scale varies by {100 * variation:.1f} % over the pattern (perspective or lens "
                         "distortion): hold the pattern square to the camera, at the tube's plane, and use the "
                         "scale where the tube is")

@@ -48,6 +48,11 @@ class Scale:
         What is doubtful about it, each with what to do.
     bore : BoreEstimate or None
         The tube model's estimates of the bore (None when the scale was given).
+    map_through : Calibration or None
+        A calibration of the movie's frame whose scale varies along the tube by more than
+        ``ALONG_TUBE_VARIATION_WARN`` (the lens's distortion, perspective): the samples along the tube are to be
+        placed through it (:func:`uniform_samples`) so that they are ``mm_per_px`` apart on the tube. None: one
+        scale holds over the view.
     """
 
     mm_per_px: float
@@ -55,6 +60,7 @@ class Scale:
     rel_sd: float
     warnings: tuple[str, ...] = ()
     bore: BoreEstimate | None = None
+    map_through: Calibration | None = None
 
 
 def decide_scale(tube: TubeGeometry, facts: TubeFacts, *, mm_per_px: float | None = None,
@@ -84,7 +90,34 @@ def decide_scale(tube: TubeGeometry, facts: TubeFacts, *, mm_per_px: float | Non
                      bore)
     value, source, rel_sd, warnings = calibrated_scale(calibration, tube, frame_shape, from_tube,
                                                        facts.tube_diameter_mm, bore)
-    return Scale(value, source, rel_sd, tuple(warnings), bore)
+    return Scale(value, source, rel_sd, tuple(warnings), bore,
+                 calibration if maps_along_tube(calibration, tube, frame_shape) else None)
+
+
+def maps_along_tube(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[int, int]) -> bool:
+    """Whether positions along the tube are mapped through the calibration: it is of the movie's frame and its
+    scale varies along the tube by more than ``ALONG_TUBE_VARIATION_WARN``."""
+    return tuple(cal.image_shape) == tuple(frame_shape) and along_tube(cal, tube)[1] > ALONG_TUBE_VARIATION_WARN
+
+
+def uniform_samples(cal: Calibration, tube: TubeGeometry, axis_px: np.ndarray, mm_per_px: float) -> np.ndarray:
+    """Where to read the samples along the tube so that they lie ``mm_per_px`` apart on it.
+
+    The band's samples are evenly spaced in pixels along the axis (``axis_px``), which a lens's distortion or a
+    perspective makes unevenly spaced in mm. This gives, for each sample ``k``, the fractional sample index at
+    which the tube is at ``axis_px[k] * mm_per_px`` mm from the view's top (left) edge, through
+    :func:`axis_mm`: reading the band there (:func:`grainplug.diagram.extract.resample_positions`) makes every
+    position of the analysis (``axis_px * mm_per_px``) right to the calibration's accuracy. Targets beyond the
+    ends are read at the ends.
+
+    Returns
+    -------
+    ndarray
+        Fractional indices into ``axis_px``, increasing, one per sample.
+    """
+    axis = np.asarray(axis_px, float)
+    mm = axis_mm(cal, tube, axis)
+    return np.interp(axis * mm_per_px, mm, np.arange(len(axis), dtype=float))
 
 
 #: the contents' change at a side of the frame the tube reaches, as a share of the most they change, above which the
@@ -111,6 +144,9 @@ def bore_source(bore: BoreEstimate, facts: TubeFacts) -> str:
     if bore.method == "outer":
         return (f"tube model: outer silhouette ({facts.tube_outer_diameter_mm:g} mm = "
                 f"{bore.diameter_px * facts.tube_outer_diameter_mm / facts.tube_diameter_mm:.2f} px), {d}")
+    if bore.method == "outer and stripe":
+        return (f"tube model: outer silhouette ({facts.tube_outer_diameter_mm:g} mm) and refraction stripes "
+                f"({glass}) combined, {d}")
     if bore.method == "stripe + outer":
         return f"tube model: refraction stripes and outer silhouette ({glass}), {d}"
     if bore.method == "stripe":
@@ -241,17 +277,62 @@ def along_tube(cal: Calibration, tube: TubeGeometry, *, samples: int = 64) -> tu
     return mean, float((local.max() - local.min()) / mean)
 
 
+#: how much narrower than its bore a back-lit tube's contents can look (the lamp's angular size; the tube model's
+#: renderers: up to 35 %)
+BACK_LIT_NARROWING = 0.35
+
+#: ratios of scales that a pattern read at another level of its lines, or in other units, gives
+LEVEL_RATIOS = {2.0: "2", 2.5: "2.5", 4.0: "4", 5.0: "5", 10.0: "10", 25.4: "25.4 (mm against inches)",
+                2.54: "2.54 (mm against tenths of an inch)"}
+
+
+#: a calibration is never doubted for disagreeing with the tube by less than this (the tube model's estimates have
+#: been within 2 % on the optical renderer, 3 % on the synthetic one)
+DOUBT_AT_LEAST = 0.05
+
+
+def optics_allow(bore: BoreEstimate, *, back_lit: bool, cal_rel_sd: float) -> tuple[float, float]:
+    """The range of ``scale_from_tube / calibrated_scale - 1`` that the tube's optics and the two estimates'
+    uncertainties allow: three standard deviations (at least ``DOUBT_AT_LEAST``) either way, and in back light,
+    when the bore comes from the contents' width alone, up to ``BACK_LIT_NARROWING`` narrower."""
+    k = max(DOUBT_AT_LEAST, 3 * math.hypot(bore.rel_sd if math.isfinite(bore.rel_sd) else 0.1, cal_rel_sd))
+    hi = k
+    if back_lit and bore.method == "contents":
+        hi = 1 / (1 - BACK_LIT_NARROWING) - 1 + k
+    return -k, hi
+
+
+def doubt_sentence(cal: Calibration, bore: BoreEstimate, mm_per_px: float, diameter_mm: float, disagree: float,
+                   allowed: tuple[float, float]) -> str:
+    """Why a calibration that the tube contradicts is doubted, and which figure to check first."""
+    ratio = 1 + disagree
+    r = max(ratio, 1 / ratio)
+    near = next((words for level, words in LEVEL_RATIOS.items() if abs(r / level - 1) < 0.04), None)
+    bore_mm = bore.diameter_px * mm_per_px
+    first = (f"check the pattern's pitch first: the scales differ by a factor {r:.2f}, close to {near}, as when a "
+             f"pattern is read at another level of its lines (graph paper's 1 mm lines against its 5 mm ones, a "
+             f"ruler's mm against its cm) or in other units — the calibration took the {cal.pattern}'s points to be "
+             f"{cal.pitch_mm:g} mm apart (pitch_mm= of grainplug calibrate)" if near else
+             f"check the calibration's pitch ({cal.pitch_mm:g} mm, {cal.pattern}) and that the image is of this "
+             f"camera, lens and distance, then tube_diameter_mm= ({diameter_mm:g} mm)")
+    return (f"the calibration and the tube disagree by {100 * disagree:+.0f} % in scale, more than the tube's "
+            f"optics allow ({100 * allowed[0]:+.0f} % to {100 * allowed[1]:+.0f} %): at the calibration's "
+            f"{mm_per_px:.4g} mm/px the bore ({bore.diameter_px:.1f} px) would be {bore_mm:.2f} mm, not "
+            f"{diameter_mm:g} mm — {first}; the calibration's scale is used, with this disagreement in its "
+            "intervals")
+
+
 def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[int, int], from_tube: float,
                       diameter_mm: float, bore: BoreEstimate) -> tuple[float, str, float, list[str]]:
     """The calibration's scale along the tube's axis, its uncertainty, and what is doubtful.
 
     When the movie's frames are the calibration image's size, the scale is taken where the tube is: the mean
     of :meth:`Calibration.scale_at` along its axis over the view (the lens's distortion and perspective make it
-    vary over the field), and the uncertainty combines the fit's with its variation along the tube
-    (``variation / sqrt(12)``); a variation above ``ALONG_TUBE_VARIATION_WARN`` is warned of, with the way to
-    map positions through it (:func:`axis_mm`). Otherwise (another size: a crop, a region of interest) the
-    scale at the pattern's centre along the tube's axis is taken, with the variation over the whole pattern in
-    the uncertainty (the tube may lie anywhere in it).
+    vary over the field); a variation above ``ALONG_TUBE_VARIATION_WARN`` is taken out by mapping the positions
+    through the calibration (:func:`uniform_samples`, said in the source) and the uncertainty is the fit's, else
+    the uncertainty combines the fit's with the variation (``variation / sqrt(12)``). Otherwise (another size: a
+    crop, a region of interest) the scale at the pattern's centre along the tube's axis is taken, with the
+    variation over the whole pattern in the uncertainty (the tube may lie anywhere in it).
     """
     slope = math.tan(math.radians(tube.tilt_deg))
     axis = (slope, 1.0) if tube.orientation == "vertical" else (1.0, slope)
@@ -260,14 +341,13 @@ def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[in
     same_frame = tuple(cal.image_shape) == tuple(frame_shape)
     if same_frame:
         mm_per_px, variation = along_tube(cal, tube)
-        rel_sd = math.hypot(cal.rel_sd, variation / math.sqrt(12.0))
         where = "along the tube's axis where the tube is"
-        if variation > ALONG_TUBE_VARIATION_WARN:
-            warnings.append(coded("scale.calibration_varies_along_tube",
-                f"the calibration's scale varies by {100 * variation:.2g} % along the tube (the lens's distortion "
-                "or perspective): its mean along the tube is used, so lengths and celerities near the ends of the "
-                f"view are off by up to {50 * variation:.2g} % — frame the tube near the image's centre, or map "
-                "positions through the calibration (grainplug.calibration.scale.axis_mm)"))
+        if variation > ALONG_TUBE_VARIATION_WARN:  # positions are mapped through it: the variation is taken out
+            rel_sd = cal.rel_sd
+            where += (f"; its scale varies by {100 * variation:.2g} % along the tube, so positions are mapped "
+                      "through it")
+        else:
+            rel_sd = math.hypot(cal.rel_sd, variation / math.sqrt(12.0))
     else:
         mm_per_px = cal.mm_per_px_along(axis)
         rel_sd = math.hypot(cal.rel_sd, cal.scale_variation / math.sqrt(12.0))
@@ -281,7 +361,13 @@ def calibrated_scale(cal: Calibration, tube: TubeGeometry, frame_shape: tuple[in
             f"frames are {frame_shape[1]} x {frame_shape[0]}: its scale holds only if the camera, lens, "
             "focus and distance did not change (a crop is fine)"))
     disagree = from_tube / mm_per_px - 1
-    if abs(disagree) > 0.03:
+    lo, hi = optics_allow(bore, back_lit=bool(tube.back_lit), cal_rel_sd=rel_sd)
+    if not lo <= disagree <= hi:
+        warnings.insert(0, coded("scale.calibration_doubted", doubt_sentence(cal, bore, mm_per_px, diameter_mm,
+                                                                             disagree, (lo, hi))))
+        # one of the two is wrong and which cannot be told from the movie: the intervals carry it
+        rel_sd = math.hypot(rel_sd, abs(math.log1p(disagree)) / 2)
+    elif abs(disagree) > 0.03:
         if disagree > 0:  # the bore reads narrower than the calibration says
             advice = ("back-lit tubes look narrower than their bore — trust the calibration if the pattern was at "
                       "the tube's plane, else check tube_diameter_mm= (and tube_outer_diameter_mm=)")

@@ -291,7 +291,9 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
         note = ("  (the plugs did not move by a pixel over the record)" if s["regime"] == "static" else
                 "  (no direction of travel: the celerity's 95% CI holds 0)" if still else "")
         click.echo(f"regime          {s['regime']}{note}")
-        click.echo(f"celerity        {value} m/s  (95% CI {lo} to {hi})")
+        share = ((s.get("uncertainty") or {}).get("celerity") or {}).get("dominant")
+        click.echo(f"celerity        {value} m/s  (95% CI {lo} to {hi}"
+                   f"{', mostly the scale' if share == 'scale' else ''})")
         n_plugs = s["n_plugs"]
         click.echo(f"plug length     {fmt(s['plug_length_mm'], ' mm', 2)}  "
                    f"({fmt(s['plug_length_over_diameter'], ' D', 2)}, {n_plugs} plug{'' if n_plugs == 1 else 's'})")

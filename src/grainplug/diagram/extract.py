@@ -156,6 +156,29 @@ class Probes:
         return core, across, beside, self.beside_at[where]
 
 
+def resample_positions(values: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """The diagram read at fractional sample indices ``at`` along the tube (linear interpolation between samples).
+
+    Parameters
+    ----------
+    values : ndarray, shape (n_frames, n_positions)
+        The band's samples, evenly spaced in pixels along the tube.
+    at : ndarray, shape (n_positions,)
+        Increasing fractional indices in ``[0, n_positions - 1]`` (e.g.
+        :func:`grainplug.calibration.scale.uniform_samples`).
+
+    Returns
+    -------
+    ndarray, shape (n_frames, n_positions)
+        Of ``values``' dtype when it is floating, else float32.
+    """
+    dtype = values.dtype if np.issubdtype(values.dtype, np.floating) else np.dtype(np.float32)
+    at = np.clip(np.asarray(at, float), 0.0, values.shape[1] - 1)
+    i0 = np.minimum(np.floor(at).astype(np.intp), values.shape[1] - 2)
+    frac = (at - i0).astype(dtype)
+    return (values[:, i0] * (1 - frac) + values[:, i0 + 1] * frac).astype(dtype, copy=False)
+
+
 def probes_along_tube(tube: TubeGeometry, *,
                       core_fraction: float = CORE_FRACTION) -> tuple[Band, np.ndarray, Probes]:
     """The core band of the bore (:func:`band_along_tube`) and, read in the same pass, what does not move

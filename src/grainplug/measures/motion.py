@@ -72,6 +72,9 @@ class Motion:
         The train's displacement ``X(t)`` (NaN where no edge was seen).
     n_edges, n_tracks_used : int
         Observations and tracks in the fit.
+    celerity_se_tracks_m_s : float
+        The celerity's standard error from the tracks' scatter alone (the interval adds the scale's,
+        ``|celerity| * scale_rel_sd``, in quadrature).
     """
 
     celerity_m_s: float
@@ -86,6 +89,7 @@ class Motion:
     displacement_mm: np.ndarray = field(repr=False)
     n_edges: int
     n_tracks_used: int
+    celerity_se_tracks_m_s: float = float("nan")
 
 
 def _drift_and_harmonics(t: np.ndarray, f: float | None, n_harm: int) -> np.ndarray:
@@ -342,8 +346,8 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     se = float(np.sqrt((r @ r) / max(len(tt) - 2, 1) / sxx))
     rho = float(np.corrcoef(r[:-1], r[1:])[0, 1]) if len(r) > 3 and np.std(r) > 0 else 0.0
     rho = float(np.clip(np.nan_to_num(rho), 0.0, 0.98))
-    se_c = se * np.sqrt((1 + rho) / (1 - rho)) / 1000.0
-    se_c = float(np.hypot(se_c, abs(celerity) * scale_rel_sd))
+    se_tracks = float(se * np.sqrt((1 + rho) / (1 - rho)) / 1000.0)
+    se_c = float(np.hypot(se_tracks, abs(celerity) * scale_rel_sd))
     tq = t_quantile_975(max(len(tt) - 2, 1))
     ci = (celerity - tq * se_c, celerity + tq * se_c)
     if regime == "propagative" and max(abs(ci[0]), abs(ci[1])) * 1000.0 * duration < mm_per_px:
@@ -353,5 +357,5 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
         oscillation_frequency_hz=f_osc, oscillation_amplitude_mm=amp,
         explained_fraction=explained, spectrum_hz=freqs, spectrum_mm=spec,
         time_s=np.asarray(time_s), displacement_mm=X + coef[0] * np.asarray(time_s),
-        n_edges=int(ok.sum()), n_tracks_used=n_tr,
+        n_edges=int(ok.sum()), n_tracks_used=n_tr, celerity_se_tracks_m_s=se_tracks,
     )

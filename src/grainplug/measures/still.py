@@ -20,8 +20,8 @@ from .motion import Motion
 STILL_REGION_SHARE = 0.1
 #: a still stretch shorter than this (mm) is not taken as blind (a speck of dust)
 STILL_MIN_MM = 1.0
-#: how a blind stretch was found
-GIVEN, STILL_CONTENTS = "mask_mm", "still contents"
+#: how a blind stretch was found: given, still over the record, or added on the review page (a correction)
+GIVEN, STILL_CONTENTS, REVIEW = "mask_mm", "still contents", "review"
 
 
 @dataclass(frozen=True)
@@ -33,15 +33,21 @@ class BlindStretch:
     from_mm, to_mm : float
         Its ends.
     found_by : str
-        ``"mask_mm"`` (given) or ``"still contents"`` (nothing changed there over the record).
+        ``"mask_mm"`` (given), ``"still contents"`` (nothing changed there over the record) or ``"review"``
+        (added as a correction).
+    kept : bool
+        False when a correction removed it (kept in the list, so that the result says what was removed):
+        then its positions are measured as any other.
     """
 
     from_mm: float
     to_mm: float
     found_by: str
+    kept: bool = True
 
     def as_dict(self) -> dict[str, object]:
-        return {"from_mm": round(self.from_mm, 3), "to_mm": round(self.to_mm, 3), "found_by": self.found_by}
+        return {"from_mm": round(self.from_mm, 3), "to_mm": round(self.to_mm, 3), "found_by": self.found_by,
+                "kept": self.kept}
 
 
 def still_stretches(diagram: Diagram, motion: Motion | None, lengths: Lengths | None) -> list[tuple[float, float]]:
@@ -72,12 +78,13 @@ def still_stretches(diagram: Diagram, motion: Motion | None, lengths: Lengths | 
 
 def blind_positions(position_mm: np.ndarray, stretches: tuple[BlindStretch, ...] | list[BlindStretch], *,
                     margin_samples: int = 1) -> np.ndarray:
-    """Which positions along the tube (samples of the diagram) are blind: inside a stretch, or within
+    """Which positions along the tube (samples of the diagram) are blind: inside a kept stretch, or within
     ``margin_samples`` of it (its edge is blurred into its neighbours)."""
     pos = np.asarray(position_mm, float)
     out = np.zeros(pos.shape, bool)
     for b in stretches:
-        out |= (pos >= b.from_mm) & (pos <= b.to_mm)
+        if b.kept:
+            out |= (pos >= b.from_mm) & (pos <= b.to_mm)
     if margin_samples > 0 and out.any():
         grown = out.copy()
         for k in range(1, margin_samples + 1):

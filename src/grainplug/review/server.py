@@ -66,7 +66,7 @@ from urllib.parse import parse_qs, unquote
 import numpy as np
 
 from .._atomic import atomic_file
-from ..corrections import CORRECTIONS_FILE, Corrections, Edit, apply_corrections, replayed
+from ..corrections import CORRECTIONS_FILE, Corrections, Edit, apply_corrections, detection, replayed
 from ..errors import GrainplugError, ParameterError
 from ..jsonio import dumps
 from ..result import AnalysisResult, load_result
@@ -262,7 +262,7 @@ class ReviewSession:
         s = res.summary
         st = replayed(res)  # what the corrections exclude and keep, as applied
         excluded, window, spans = (frozenset(), (None, None), ()) if st is None else (st.excluded, st.window, st.spans)
-        detected_links = res.detected[1] if res.detected is not None else res.links
+        detected_links = detection(res, res.corrections or Corrections())[1]
         rows = [{k: None if isinstance(v, float) and not np.isfinite(v) else v for k, v in r.items()}
                 for r in track_rows(res)]
         shown = {int(r["plug_id"]) for r in rows}
@@ -290,6 +290,7 @@ class ReviewSession:
             "tracks": rows, "edges": edges,
             "corrections": [{"text": e.describe(), "at": e.at} for e in run.corrections.edits],
             "window": list(window), "no_plugs": [list(span) for span in spans],
+            "blind": [b.as_dict() for b in res.blind],
             "movie": run.movie_error or "ok",
         }
 
@@ -534,6 +535,9 @@ class _Handler(BaseHTTPRequestHandler):
             return self._json({"error": exc.message}, HTTPStatus.BAD_REQUEST)
         if isinstance(exc, GrainplugError):
             return self._json({"error": str(exc)}, HTTPStatus.NOT_FOUND)
+        if isinstance(exc, BrokenPipeError | ConnectionResetError):  # the page went away mid-answer (a reload)
+            log.debug("review: %s %.200r: the client closed the connection", self.command, self.path)
+            return None
         log.error("review: %s %.200r failed", self.command, self.path.partition("?")[0], exc_info=exc)
         self._json({"error": f"internal error ({type(exc).__name__}): see the log of grainplug review"},
                    HTTPStatus.INTERNAL_SERVER_ERROR)

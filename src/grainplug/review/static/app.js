@@ -8,7 +8,7 @@ const $ = (id) => document.getElementById(id);
 const TOKEN = document.querySelector('meta[name="grainplug-token"]').content;
 if (location.search) history.replaceState(null, "", location.pathname);
 let run = null, state = null, img = null, view = null, frame = null, selected = null, playing = null;
-let npStart = null, busy = 0;
+let npStart = null, busy = 0, clickZ = null, blStart = null;
 const api = (path) => `api/run/${encodeURIComponent(run)}/${path}`;
 const fmt = (x, d) => (x === null || x === undefined) ? "—" : Number(x).toFixed(d);
 
@@ -86,7 +86,7 @@ async function poll() {  // has a file changed under the page?
 }
 
 async function load(name) {
-  run = name; selected = null; npStart = null; frame = null;
+  run = name; selected = null; npStart = null; frame = null; clickZ = null; blStart = null;
   $("frame").hidden = true;
   $("frame-label").textContent = "click the diagram";
   state = await getJSON(api("state"));
@@ -132,6 +132,17 @@ function show(s) {
   $("corrections").replaceChildren(...(corrections.length ? corrections : [el("li", "none")]));
   $("warnings").replaceChildren(...s.warnings.map((w) => el("li", w)), ...(s.statement ? [el("li", s.statement)] : []));
   $("movie-status").textContent = s.movie === "ok" ? "" : s.movie;
+  const blind = (s.blind || []).map((b) => {
+    const how = {"mask_mm": "given", "still contents": "found: nothing changes there", "review": "added here"};
+    const text = `${fmt(b.from_mm, 1)}–${fmt(b.to_mm, 1)} mm (${how[b.found_by] || b.found_by})` +
+      (b.kept ? "" : ", removed");
+    const button = el("button", b.kept ? "remove" : "restore", {class: "toggle"});
+    button.onclick = () => post("edit", {action: b.kept ? "unblind" : "blind", from_mm: b.from_mm, to_mm: b.to_mm});
+    const li = el("li", `${text} `, {}, button);
+    if (!b.kept) li.classList.add("excluded");
+    return li;
+  });
+  $("blind").replaceChildren(...(blind.length ? blind : [el("li", "none")]));
   draw();
 }
 
@@ -172,6 +183,19 @@ function draw() {
   if (w1 !== null) { const x = Math.min(w, tToX(w1, w)); ctx.fillRect(x, 0, w - x, h); }
   ctx.fillStyle = "rgba(86, 180, 233, 0.35)";  // palette.BUBBLE
   for (const [a, b] of state.no_plugs || []) ctx.fillRect(tToX(a, w), 0, tToX(b, w) - tToX(a, w), h);
+  for (const b of state.blind || []) {  // blind stretches: bands across the whole record
+    const y0 = zToY(b.from_mm), y1 = zToY(b.to_mm);
+    const top = Math.min(y0, y1), height = Math.max(Math.abs(y1 - y0), 2);
+    if (b.kept) {  // palette's orange, seen over the plugs' black and the bubbles' white alike
+      ctx.fillStyle = "rgba(230, 159, 0, 0.45)"; ctx.fillRect(0, top, w, height);
+    }
+    ctx.strokeStyle = "#e69f00"; ctx.lineWidth = 2; ctx.setLineDash(b.kept ? [] : [6, 4]);
+    ctx.strokeRect(0, top, w, height); ctx.setLineDash([]);
+  }
+  if (clickZ !== null) {  // the position picked along the tube
+    ctx.strokeStyle = "#ffbf00"; ctx.lineWidth = 1; ctx.setLineDash([4, 4]);
+    ctx.beginPath(); ctx.moveTo(0, zToY(clickZ)); ctx.lineTo(w, zToY(clickZ)); ctx.stroke(); ctx.setLineDash([]);
+  }
   labelTracks(ctx, w, zToY);
   axes(ctx, w, h, d);
   if (frame !== null) {
@@ -234,7 +258,8 @@ function timeOf(k) { const d = state.diagram; return d.t0 + k / Math.max(d.n_fra
 
 function showFrame(k) {
   frame = k;
-  $("frame-label").textContent = `frame ${k}, t = ${timeOf(k).toFixed(4)} s`;
+  $("frame-label").textContent = `frame ${k}, t = ${timeOf(k).toFixed(4)} s` +
+    (clickZ === null ? "" : `, z = ${clickZ.toFixed(1)} mm`);
   if (state.movie === "ok") { $("frame").src = api(`frame/${k}.png`); $("frame").hidden = false; }
   draw();
 }
@@ -253,13 +278,17 @@ function canvasX(ev) {
   const c = $("diagram"), r = c.getBoundingClientRect();
   return (ev.clientX - r.left) / r.width * c.width;
 }
+function canvasZ(ev) {  // the position along the tube (mm) under the pointer
+  const c = $("diagram"), r = c.getBoundingClientRect(), d = state.diagram;
+  return d.z0 + (ev.clientY - r.top) / r.height * (d.z1 - d.z0);
+}
 
 function setup() {
   const c = $("diagram");
   let drag = null, moved = false;
   c.addEventListener("mousedown", (ev) => { drag = {x: canvasX(ev), view: view.slice()}; moved = false; });
   window.addEventListener("mouseup", (ev) => {
-    if (drag && !moved && ev.target === c) showFrame(frameAt(xToT(canvasX(ev), c.width)));
+    if (drag && !moved && ev.target === c) { clickZ = canvasZ(ev); showFrame(frameAt(xToT(canvasX(ev), c.width))); }
     drag = null;
   });
   c.addEventListener("mousemove", (ev) => {
@@ -309,6 +338,18 @@ function setup() {
     npStart = null;
   };
   $("np-clear").onclick = () => post("edit", {action: "clear_no_plugs"});
+  const noPlace = () => say("blind stretch: click a position along the tube on the diagram first");
+  $("bl-start").onclick = () => {
+    if (clickZ === null) return noPlace();
+    blStart = clickZ; say("");
+    notice(`blind from ${blStart.toFixed(1)} mm: click where it ends along the tube, then "to here"`);
+  };
+  $("bl-end").onclick = () => {
+    if (blStart === null) return say('blind stretch: click where it starts and "from here" first');
+    if (clickZ === null) return noPlace();
+    post("edit", {action: "blind", from_mm: Math.min(blStart, clickZ), to_mm: Math.max(blStart, clickZ)});
+    blStart = null;
+  };
   $("merge").onclick = () => {
     let track, other;
     try {
