@@ -450,3 +450,14 @@ def test_run_folders_left_by_removed_rows_are_pointed_out(campaign_dir, tmp_path
     code, _, err = run(capsys, "batch", campaign_dir / "one_a.csv", "--out", out, "--no-figures", "--no-simulations")
     assert code == 0 and "1 run folder(s) under" in err and "(b): kept, but left out of the campaign" in err
     assert (out / "runs" / "b" / "summary.json").is_file()
+
+
+def test_a_two_run_fit_printed_says_its_r2_means_nothing(campaign_dir, tmp_path, capsys):
+    """The smooth group has two runs: the terminal printed "R² 1.000, n 2" as if the line fitted well."""
+    code, out, err = run(capsys, "batch", campaign_dir / "manifest.csv", "--out", tmp_path / "o", "--no-figures",
+                         "--no-simulations")
+    assert code == 0, err
+    smooth = next(line for line in out.splitlines() if line.strip().startswith("propagative/smooth"))
+    assert "R²" not in smooth and "a line through 2 runs fits them exactly" in smooth
+    rough = next(line for line in out.splitlines() if line.strip().startswith("propagative/rough"))
+    assert "R² " in rough and "n 3" in rough and "few runs" in rough
