@@ -458,6 +458,6 @@ def test_a_two_run_fit_printed_says_its_r2_means_nothing(campaign_dir, tmp_path,
                          "--no-simulations")
     assert code == 0, err
     smooth = next(line for line in out.splitlines() if line.strip().startswith("propagative/smooth"))
-    assert "R²" not in smooth and "a line through 2 runs fits them exactly" in smooth
+    assert "R² 1" not in smooth and "a line through 2 runs fits them exactly" in smooth
     rough = next(line for line in out.splitlines() if line.strip().startswith("propagative/rough"))
     assert "R² " in rough and "n 3" in rough and "few runs" in rough
