@@ -461,3 +461,14 @@ def test_a_two_run_fit_printed_says_its_r2_means_nothing(campaign_dir, tmp_path,
     assert "R² 1" not in smooth and "a line through 2 runs fits them exactly" in smooth
     rough = next(line for line in out.splitlines() if line.strip().startswith("propagative/rough"))
     assert "R² " in rough and "n 3" in rough and "few runs" in rough
+
+
+def test_a_misspelt_column_is_said_once_for_all_runs(campaign_dir, tmp_path, capsys):
+    """A misspelt column in a manifest of several runs was said once per run (7 lines for 7 runs)."""
+    (campaign_dir / "typo3.csv").write_text("run,movie,mm_per_pix\na,a/movie.avi,0.185\nb,b/movie.avi,0.185\n"
+                                            "c,c/movie.avi,0.185\n")
+    code, _, err = run(capsys, "batch", campaign_dir / "typo3.csv", "--out", tmp_path / "o", "--no-figures",
+                       "--no-simulations")
+    assert code == 0, err
+    said = [line for line in err.splitlines() if "mm_per_pix" in line]
+    assert len(said) == 1 and said[0].startswith("warning: runs a, b, c: column 'mm_per_pix'"), err

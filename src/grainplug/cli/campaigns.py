@@ -36,12 +36,19 @@ def fit_quality(r2: float, n: int) -> str:
         return f"n {n}: a line through {n} runs fits them exactly, R² says nothing"
     return f"R² {r2:.3f}, n {n}" + ("; few runs, the slope is uncertain" if n < 5 else "")
 
+
 def _print_run_warnings(camp: Campaign, out: Path) -> None:
-    """Each run's warnings, as ``analyze`` prints them (``warning: run X: ...``), at most
+    """Each run's warnings, as ``analyze`` prints them (``warning: run X: ...``), the same sentence of several
+    runs once (``warning: runs a, b and 5 more: ...``: a misspelt manifest column was said once per run), at most
     :data:`MAX_RUN_WARNINGS` lines."""
-    lines = camp.run_warnings
-    for run, w in lines[:MAX_RUN_WARNINGS]:
-        say_warning(w, f"run {run}: ")
+    runs_of: dict[str, list[str]] = {}
+    for run, w in camp.run_warnings:
+        runs_of.setdefault(w, []).append(str(run))
+    lines = list(runs_of.items())
+    for w, runs in lines[:MAX_RUN_WARNINGS]:
+        who = (f"run {runs[0]}" if len(runs) == 1 else
+               f"runs {', '.join(runs)}" if len(runs) <= 4 else f"runs {', '.join(runs[:3])} and {len(runs) - 3} more")
+        say_warning(w, f"{who}: ")
     if len(lines) > MAX_RUN_WARNINGS:
         err_console.print(f"[yellow]warning:[/] {len(lines) - MAX_RUN_WARNINGS} more run warnings: see the warnings "
                           f"column of {escape(str(out / 'campaign.csv'))} and the report", highlight=False,
