@@ -472,3 +472,19 @@ def test_a_misspelt_column_is_said_once_for_all_runs(campaign_dir, tmp_path, cap
     assert code == 0, err
     said = [line for line in err.splitlines() if "mm_per_pix" in line]
     assert len(said) == 1 and said[0].startswith("warning: runs a, b, c: column 'mm_per_pix'"), err
+
+
+def test_the_paper_s_celerity_figure_keeps_the_sign_of_its_table(tmp_path):
+    """celerity_propagative.png plotted |v_p| with a slope of +0.091 beside a table saying -0.0906."""
+    import matplotlib.pyplot as plt
+
+    from grainplug.campaigns.paper import reproduce
+    from grainplug.campaigns.paper_outputs import celerity_figure
+
+    rep = reproduce(simulate=False)
+    fig = celerity_figure(rep, "propagative")
+    slope = next(float(re.search(r"slope ([+-][\d.e-]+)", t.get_text()).group(1))
+                 for t in fig.axes[0].get_legend().get_texts() if "slope" in t.get_text())
+    plt.close(fig)
+    g = "propagative/rough"  # the first group's fit is the legend's first slope
+    assert rep.fits[g].slope < 0 and slope == pytest.approx(rep.fits[g].slope, rel=1e-3)
