@@ -450,3 +450,41 @@ def test_run_folders_left_by_removed_rows_are_pointed_out(campaign_dir, tmp_path
     code, _, err = run(capsys, "batch", campaign_dir / "one_a.csv", "--out", out, "--no-figures", "--no-simulations")
     assert code == 0 and "1 run folder(s) under" in err and "(b): kept, but left out of the campaign" in err
     assert (out / "runs" / "b" / "summary.json").is_file()
+
+
+def test_a_two_run_fit_printed_says_its_r2_means_nothing(campaign_dir, tmp_path, capsys):
+    """The smooth group has two runs: the terminal printed "R² 1.000, n 2" as if the line fitted well."""
+    code, out, err = run(capsys, "batch", campaign_dir / "manifest.csv", "--out", tmp_path / "o", "--no-figures",
+                         "--no-simulations")
+    assert code == 0, err
+    smooth = next(line for line in out.splitlines() if line.strip().startswith("propagative/smooth"))
+    assert "R² 1" not in smooth and "a line through 2 runs fits them exactly" in smooth
+    rough = next(line for line in out.splitlines() if line.strip().startswith("propagative/rough"))
+    assert "R² " in rough and "n 3" in rough and "few runs" in rough
+
+
+def test_a_misspelt_column_is_said_once_for_all_runs(campaign_dir, tmp_path, capsys):
+    """A misspelt column in a manifest of several runs was said once per run (7 lines for 7 runs)."""
+    (campaign_dir / "typo3.csv").write_text("run,movie,mm_per_pix\na,a/movie.avi,0.185\nb,b/movie.avi,0.185\n"
+                                            "c,c/movie.avi,0.185\n")
+    code, _, err = run(capsys, "batch", campaign_dir / "typo3.csv", "--out", tmp_path / "o", "--no-figures",
+                       "--no-simulations")
+    assert code == 0, err
+    said = [line for line in err.splitlines() if "mm_per_pix" in line]
+    assert len(said) == 1 and said[0].startswith("warning: runs a, b, c: column 'mm_per_pix'"), err
+
+
+def test_the_paper_s_celerity_figure_keeps_the_sign_of_its_table(tmp_path):
+    """celerity_propagative.png plotted |v_p| with a slope of +0.091 beside a table saying -0.0906."""
+    import matplotlib.pyplot as plt
+
+    from grainplug.campaigns.paper import reproduce
+    from grainplug.campaigns.paper_outputs import celerity_figure
+
+    rep = reproduce(simulate=False)
+    fig = celerity_figure(rep, "propagative")
+    slope = next(float(re.search(r"slope ([+-][\d.e-]+)", t.get_text()).group(1))
+                 for t in fig.axes[0].get_legend().get_texts() if "slope" in t.get_text())
+    plt.close(fig)
+    g = "propagative/rough"  # the first group's fit is the legend's first slope
+    assert rep.fits[g].slope < 0 and slope == pytest.approx(rep.fits[g].slope, rel=1e-3)

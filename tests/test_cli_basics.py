@@ -126,3 +126,15 @@ def test_a_high_speed_clips_duration_keeps_its_digits(tmp_path, capsys):
     assert code == 0 and "duration   0.0005 s" in out, out
     code, out, err = run(capsys, "info", tmp_path / "movie.tif", "--fps", 9000)
     assert "duration   0.001667 s" in out
+
+
+@pytest.mark.parametrize("depth", ["8", "16"])
+def test_synth_cine_is_written_at_the_bit_depth_asked(tmp_path, capsys, depth):
+    code, _, err = run(capsys, "synth", "--out", tmp_path, "--format", "cine", "--frames", 3, "--seed", 2,
+                       "--bit-depth", depth)
+    assert code == 0, err
+    code, out, err = run(capsys, "info", tmp_path / "movie.cine", "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["bit_depth"] == int(depth), d
+    assert (tmp_path / "movie.cine").stat().st_size < 3 * 128 * 640 * int(depth) // 8 + 20_000  # no 16-bit padding

@@ -92,3 +92,12 @@ def test_every_warning_code_is_given_somewhere_and_every_code_given_is_known():
              for m in re.findall(r"\b(?:all_)?coded\(\s*\"([^\"]+)\"", path.read_text())}
     assert given <= set(CODES), sorted(given - set(CODES))
     assert set(CODES) - given == set(NOT_GIVEN_AT_A_SITE), sorted(set(CODES) - given)
+
+
+def test_the_readme_counts_the_paper_s_checks_right():
+    """The README's "checks N statements" is the number `grainplug paper` checks (it said 26 of 25)."""
+    from grainplug.campaigns.paper import reproduce
+
+    said = re.search(r"checks (\d+) statements", (ROOT / "README.md").read_text())
+    assert said, "the README no longer counts the paper's checks"
+    assert int(said.group(1)) == len(reproduce(simulate=False).checks)

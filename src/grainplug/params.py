@@ -286,3 +286,26 @@ def _stretches(value: object) -> tuple[tuple[float, float], ...]:
                                  f"upstream end of the view, got {value!r}", param="mask_mm")
         out.append((float(pair[0]), float(pair[1])))
     return tuple(sorted(out))
+
+
+#: library keywords whose command-line option has another name (``start_s=`` is ``--start``)
+OPTION_ALIASES = {"start_frame": "start", "start_s": "start", "end_frame": "end", "end_s": "end", "out_dir": "out",
+                  "base_pressure_pa": "base_pressure"}
+
+
+def with_options(text: str) -> str:
+    """``text`` with each analysis keyword it names (``tube_outer_diameter_mm=``) followed by its command-line
+    option (``tube_outer_diameter_mm= (--tube-outer-diameter-mm)``): saved results keep the library's words,
+    and a reader who ran the command line finds the flag beside them."""
+    import dataclasses
+    import re
+
+    names = {f.name for f in dataclasses.fields(AnalysisParams)} | set(OPTION_ALIASES)
+
+    def one(m: re.Match[str]) -> str:
+        name = m.group(1)
+        if name not in names:
+            return m.group(0)
+        return f"{m.group(0)} (--{OPTION_ALIASES.get(name, name).replace('_', '-')})"
+
+    return re.sub(r"(?<![\w.\-])([a-z][a-z0-9_]*)=(?![=\w\"'(])", one, text)

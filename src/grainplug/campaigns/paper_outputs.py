@@ -5,6 +5,7 @@ from __future__ import annotations
 import html
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .. import datasets
 from .._atomic import atomic_directory
@@ -15,7 +16,29 @@ from ..plotting.options import FigureOptions
 from .model_panel import panel_html
 from .paper import D_MM, PaperReproduction, reproduction_text
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 MODEL_FIGURE = "model_vs_experiment.png"
+
+
+#: the paper's groups of runs, by regime
+PAPER_GROUPS = {"propagative": ["propagative/rough", "propagative/smooth"], "oscillating": ["oscillating"]}
+
+
+def celerity_figure(rep: PaperReproduction, regime: str) -> Figure:
+    """The celerity of the paper's runs of ``regime`` against the mass flow rate, with the fits.
+
+    Signed, as every celerity of grainplug (positive downstream: the climbing plugs below zero), so that the
+    legend's slope is the table's (the paper plots ``|v_p|``; the fits are of the signed ``v_p``)."""
+    from ..plotting.campaign import plot_vs_mass_flow
+
+    runs = datasets.paper_runs()
+    groups = PAPER_GROUPS[regime]
+    data = {g: (runs[runs.group == g].mass_flow_rate_g_s.to_numpy(),
+                runs[runs.group == g].celerity_m_s.to_numpy()) for g in groups}
+    return plot_vs_mass_flow(data, {g: rep.fits[g] for g in groups}, ylabel="v_p (m/s, positive downstream)",
+                             title=f"celerity of plugs, {regime} regime (paper's tables)")
 
 
 def paper_figures(rep: PaperReproduction, folder: Path, options: FigureOptions | None = None) -> list[str]:
@@ -29,17 +52,8 @@ def paper_figures(rep: PaperReproduction, folder: Path, options: FigureOptions |
 
     runs = datasets.paper_runs()
     names = []
-    sets = {
-        "propagative": ["propagative/rough", "propagative/smooth"],
-        "oscillating": ["oscillating"],
-    }
-    for regime, groups in sets.items():
-        data = {g: (runs[runs.group == g].mass_flow_rate_g_s.to_numpy(),
-                    runs[runs.group == g].celerity_m_s.to_numpy()) for g in groups}
-        fig = plot_vs_mass_flow(data, {g: rep.fits[g] for g in groups},
-                                ylabel="|v_p| (m/s)" if regime == "propagative" else "v_p (m/s)",
-                                title=f"celerity of plugs, {regime} regime (paper's tables)",
-                                absolute=regime == "propagative")
+    for regime, groups in PAPER_GROUPS.items():
+        fig = celerity_figure(rep, regime)
         name = f"celerity_{regime}.png"
         save_figure(fig, folder, name, options)
         plt.close(fig)

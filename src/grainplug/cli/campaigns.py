@@ -29,12 +29,26 @@ if TYPE_CHECKING:
 MAX_RUN_WARNINGS = 20
 
 
+
+def fit_quality(r2: float, n: int) -> str:
+    """A line's R² and count, with what they cannot say: a line through two runs always has R² = 1."""
+    if n <= 2:
+        return f"n {n}: a line through {n} runs fits them exactly, R² says nothing"
+    return f"R² {r2:.3f}, n {n}" + ("; few runs, the slope is uncertain" if n < 5 else "")
+
+
 def _print_run_warnings(camp: Campaign, out: Path) -> None:
-    """Each run's warnings, as ``analyze`` prints them (``warning: run X: ...``), at most
+    """Each run's warnings, as ``analyze`` prints them (``warning: run X: ...``), the same sentence of several
+    runs once (``warning: runs a, b and 5 more: ...``: a misspelt manifest column was said once per run), at most
     :data:`MAX_RUN_WARNINGS` lines."""
-    lines = camp.run_warnings
-    for run, w in lines[:MAX_RUN_WARNINGS]:
-        say_warning(w, f"run {run}: ")
+    runs_of: dict[str, list[str]] = {}
+    for run, w in camp.run_warnings:
+        runs_of.setdefault(w, []).append(str(run))
+    lines = list(runs_of.items())
+    for w, runs in lines[:MAX_RUN_WARNINGS]:
+        who = (f"run {runs[0]}" if len(runs) == 1 else
+               f"runs {', '.join(runs)}" if len(runs) <= 4 else f"runs {', '.join(runs[:3])} and {len(runs) - 3} more")
+        say_warning(w, f"{who}: ")
     if len(lines) > MAX_RUN_WARNINGS:
         err_console.print(f"[yellow]warning:[/] {len(lines) - MAX_RUN_WARNINGS} more run warnings: see the warnings "
                           f"column of {escape(str(out / 'campaign.csv'))} and the report", highlight=False,
@@ -71,7 +85,8 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publ
         return
     click.echo("plug celerity against the mass flow rate ṁ (g/s), fitted as v_p = a + b ṁ:")
     for g, f in rep.fits.items():
-        click.echo(f"  {g:18s} a = {f.intercept:+.4f} m/s, b = {f.slope:+.5f} (m/s)/(g/s)   (R² {f.r2:.3f}, n {f.n})")
+        click.echo(f"  {g:18s} a = {f.intercept:+.4f} m/s, b = {f.slope:+.5f} (m/s)/(g/s)   "
+                   f"({fit_quality(f.r2, f.n)})")
     n_ok = sum(c.agrees for c in rep.checks)
     click.echo(f"checks: {n_ok} of {len(rep.checks)} statements agree with the tables and models; "
                f"see {out / 'reproduction.md'}")
@@ -163,7 +178,7 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
             click.echo("plug celerity against the mass flow rate ṁ (g/s), fitted as v_p = a + b ṁ:")
         for g, c in fits.items():
             click.echo(f"  {g:22s} a = {c['intercept_m_s']:+.4g} m/s, b = {c['slope_m_s_per_g_s']:+.4g} (m/s)/(g/s)"
-                       f"   (R² {c['r2']:.3f}, n {c['n']})")
+                       f"   ({fit_quality(c['r2'], c['n'])})")
         click.echo(f"outputs in {out}")
     if camp.n_failed:
         from ..errors import PartialCampaignError

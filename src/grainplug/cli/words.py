@@ -4,8 +4,9 @@ The library names a parameter the way a Python user types it, ``name=`` (``give
 mm_per_px=``, ``allow_truncated=True``, ``boundary="open"``), never a flag. The command
 line prints the same messages with its own flags: :func:`as_flags` turns every
 ``name=`` that is the keyword of one of its options into that option (``--mm-per-px``,
-``--allow-truncated``, ``--boundary open``). Saved results (``summary.json``, the report)
-keep the library's words, whichever front end wrote them.
+``--allow-truncated``, ``--boundary open``). Saved results keep the library's words, whichever
+front end wrote them; the report adds each analysis keyword's option beside it
+(:func:`grainplug.params.with_options`).
 """
 
 from __future__ import annotations
@@ -15,9 +16,7 @@ import sys
 
 import click
 
-#: library keywords whose option has another name
-ALIASES = {"start_frame": "start", "start_s": "start", "end_frame": "end", "end_s": "end", "out_dir": "out",
-           "base_pressure_pa": "base_pressure"}
+from ..params import OPTION_ALIASES as ALIASES  # library keywords whose option has another name
 
 # a keyword, ``=``, and its value if one follows at once: True, a quoted word, a tuple, a number or a word
 _KEYWORD = re.compile(r"(?<![\w.\-])([a-z][a-z0-9_]*)=(True\b|\"[^\"]*\"|'[^']*'|\([^)]*\)|[\w.+-]+)?")

@@ -22,6 +22,9 @@ from .lengths import Lengths, measure_lengths
 from .motion import NO_FOLLOWED_EDGE, Motion, measure_motion
 from .still import GIVEN, STILL_CONTENTS, BlindStretch, blind_positions, still_stretches
 
+#: what to do when plugs and bubbles are too close in grey level to tell apart (a movie's advice; a diagram made
+#: otherwise, a simulation's, replaces it)
+CONTRAST_ADVICE = "raise the contrast between grains and air (lighting, exposure, a less compressed file)"
 
 def find_plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams, *,
                blind: np.ndarray | None = None) -> tuple[Runs, Tracks]:
@@ -46,7 +49,7 @@ def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks,
         return None, None, (f"no plugs: the tube seems to hold a single phase ({single_phase(norm, background_level)})"
                             f", but its grey levels hint at two, too close to tell apart (separation "
                             f"{norm.separation_eta:.2f}, {MIN_SEPARATION_ETA:g} needed{averaged}): if there are plugs, "
-                            "raise the contrast between grains and air (lighting, exposure, a less compressed file); "
+                            f"{CONTRAST_ADVICE}; "
                             "no celerity, length or frequency is measured")
     if not norm.two_phase:
         return None, None, (f"no plugs: the tube holds a single phase over the whole record "

@@ -20,7 +20,7 @@ LINES = ("-", "--", "-.", ":")
 
 def plot_vs_mass_flow(groups: Mapping[str, tuple[np.ndarray, np.ndarray]],
                       fits: Mapping[str, LinearFit | None], *, ylabel: str, title: str,
-                      absolute: bool = False, hline: float | None = None,
+                      hline: float | None = None,
                       hline_label: str = "",
                       errors: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None) -> Figure:
     """Scatter of each group, each run's 95 % interval as an error bar, the fitted line and its 95 % band.
@@ -31,8 +31,6 @@ def plot_vs_mass_flow(groups: Mapping[str, tuple[np.ndarray, np.ndarray]],
         ``name -> (mass_flow_g_s, y)``.
     fits : mapping
         ``name -> LinearFit`` (fitted on the signed values).
-    absolute : bool
-        Plot ``|y|`` (the paper plots the absolute celerity of climbing plugs).
     hline : float, optional
         A reference level (e.g. 10 D).
     errors : mapping, optional
@@ -42,30 +40,26 @@ def plot_vs_mass_flow(groups: Mapping[str, tuple[np.ndarray, np.ndarray]],
     for i, (name, (x, y)) in enumerate(groups.items()):
         x = np.asarray(x, float)
         y = np.asarray(y, float)
-        sign = np.sign(np.nanmean(y)) if absolute and np.any(np.isfinite(y)) else 1.0
         col = GROUPS[i % len(GROUPS)]
-        ax.plot(x, sign * y, MARKERS[i % len(MARKERS)], mfc="none", mec=col, ms=7, label=name)
+        ax.plot(x, y, MARKERS[i % len(MARKERS)], mfc="none", mec=col, ms=7, label=name)
         if errors and name in errors:
             lo_e, hi_e = (np.asarray(a, float) for a in errors[name])
             ok = np.isfinite(lo_e) & np.isfinite(hi_e) & np.isfinite(y)
             if ok.any():
-                a, b = sign * lo_e[ok], sign * hi_e[ok]
-                lo_b, hi_b = np.minimum(a, b), np.maximum(a, b)
-                ax.errorbar(x[ok], sign * y[ok], yerr=[sign * y[ok] - lo_b, hi_b - sign * y[ok]], fmt="none",
+                lo_b, hi_b = np.minimum(lo_e[ok], hi_e[ok]), np.maximum(lo_e[ok], hi_e[ok])
+                ax.errorbar(x[ok], y[ok], yerr=[y[ok] - lo_b, hi_b - y[ok]], fmt="none",
                             ecolor=col, elinewidth=0.8, capsize=2)
         fit = fits.get(name)
         if fit is not None:
             xx = np.linspace(fit.x_min, fit.x_max, 100)
             lo, hi = fit.band(xx)
             yy = fit.predict(xx)
-            if sign < 0:
-                lo, hi = -hi, -lo
             if fit.n < 3:  # a line through two points: no R² or band to speak of
-                ax.plot(xx, sign * yy, LINES[i % len(LINES)], color=col, lw=1.3,
-                        label=f"line through {fit.n} runs: slope {sign * fit.slope:+.4g} (no band: too few runs)")
+                ax.plot(xx, yy, LINES[i % len(LINES)], color=col, lw=1.3,
+                        label=f"line through {fit.n} runs: slope {fit.slope:+.4g} (no band: too few runs)")
                 continue
-            ax.plot(xx, sign * yy, LINES[i % len(LINES)], color=col, lw=1.3,
-                    label=f"fit: slope {sign * fit.slope:+.4g}, R² = {fit.r2:.3f}")
+            ax.plot(xx, yy, LINES[i % len(LINES)], color=col, lw=1.3,
+                    label=f"fit: slope {fit.slope:+.4g}, R² = {fit.r2:.3f}")
             ax.fill_between(xx, lo, hi, color=col, alpha=0.15, lw=0, label="95 % band of the fit")
     if hline is not None:
         ax.axhline(hline, color="0.4", ls=":", lw=1, label=hline_label)

@@ -193,8 +193,12 @@ def plot_annotated_frame(res: AnalysisResult, *, frame: np.ndarray | None = None
             xc = tube.axis_x(row)
             draw([xc - half, xc + half], [row, row], "-", color=color, lw=1.6)
             draw([xc], [row], "*", color=color, ms=7)
-    bore_px = res.bore.diameter_px if res.bore else res.params.tube_diameter_mm / res.mm_per_px
-    ax.set_title(f"frame {index}: bore {res.params.tube_diameter_mm:g} mm = {bore_px:.2f} px "
+    # the bore at the scale in use (a calibration's, a typed one or the tube's own), and what the tube model read
+    # when that is another width
+    bore_px = res.params.tube_diameter_mm / res.mm_per_px
+    read = res.bore.diameter_px if res.bore else float("nan")
+    model = f", the tube model reads {read:.2f} px" if np.isfinite(read) and abs(read / bore_px - 1) > 0.005 else ""
+    ax.set_title(f"frame {index}: bore {res.params.tube_diameter_mm:g} mm = {bore_px:.2f} px{model} "
                  f"(seen {tube.inner_diameter_px:.2f} px wide), tilt {round(tube.tilt_deg, 2) + 0.0:+.2f}°\n"
                  + ("vermillion: upper edges, blue: lower edges" if res.flow_direction == "down" else
                     # in the image, the upstream edge is not the upper one (a rising or horizontal flow)

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .._format import duration
+from ..params import with_options
 
 if TYPE_CHECKING:
     from ..result import AnalysisResult
@@ -269,7 +270,7 @@ def run_report(res: AnalysisResult, folder: Path, *, summary: dict | None = None
     plugs, captioned figures, details, and the provenance folded at the end."""
     s = summary if summary is not None else res.summary
     name = Path(res.info.path).name if res.info.path else "frames in memory"
-    warnings = "".join(f"<li>{html.escape(w)}</li>" for w in res.warnings)
+    warnings = "".join(f"<li>{html.escape(with_options(w))}</li>" for w in res.warnings)
     if warnings:
         warnings = f'<div class="warnbox" role="note"><h2>Warnings</h2><ul>{warnings}</ul></div>'
     corrections = ""

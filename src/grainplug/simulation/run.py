@@ -242,6 +242,7 @@ def _checks(res: SimulationResult, closure: Closure, c_peak: float, m_low: float
     if p.boundary == "periodic" and len(n_seg) >= 8 and n_seg[-1] > 0:
         tail = n_seg[-max(len(n_seg) // 5, 2):]
         if tail.max() != tail.min():
-            out.append(f"still coarsening: the number of dense segments changed from {tail.max()} to {tail.min()} "
-                       "over the last fifth of the run; its wavelengths are not settled (run longer)")
+            out.append(f"still coarsening: the number of dense segments changed from {tail[0]} to {tail[-1]} "
+                       f"(between {tail.min()} and {tail.max()}) over the last fifth of the run; its wavelengths are "
+                       "not settled (run longer)")
     return out

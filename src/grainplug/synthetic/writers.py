@@ -55,7 +55,7 @@ FORMATS: dict[str, FormatSpec] = {f.name: f for f in (
     FormatSpec("mov", ".mov", True, "QuickTime, uncompressed (rawvideo)"),
     FormatSpec("h264", ".mp4", False, "MP4, H.264 (lossy, libx264 crf 20)"),
     FormatSpec("mraw", ".mraw", True, "Photron .mraw + .cih (grey)"),
-    FormatSpec("cine", ".cine", True, "Phantom .cine (16-bit grey)"),
+    FormatSpec("cine", ".cine", True, "Phantom .cine (8/16-bit grey)"),
     FormatSpec("seq", ".seq", True, "NorPix StreamPix 6 .seq (8/16-bit grey or 24-bit colour), time-stamped"),
 )}
 
@@ -314,12 +314,12 @@ class MovieWriter:
         self._impl.close()
 
     def _write_cine(self, frame: np.ndarray) -> None:
-        data = np.flipud(frame.astype("<u2")).tobytes()  # .cine stores rows bottom-up
+        data = np.flipud(frame.astype("<u2" if frame.dtype.itemsize > 1 else "u1")).tobytes()  # rows bottom-up
         self._cine_frames.append(len(data))
         self._impl.write(data)
 
     def _finish_cine(self) -> None:
-        """Assemble a 16-bit grey .cine following Vision Research's published layout.
+        """Assemble an 8- or 16-bit grey .cine (the frames' depth) following Vision Research's published layout.
 
         CINEFILEHEADER (44 bytes), BITMAPINFOHEADER (40), a SETUP block of the current
         size (10412 bytes: marker ``ST``, its length, ``FrameRate``, ``RealBPP``, the rest
@@ -332,17 +332,18 @@ class MovieWriter:
         part = self.path.with_suffix(".cine.part")
         h, w = self._shape
         n = self.count
+        bits = 8 if self._dtype.itemsize == 1 else 16
         setup = bytearray(10412)
         struct.pack_into("<H", setup, 0, min(int(round(self.fps)), 65535))  # FrameRate16
         struct.pack_into("<2sH", setup, 140, b"ST", len(setup))
         struct.pack_into("<I", setup, 768, int(round(self.fps)))  # FrameRate
-        struct.pack_into("<I", setup, 896, 16)  # RealBPP
+        struct.pack_into("<I", setup, 896, bits)  # RealBPP
         struct.pack_into("<d", setup, 10400, float(self.fps))  # dFrameRate
         off_bih, off_setup = 44, 84
         off_offsets = off_setup + len(setup)
         first_image = off_offsets + 8 * n
         header = struct.pack("<2sHHHiIiIIIIII", b"CI", 44, 0, 1, 0, n, 0, n, off_bih, off_setup, off_offsets, 0, 0)
-        bih = struct.pack("<IiiHHIIiiII", 40, w, h, 1, 16, 0, w * h * 2, 0, 0, 0, 0)
+        bih = struct.pack("<IiiHHIIiiII", 40, w, h, 1, bits, 0, w * h * bits // 8, 0, 0, 0, 0)
         offsets, pos = [], first_image
         for size in self._cine_frames:
             offsets.append(pos)

@@ -1,0 +1,23 @@
+"""The report names each setting a warning advises both as the library's keyword and as the command line's
+option (issue 34: the CLI's report showed ``tube_outer_diameter_mm=`` only)."""
+
+from __future__ import annotations
+
+import grainplug as gp
+from grainplug.params import with_options
+
+
+def test_the_report_gives_the_option_beside_the_keyword(tmp_path):
+    truth = gp.datasets.sample_truth()["config"]
+    res = gp.analyze(gp.datasets.sample_movie(), fps=truth["fps"])
+    assert any("tube_outer_diameter_mm=" in w for w in res.warnings)  # the advice this is about
+    res.save(tmp_path / "o", figures=False)
+    page = (tmp_path / "o" / "report.html").read_text()
+    assert "tube_outer_diameter_mm= (--tube-outer-diameter-mm)" in page
+
+
+def test_only_the_analysis_keywords_get_an_option():
+    assert with_options("give start_s= or mm_per_px=") == "give start_s= (--start) or mm_per_px= (--mm-per-px)"
+    # a function's argument, a dotted name and a comparison are left as they are
+    for text in ("Calibration.plane_mm(points)", "frames=5 in grainplug.scale.axis_mm=", "a == b"):
+        assert with_options(text) == text
