@@ -1,0 +1,48 @@
+"""Frames where the tube is not in view (issue 33, bad input): something in front of it, the camera knocked off
+it, the lamp out for a stretch. They are found from the walls, said, and not measured."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from grainplug.calibration.tube import find_tube
+from grainplug.diagram.extract import probes_along_tube
+from grainplug.measures.view import tube_view
+from grainplug.synthetic import SynthConfig
+from grainplug.synthetic.render import Renderer
+
+
+@pytest.fixture(scope="module")
+def movie():
+    cfg = SynthConfig(n_frames=200, width_px=64, height_px=400, fps=250.0, seed=3, rgb=False)
+    return cfg, np.stack(list(Renderer(cfg).frames()))
+
+
+def variants(fr: np.ndarray) -> dict[str, tuple[np.ndarray, bool]]:
+    """Movies and whether frames 80-109 lose the tube."""
+    rng = np.random.default_rng(0)
+    out = {"clean": (fr, False)}
+    a = fr.copy()
+    a[80:110] = np.roll(fr[80:110], 30, axis=2)  # the camera knocked 30 px aside
+    out["knocked aside"] = (a, True)
+    b = fr.copy()
+    b[80:110] = np.clip(np.median(fr[:, :, :5]) + rng.normal(0, 3, b[80:110].shape), 0, 255)  # a card in front
+    out["hidden"] = (b, True)
+    c = fr.copy()
+    c[80:110] = np.clip(fr[80:110] * 0.6, 0, 255).astype(fr.dtype)  # a shadow: the tube still seen
+    out["shadow"] = (c, False)
+    shake = np.rint(3 * np.sin(2 * np.pi * 30 * np.arange(len(fr)) / 250.0)).astype(int)
+    out["shake 3 px"] = (np.stack([np.roll(f, s, axis=1) for f, s in zip(fr, shake, strict=True)]), False)
+    return out
+
+
+@pytest.mark.parametrize("name", ["clean", "knocked aside", "hidden", "shadow", "shake 3 px"])
+def test_the_frames_without_the_tube_are_found_from_its_walls(movie, name):
+    _, fr = movie
+    m, lost = variants(fr)[name]
+    tube = find_tube(list(fr[::10]))
+    band, _, probes = probes_along_tube(tube)
+    _, across, _, _ = probes.split(np.stack([band.profile(f) for f in m]))
+    view = tube_view(across, len(m))
+    assert view.stretches == ([(80, 109)] if lost else [])
