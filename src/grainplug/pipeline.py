@@ -177,7 +177,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     has_plugs = bool(norm.two_phase and len(runs) > 0)
     return AnalysisResult(
         params=params, input=identity, info=info, tube=tube, mm_per_px=mm_per_px, scale_source=scale.source,
-        flow_direction=flow.direction, flow_direction_source=flow.source, diagram=diagram, normalized=norm,
+        flow_direction=flow.direction, flow_direction_source=flow.source, diagram=diagram, normalized=found.normalized,
         runs=runs, links=links, motion=motion, lengths=lengths, has_plugs=has_plugs,
         statement=found.statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
