@@ -56,7 +56,8 @@ from .diagram.light import divide_by_lamp
 from .errors import ParameterError
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
-from .measures.shake import measure_shake, shake_hz, shift_along
+from .measures.shake import Shake, measure_shake, shake_hz, shift_along
+from .measures.still import blind_margin
 from .params import AnalysisParams, tube_orientation
 from .plugs import Runs
 from .provenance import fingerprint, movie_identity
@@ -169,7 +170,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     flow = resolve_flow(params.flow_direction, tube, grains)
     diagram, norm, grains = orient(diagram, norm, grains, tube, flow.direction)
     found = measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level, normalized=norm,
-                            scale_rel_sd=scale.rel_sd, not_hz=shake_hz(shake))
+                            scale_rel_sd=scale.rel_sd, not_hz=shake_hz(shake), blind_margin_px=_blind_margin(shake))
     runs, links, motion, lengths = found.runs, found.links, found.motion, found.lengths
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
@@ -245,6 +246,15 @@ def _read_background(path: str | os.PathLike) -> object:
     from .calibration_files import read_background
 
     return read_background(path)
+
+def _blind_margin(shake: Shake) -> int:
+    """How far beside a blind stretch plugs are cut (:func:`grainplug.measures.still.blind_margin`): a camera that
+    shook along the tube, when the diagram could not be held still against it, moves a clamp in the diagram by as
+    much as it moved across (the motion along unmeasured, the swing across stands for it)."""
+    if not shake.shaking or shake.along_px is not None or shake.across_px is None or not len(shake.across_px):
+        return blind_margin()
+    across = np.asarray(shake.across_px, float)
+    return blind_margin(float(np.nanmax(np.abs(across - np.nanmedian(across)))))
 
 def _most_edges(runs: Runs, frames: np.ndarray) -> int:
     """Which of ``frames`` shows the most plugs (for the annotated figure)."""

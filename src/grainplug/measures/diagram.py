@@ -101,7 +101,8 @@ class DiagramMeasures:
 
 def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, fps: float,
                     background_level: float = 0.0, normalized: Normalized | None = None,
-                    scale_rel_sd: float = 0.0, not_hz: tuple[float, ...] = ()) -> DiagramMeasures:
+                    scale_rel_sd: float = 0.0, not_hz: tuple[float, ...] = (),
+                    blind_margin_px: int = 1) -> DiagramMeasures:
     """The analysis from the diagram on: plugs, tracks, celerity, regime, plug and bubble lengths.
 
     The stages :func:`analyze` runs after streaming the movie, for a diagram from
@@ -110,7 +111,9 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
 
     ``normalized``: the diagram's contrast when it is already known (:func:`grainplug.analyze` normalises
     before it decides the flow's direction); ``scale_rel_sd``: the scale's relative uncertainty, carried
-    into the intervals; ``not_hz``: frequencies that are not the plugs' (the camera's shake).
+    into the intervals; ``not_hz``: frequencies that are not the plugs' (the camera's shake);
+    ``blind_margin_px``: how far beside a blind stretch a plug's edge is cut too (its blurred edge, and the swing of
+    a camera shaking along the tube that the diagram was not held still against: :func:`blind_margin`).
     """
     params = params or AnalysisParams()
     if normalized is None:
@@ -119,7 +122,8 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
     given = _given_stretches(diagram, params.mask_mm)
 
     def measured(stretches: tuple[BlindStretch, ...], norm: Normalized) -> DiagramMeasures:
-        blind = blind_positions(diagram.position_mm, stretches) if any(b.blind for b in stretches) else None
+        blind = (blind_positions(diagram.position_mm, stretches, margin_samples=blind_margin_px)
+                 if any(b.blind for b in stretches) else None)
         runs, links = find_plugs(norm, diagram, params, blind=blind)
         motion, lengths, statement = measure_plugs(norm, diagram, runs, links, background_level, fps=fps,
                                                    mm_per_px=diagram.mm_per_px, scale_rel_sd=scale_rel_sd,

@@ -37,8 +37,9 @@ STILL_REGION_SHARE = 0.1
 STILL_MIN_MM = 1.0
 #: how a blind stretch was found
 GIVEN, STILL_CONTENTS = "mask_mm", "still contents"
-#: the record must move the train by this share more than its longest plug and bubble for every place to see both
-TRAVEL_MARGIN = 1.1
+#: the plugs' and bubbles' length that the train must travel over the record for every place to see both: this
+#: quantile of those measured (not the longest: a plug merged with a clamp it passes is no plug)
+LONG_QUANTILE = 90.0
 #: a position whose two contrast levels are off (0, 1) by more than this is seen through something (and corrected)
 SEEN_THROUGH_OFF = 0.05
 #: ... a stretch of them off by more than this over at least STILL_MIN_MM is reported as a still object seen through
@@ -139,16 +140,19 @@ def column_levels(z: np.ndarray, *, max_frames: int = 1000, n_iter: int = 4) -> 
 
 
 def travelled_enough(diagram: Diagram, motion: Motion | None, lengths: Lengths | None) -> bool:
-    """Whether the train moved over the record by more than its longest plug and bubble (with
-    :data:`TRAVEL_MARGIN`), so that every place along the tube saw both; a still train never does."""
+    """Whether the train moved over the record by more than its long plugs and bubbles (:data:`LONG_QUANTILE`), so
+    that every place along the tube saw both (a place covered throughout by a longer one must still be a
+    :data:`STILL_MIN_MM` stretch to be taken as still); a still train never does."""
     if (motion is None or motion.regime == "static" or motion.celerity_m_s is None or lengths is None
             or lengths.plug_length_mm is None):
         return False
     duration = float(diagram.time_s[-1] - diagram.time_s[0])
     travel_mm = abs(motion.celerity_m_s) * 1000.0 * duration + 2.0 * motion.oscillation_amplitude_mm
-    longest = max([lengths.plug_length_mm, *lengths.per_track_mm.values(), lengths.bubble_length_mm or 0.0,
-                   *np.asarray(lengths.per_bubble_mm, float).tolist()])
-    return travel_mm >= TRAVEL_MARGIN * longest
+    plugs = np.asarray(list(lengths.per_track_mm.values()) or [lengths.plug_length_mm], float)
+    bubbles = np.asarray(lengths.per_bubble_mm, float)
+    longest = max(float(np.percentile(plugs, LONG_QUANTILE)),
+                  float(np.percentile(bubbles, LONG_QUANTILE)) if bubbles.size else 0.0)
+    return travel_mm >= longest
 
 
 def _runs_of(flag: np.ndarray, min_samples: int = 1) -> list[tuple[int, int]]:
@@ -234,6 +238,13 @@ def still_stretches(diagram: Diagram, motion: Motion | None, lengths: Lengths | 
     pos, half = diagram.position_mm, 0.5 * diagram.mm_per_px
     return [(float(pos[a] - half), float(pos[b - 1] + half)) for a, b in zip(starts, stops, strict=True)
             if (b - a) * diagram.mm_per_px >= STILL_MIN_MM]
+
+
+def blind_margin(swing_px: float = 0.0) -> int:
+    """Samples beside a blind stretch that are blind too: one for its blurred edge, and the camera's swing (peak,
+    px) when it shook along the tube and the diagram could not be held still against it (the stretch moves in the
+    diagram by as much)."""
+    return 1 + int(np.ceil(max(float(swing_px), 0.0) - 1e-9))
 
 
 def blind_positions(position_mm: np.ndarray, stretches: tuple[BlindStretch, ...] | list[BlindStretch], *,
