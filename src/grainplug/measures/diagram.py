@@ -43,7 +43,7 @@ def find_plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams, *,
     if not norm.two_phase:  # one material only: no plug to find
         mask[:] = False
     runs = find_runs(norm.z, mask, diagram.position_mm, blind=blind)
-    return runs, link(runs, diagram.n_frames)
+    return runs, link(runs, diagram.n_frames, blind=blind)
 
 def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, background_level: float, *, fps: float,
               mm_per_px: float, scale_rel_sd: float,
