@@ -199,8 +199,9 @@ def seen_through(z: np.ndarray, diagram: Diagram, levels: ColumnLevels, *,
             continue
         open_lo = a == 0 or hide[a - 1]
         open_hi = b == len(pos) or hide[b]
-        a = a if open_lo else max(int(edges[0]) - g, 0)
-        b = b if open_hi else min(int(edges[-1]) + g + 1, len(pos))
+        # a step between samples i - 1 and i shows from i - g to i + g - 1: the stretch, and a sample of blur
+        a = a if open_lo else max(int(edges[0]) + g - 1, 0)
+        b = b if open_hi else min(int(edges[-1]) - g + 2, len(pos))
         if (b - a) * ds < STILL_MIN_MM:
             continue
         inside = levels.separated[a:b]
