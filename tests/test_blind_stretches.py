@@ -69,7 +69,7 @@ def test_blind_stretches_round_trip(clamped, tmp_path):
     back = gp.load_result(tmp_path / "o")
     assert back.blind == res.blind
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["blind_stretches"] == [
-        {"from_mm": 55.0, "to_mm": 62.0, "found_by": "mask_mm"}]
+            {"from_mm": 55.0, "to_mm": 62.0, "found_by": "mask_mm", "treated": "blind", "contrast_left": None}]
 
 
 @pytest.mark.parametrize(("mask", "words"), [
