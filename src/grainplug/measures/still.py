@@ -22,7 +22,6 @@ times their spread apart (an opaque clamp, a dense printed mark), nothing is see
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -117,24 +116,32 @@ class ColumnLevels:
         return np.maximum(np.abs(self.plug - 1.0), np.abs(self.bubble))
 
 
-def column_levels(z: np.ndarray, *, max_frames: int = 1000, n_iter: int = 4) -> ColumnLevels:
+def column_levels(z: np.ndarray, *, max_frames: int = 500, n_iter: int = 4) -> ColumnLevels:
     """The two levels of the contrast ``z`` (frames x positions) at each position, by two-means over the frames
-    (on at most ``max_frames`` spread over the record), started between the 2nd and 98th percentiles."""
-    zs = np.asarray(z[:: max(1, z.shape[0] // max_frames)], np.float32)
-    lo, hi = np.percentile(zs, [2.0, 98.0], axis=0)
-    thr = 0.5 * (lo + hi)
-    plug = bubble = thr
-    upper = zs > thr
+    (on at most ``max_frames`` spread over the record, each position's values sorted once): started between the
+    2nd and 98th percentiles, each level the median of its class; the spread is the classes' pooled interquartile
+    range (as a standard deviation)."""
+    zs = np.sort(np.asarray(z[:: max(1, z.shape[0] // max_frames)], np.float32), axis=0)
+    n, cols = zs.shape[0], np.arange(zs.shape[1])
+
+    def at(q: np.ndarray) -> np.ndarray:  # the sorted values at (fractional) ranks q, per position
+        q = np.clip(q, 0, n - 1)
+        lo = np.floor(q).astype(np.int64)
+        hi = np.minimum(lo + 1, n - 1)
+        f = (q - lo).astype(np.float32)
+        return zs[lo, cols] * (1 - f) + zs[hi, cols] * f
+
+    thr = 0.5 * (at(np.full(len(cols), 0.02 * (n - 1))) + at(np.full(len(cols), 0.98 * (n - 1))))
+    k = np.zeros(len(cols), np.int64)
     for _ in range(n_iter):
-        upper = zs > thr
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # a position with one level only: NaN, not measured
-            plug = np.nanmedian(np.where(upper, zs, np.nan), axis=0)
-            bubble = np.nanmedian(np.where(upper, np.nan, zs), axis=0)
-        plug, bubble = np.where(np.isfinite(plug), plug, hi), np.where(np.isfinite(bubble), bubble, lo)
+        k = (zs <= thr[None, :]).sum(axis=0)  # the lower class: ranks [0, k)
+        bubble = at(np.maximum(k - 1, 0) / 2.0)
+        plug = at(k + (n - 1 - k) / 2.0)
         thr = 0.5 * (plug + bubble)
-    share = upper.mean(axis=0)
-    spread = 1.4826 * np.median(np.abs(zs - np.where(upper, plug, bubble)), axis=0)
+    share = (n - k) / n
+    iqr_b = at(0.75 * np.maximum(k - 1, 0)) - at(0.25 * np.maximum(k - 1, 0))
+    iqr_p = at(k + 0.75 * (n - 1 - k)) - at(k + 0.25 * (n - 1 - k))
+    spread = (k * iqr_b + (n - k) * iqr_p) / n / 1.349
     measured = (share >= MIN_LEVEL_SHARE) & (share <= 1 - MIN_LEVEL_SHARE)
     return ColumnLevels(plug.astype(float), bubble.astype(float), spread.astype(float), measured)
 
