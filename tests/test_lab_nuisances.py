@@ -127,7 +127,8 @@ WRONG_TODAY: dict[str, str] = {
     "H.264 crf 35": "H.264 at crf 35: the codec's frame cadence read as the plugs oscillating at 62.6 Hz",
     "combined c=-0.02": "combined: the camera's 30 Hz shake read as the plugs oscillating",
     "combined c=-0.05, scale from tube": "combined: the scale from the tube 11 % off (the shaking tube found wider)",
-    "combined c=-0.05, front light": "combined, front light: plug lengths -14 %",
+    "combined c=-0.05, front light": "combined, front light: the passing shadow (not corrected in front light) cuts "
+                                     "plugs, lengths -14 %",
     "combined c=-0.05, front light, H.264, scale from tube": "combined, front light: the scale from the tube and "
                                                              "plug lengths 9-10 % off",
     "combined oscillating 5 Hz": "combined oscillating: the train travels less than a plug and a bubble, the clamp "
