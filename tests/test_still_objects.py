@@ -6,8 +6,6 @@ The movies come from the independent nuisance renderer (``tests/lab_nuisances.py
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 from lab_nuisances import Clamp, Label, Scene, render_frames
