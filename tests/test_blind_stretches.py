@@ -70,7 +70,8 @@ def test_blind_stretches_round_trip(clamped, tmp_path):
     back = gp.load_result(tmp_path / "o")
     assert back.blind == res.blind
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["blind_stretches"] == [
-        {"from_mm": 55.0, "to_mm": 62.0, "found_by": "mask_mm", "kept": True}]
+        {"from_mm": 55.0, "to_mm": 62.0, "found_by": "mask_mm", "treated": "blind", "contrast_left": None,
+         "kept": True}]
 
 
 @pytest.mark.parametrize(("mask", "words"), [
@@ -133,7 +134,8 @@ def test_removing_a_blind_stretch_measures_through_it_and_undoing_restores_it(cl
     assert ((v > 54.9) & (v < 62.1)).any()
     removed.save(tmp_path / "o", figures=False, report=False)
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["blind_stretches"] == [
-        {"from_mm": 55.0, "to_mm": 62.0, "found_by": "mask_mm", "kept": False}]
+        {"from_mm": 55.0, "to_mm": 62.0, "found_by": "mask_mm", "treated": "blind", "contrast_left": None,
+         "kept": False}]
     # replayed from the saved folder: the same; with the edit undone: as analysed
     assert gp.load_result(tmp_path / "o").blind == removed.blind
     back = gp.apply_corrections(removed, gp.Corrections())

@@ -168,7 +168,7 @@ def still_regions(blind: tuple[BlindStretch, ...]) -> list[str]:
     """A warning naming the stretches of the tube (1 mm or more) where nothing changed over the record while the
     rest of it did (an opaque object over the tube: a clamp, a fitting, the tube's end), which the measures took
     as blind (:func:`grainplug.measures.diagram.measure_diagram`)."""
-    spans = [(b.from_mm, b.to_mm) for b in blind if b.found_by == STILL_CONTENTS]
+    spans = [(b.from_mm, b.to_mm) for b in blind if b.found_by == STILL_CONTENTS and b.blind]
     if not spans:
         return []
     where = ", ".join(f"{lo:.1f}-{hi:.1f} mm" for lo, hi in spans[:4]) + (", ..." if len(spans) > 4 else "")

@@ -56,7 +56,7 @@ import numpy as np
 from .errors import ParameterError
 from .measures.diagram import find_plugs, measure_train
 from .measures.shake import shake_hz
-from .measures.still import REVIEW, BlindStretch, blind_positions
+from .measures.still import REVIEW, BlindStretch, blind_positions, shaken_margin
 from .plugs import Runs, Tracks
 from .warning_codes import code_of, coded
 
@@ -480,10 +480,11 @@ def detection(res: AnalysisResult, corr: Corrections) -> tuple[Runs, Tracks, tup
     stretches = blind_after(res.blind, edits)
 
     def kept(bs: tuple[BlindStretch, ...]) -> list[tuple[float, float]]:
-        return sorted((b.from_mm, b.to_mm) for b in bs if b.kept)
+        return sorted((b.from_mm, b.to_mm) for b in bs if b.kept and b.blind)
 
     if kept(stretches) != kept(blind_after(res.blind, ())) and res.normalized is not None:
-        blind = blind_positions(res.diagram.position_mm, stretches) if kept(stretches) else None
+        blind = (blind_positions(res.diagram.position_mm, stretches, margin_samples=shaken_margin(res.shake))
+                 if kept(stretches) else None)
         runs, links = find_plugs(res.normalized, res.diagram, res.params, blind=blind)
     return runs, links, stretches
 
@@ -595,7 +596,8 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     detected_plugs = len(runs) > 0
     has_plugs = detected_plugs and len(new_runs) > 0
     if has_plugs:  # the analysis' own measuring step, on the corrected tracks
-        blind = blind_positions(res.diagram.position_mm, stretches) if any(b.kept for b in stretches) else None
+        blind = (blind_positions(res.diagram.position_mm, stretches, margin_samples=shaken_margin(res.shake))
+                 if any(b.kept and b.blind for b in stretches) else None)
         motion, lengths, statement = measure_train(res.diagram.time_s, new_runs, new_links, fps=res.info.fps,
                                                    mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd,
                                                    blind=blind, not_hz=shake_hz(res.shake))
@@ -632,7 +634,7 @@ def blind_after(found: tuple[BlindStretch, ...], edits: tuple[Edit, ...]) -> tup
         if e.action == "blind":
             out.append(BlindStretch(lo, hi, REVIEW))
         else:
-            over = [b.kept and b.from_mm <= hi and b.to_mm >= lo for b in out]
+            over = [b.kept and b.blind and b.from_mm <= hi and b.to_mm >= lo for b in out]  # not those seen through
             out = [dataclasses.replace(b, kept=False) if o else b for b, o in zip(out, over, strict=True)
                    if not (o and b.found_by == REVIEW)]
     return tuple(sorted(out, key=lambda b: (b.from_mm, b.to_mm)))

@@ -57,6 +57,7 @@ from .errors import ParameterError
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
 from .measures.shake import measure_shake, shake_hz, shift_along
+from .measures.still import shaken_margin
 from .params import AnalysisParams, tube_orientation
 from .plugs import Runs
 from .provenance import fingerprint, movie_identity
@@ -171,7 +172,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     flow = resolve_flow(params.flow_direction, tube, grains)
     diagram, norm, grains = orient(diagram, norm, grains, tube, flow.direction)
     found = measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level, normalized=norm,
-                            scale_rel_sd=scale.rel_sd, not_hz=shake_hz(shake))
+                            scale_rel_sd=scale.rel_sd, not_hz=shake_hz(shake), blind_margin_px=shaken_margin(shake))
     runs, links, motion, lengths = found.runs, found.links, found.motion, found.lengths
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
@@ -179,7 +180,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     has_plugs = bool(norm.two_phase and len(runs) > 0)
     return AnalysisResult(
         params=params, input=identity, info=info, tube=tube, mm_per_px=mm_per_px, scale_source=scale.source,
-        flow_direction=flow.direction, flow_direction_source=flow.source, diagram=diagram, normalized=norm,
+        flow_direction=flow.direction, flow_direction_source=flow.source, diagram=diagram, normalized=found.normalized,
         runs=runs, links=links, motion=motion, lengths=lengths, has_plugs=has_plugs,
         statement=found.statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,

@@ -8,6 +8,7 @@ One path for a movie's diagram (:func:`grainplug.analyze`), a simulation's
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,7 +21,16 @@ from ..params import AnalysisParams
 from ..plugs import Runs, Tracks, find_runs, link, plug_mask
 from .lengths import Lengths, measure_lengths
 from .motion import NO_FOLLOWED_EDGE, Motion, measure_motion
-from .still import GIVEN, STILL_CONTENTS, BlindStretch, blind_positions, still_stretches
+from .still import (
+    GIVEN,
+    STILL_CONTENTS,
+    BlindStretch,
+    blind_positions,
+    column_levels,
+    seen_through,
+    still_stretches,
+    travelled_enough,
+)
 
 #: what to do when plugs and bubbles are too close in grey level to tell apart (a movie's advice; a diagram made
 #: otherwise, a simulation's, replaces it)
@@ -36,7 +46,7 @@ def find_plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams, *,
     if not norm.two_phase:  # one material only: no plug to find
         mask[:] = False
     runs = find_runs(norm.z, mask, diagram.position_mm, blind=blind)
-    return runs, link(runs, diagram.n_frames)
+    return runs, link(runs, diagram.n_frames, blind=blind)
 
 def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, background_level: float, *, fps: float,
               mm_per_px: float, scale_rel_sd: float,
@@ -94,7 +104,8 @@ class DiagramMeasures:
 
 def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, fps: float,
                     background_level: float = 0.0, normalized: Normalized | None = None,
-                    scale_rel_sd: float = 0.0, not_hz: tuple[float, ...] = ()) -> DiagramMeasures:
+                    scale_rel_sd: float = 0.0, not_hz: tuple[float, ...] = (),
+                    blind_margin_px: int = 1) -> DiagramMeasures:
     """The analysis from the diagram on: plugs, tracks, celerity, regime, plug and bubble lengths.
 
     The stages :func:`analyze` runs after streaming the movie, for a diagram from
@@ -103,7 +114,9 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
 
     ``normalized``: the diagram's contrast when it is already known (:func:`grainplug.analyze` normalises
     before it decides the flow's direction); ``scale_rel_sd``: the scale's relative uncertainty, carried
-    into the intervals; ``not_hz``: frequencies that are not the plugs' (the camera's shake).
+    into the intervals; ``not_hz``: frequencies that are not the plugs' (the camera's shake);
+    ``blind_margin_px``: how far beside a blind stretch a plug's edge is cut too (its blurred edge, and the swing of
+    a camera shaking along the tube that the diagram was not held still against: :func:`blind_margin`).
     """
     params = params or AnalysisParams()
     if normalized is None:
@@ -111,24 +124,31 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
                                confirm_px=confirm_px(params.min_plug_mm, diagram.mm_per_px))
     given = _given_stretches(diagram, params.mask_mm)
 
-    def measured(stretches: tuple[BlindStretch, ...]) -> DiagramMeasures:
-        blind = blind_positions(diagram.position_mm, stretches) if stretches else None
-        runs, links = find_plugs(normalized, diagram, params, blind=blind)
-        motion, lengths, statement = measure_plugs(normalized, diagram, runs, links, background_level, fps=fps,
+    def measured(stretches: tuple[BlindStretch, ...], norm: Normalized) -> DiagramMeasures:
+        blind = (blind_positions(diagram.position_mm, stretches, margin_samples=blind_margin_px)
+                 if any(b.blind for b in stretches) else None)
+        runs, links = find_plugs(norm, diagram, params, blind=blind)
+        motion, lengths, statement = measure_plugs(norm, diagram, runs, links, background_level, fps=fps,
                                                    mm_per_px=diagram.mm_per_px, scale_rel_sd=scale_rel_sd,
                                                    params=params, blind=blind, not_hz=not_hz)
-        return DiagramMeasures(normalized, runs, links, motion, lengths, statement, stretches)
+        return DiagramMeasures(norm, runs, links, motion, lengths, statement, stretches)
 
-    first = measured(given)
-    # where nothing changed over the record while the train moved, something hides the tube: measured again
-    # with those stretches blind
-    found = [(a, b) for a, b in still_stretches(diagram, first.motion, first.lengths)
-             if not any(g.from_mm <= a and b <= g.to_mm for g in given)]
-    if not found:
+    first = measured(given, normalized)
+    if not (normalized.two_phase and travelled_enough(diagram, first.motion, first.lengths)):
         return first
-    return measured(tuple(sorted([*given, *(BlindStretch(a, b, STILL_CONTENTS) for a, b in found)],
-                                 key=lambda b: b.from_mm)))
-
+    # every place saw plugs and bubbles: where nothing changed over the record, something hides the tube (blind);
+    # where the two levels are not the open tube's, a still object dims or lights it (divided out, or blind where
+    # the levels cannot be told apart); measured again
+    found = [BlindStretch(a, b, STILL_CONTENTS) for a, b in still_stretches(diagram, first.motion, first.lengths)
+             if not any(g.from_mm <= a and b <= g.to_mm for g in given)]
+    opaque = blind_positions(diagram.position_mm, [*given, *found], margin_samples=0)
+    z, through, hidden = seen_through(normalized.z, diagram, column_levels(normalized.z), blind=opaque)
+    found += [BlindStretch(a, b, STILL_CONTENTS) for a, b in hidden]
+    found += [BlindStretch(a, b, STILL_CONTENTS, seen_through=left) for a, b, left in through]
+    if not found and z is normalized.z:
+        return first
+    norm = normalized if z is normalized.z else dataclasses.replace(normalized, z=z)
+    return measured(tuple(sorted([*given, *found], key=lambda b: b.from_mm)), norm)
 
 def _given_stretches(diagram: Diagram, mask_mm: tuple[tuple[float, float], ...]) -> tuple[BlindStretch, ...]:
     """The user's blind stretches, checked against the view: one outside it, or all of them covering it, is

@@ -69,8 +69,9 @@ def _overlapping(frame: np.ndarray, start: np.ndarray, stop: np.ndarray,
     return lo, hi
 
 
-def link(runs: Runs, n_frames: int) -> Tracks:
-    """Link the runs of consecutive frames into tracks.
+def link(runs: Runs, n_frames: int, *, blind: np.ndarray | None = None) -> Tracks:
+    """Link the runs of consecutive frames into tracks; runs of a frame parted only by ``blind`` positions (a
+    clamp: a boolean per sample along the tube) are one plug passing under it, linked as one (one track).
 
     Notes
     -----
@@ -80,6 +81,19 @@ def link(runs: Runs, n_frames: int) -> Tracks:
     successor, and tracks are the chains of such links, numbered in the order they
     start (frame, then position), as a frame-by-frame pass would number them.
     """
+    if blind is not None and np.any(blind) and len(runs) > 1:
+        hidden = np.concatenate([[0], np.cumsum(np.asarray(blind, bool), dtype=np.int64)])
+        frame = np.asarray(runs.frame, np.int64)
+        gap = runs.start[1:] - runs.stop[:-1]
+        across = (frame[1:] == frame[:-1]) & (gap > 0) & (hidden[runs.start[1:]] - hidden[runs.stop[:-1]] == gap)
+        if across.any():
+            unit = np.concatenate([[0], np.cumsum(~across)])  # the runs' plug, counted over the record
+            first = np.nonzero(np.concatenate([[True], ~across]))[0]
+            last = np.concatenate([first[1:] - 1, [len(runs) - 1]])
+            units = Runs(frame[first], runs.start[first], runs.stop[last], runs.top_mm[first], runs.bottom_mm[last])
+            joined = link(units, n_frames)
+            return Tracks(joined.run_track[unit], joined.first_frame, joined.last_frame, joined.started_by,
+                          joined.ended_by)
     n = len(runs)
     frame = np.asarray(runs.frame, np.int64)
     start = np.asarray(runs.start, np.int64)

@@ -135,7 +135,9 @@ function show(s) {
   const blind = (s.blind || []).map((b) => {
     const how = {"mask_mm": "given", "still contents": "found: nothing changes there", "review": "added here"};
     const text = `${fmt(b.from_mm, 1)}–${fmt(b.to_mm, 1)} mm (${how[b.found_by] || b.found_by})` +
-      (b.kept ? "" : ", removed");
+      (b.treated === "seen through" ? `: seen through it, ${Math.round(100 * b.contrast_left)} % of the contrast ` +
+       "left and divided out" : "") + (b.kept ? "" : ", removed");
+    if (b.treated === "seen through") return el("li", text);  // measured through: nothing to remove
     const button = el("button", b.kept ? "remove" : "restore", {class: "toggle"});
     button.onclick = () => post("edit", {action: b.kept ? "unblind" : "blind", from_mm: b.from_mm, to_mm: b.to_mm});
     const li = el("li", `${text} `, {}, button);
@@ -183,7 +185,7 @@ function draw() {
   if (w1 !== null) { const x = Math.min(w, tToX(w1, w)); ctx.fillRect(x, 0, w - x, h); }
   ctx.fillStyle = "rgba(86, 180, 233, 0.35)";  // palette.BUBBLE
   for (const [a, b] of state.no_plugs || []) ctx.fillRect(tToX(a, w), 0, tToX(b, w) - tToX(a, w), h);
-  for (const b of state.blind || []) {  // blind stretches: bands across the whole record
+  for (const b of (state.blind || []).filter((x) => x.treated !== "seen through")) {  // blind: bands over the record
     const y0 = zToY(b.from_mm), y1 = zToY(b.to_mm);
     const top = Math.min(y0, y1), height = Math.max(Math.abs(y1 - y0), 2);
     if (b.kept) {  // palette's orange, seen over the plugs' black and the bubbles' white alike
