@@ -122,12 +122,9 @@ WRONG_TODAY: dict[str, str] = {
     "shake 1.5 px 35 Hz, static plugs": "camera shake on still plugs: the shaking wall taken for a second tube, "
                                         "no plugs found",
     "shake 1 px 8 Hz, static plugs": "camera shake on still plugs: no plugs found (second tube)",
-    "ripple 30 % 120 Hz, front light": "lamp ripple (front light): the falling grains read as rising, the "
-                                       "celerity's sign flipped without a warning",
     "two clamps 6 mm, front light": "two clamps in front light: taken for plugs, oscillation, celerity -6 %",
     "label 12 mm, 55 % through": "translucent label read as part of the plugs (+10 %)",
     "label 20 mm, 30 % through": "translucent label read as part of the plugs (+14 %)",
-    "H.264 crf 35": "H.264 at crf 35: the codec's frame cadence read as the plugs oscillating at 62.6 Hz",
     **{name: "combined shake, ripple, clamp, label and shadow: plug lengths, celerity interval"
        for name in CASES if name.startswith("combined") and name not in ("combined c=-0.05", "combined c=-0.1")},
 }

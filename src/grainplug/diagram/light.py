@@ -13,11 +13,12 @@ background beside it: the light is then read on the diagram itself, frame by fra
 (:func:`frame_light`). The contents move little between consecutive frames while a lamp's ripple
 scales every position alike, so the median along the tube of the log ratio of a frame to the one
 before is the light's change between them; chained over the record and taken about its running
-mean over :data:`FRAME_WINDOW` frames, it is the ripple and the flicker, and the diagram is divided
+mean (:data:`FRAME_WINDOW` frames, applied twice: a triangle, which neither takes in nor overshoots a ripple of
+a few frames a period), it is the ripple and the flicker, and the diagram is divided
 by it before doubtful frames are looked for (a ripple of +-30 % was taken for dark and
 over-exposed frames and 44 % of the frames bridged). The slow drift is left to the diagram's own
 per-frame gain (:func:`grainplug.diagram.normalize`); a passing shadow is then not corrected. A frame
-that is not its neighbour times one factor (a blank frame, a flash, a repeated one) is not divided:
+that is not its neighbour times one factor (a blank frame, a flash) is not divided:
 it is left to :func:`grainplug.diagram.frames.repair_frames`.
 """
 
@@ -118,10 +119,11 @@ def frame_light(values: np.ndarray, *, window: int = FRAME_WINDOW) -> tuple[np.n
     change at a few (the plugs' edges, the falling grains). Its spread (the median absolute deviation) says
     whether frame ``k`` is frame ``k-1`` under another light; where it is not (a blank frame, a flash), or the
     step is beyond :data:`TRUSTED_SHARE`, the chain breaks, and each stretch is read on its own. The level
-    :math:`L_k = \sum m` less its running mean over
-    ``window`` frames is returned, so the chain's error (a random walk) does not build up over the record.
+    :math:`L_k = \sum m` less its running mean over ``window`` frames taken twice (a triangular window of
+    ``2 window`` frames: its response has no negative lobe, so a ripple of 10 frames a period is not overshot,
+    and a change every other frame cancels in it) is returned, so the chain's error (a random walk) does not
+    build up over the record.
     """
-    from .._filters import uniform_filter1d
     v = np.asarray(values, np.float32)
     n, p = v.shape
     if n < 3 or p < 8:
@@ -145,7 +147,7 @@ def frame_light(values: np.ndarray, *, window: int = FRAME_WINDOW) -> tuple[np.n
         if len(idx) < 3:  # a frame or two apart: left to the bridging of doubtful frames
             continue
         level = np.concatenate(([0.0], np.cumsum(step[idx[1:] - 1])))
-        fast = level - uniform_filter1d(level, min(window, len(level)), mode="nearest")
+        fast = level - _running_mean(_running_mean(level, window), window)  # triangular: no negative lobe
         gain[idx] = np.exp(fast)
         fast_all.append(fast)
     if not fast_all:
@@ -155,6 +157,21 @@ def frame_light(values: np.ndarray, *, window: int = FRAME_WINDOW) -> tuple[np.n
     # a steady light's figure: the steps' own error (median of p values: 1.25 sd / sqrt(p)), over the window
     noise = 1.4826 * 1.25 * typical / np.sqrt(v.shape[1])
     return gain, float(np.std(fast)), float(noise * np.sqrt(0.5 * min(window, n)))
+
+
+def _running_mean(x: np.ndarray, window: int) -> np.ndarray:
+    """The mean of ``x`` over ``window`` samples centred on each (an even window: the two end samples at half
+    weight, so that a change every other frame cancels), over those there are at the record's ends."""
+    h = max(1, window // 2)
+    n = len(x)
+    c = np.concatenate(([0.0], np.cumsum(x)))
+    i = np.arange(n)
+    lo, hi = np.maximum(i - h, 0), np.minimum(i + h + 1, n)
+    out = (c[hi] - c[lo]) / (hi - lo)
+    inner = (i >= h) & (i + h < n)
+    k = i[inner]
+    out[inner] = (c[k + h + 1] - c[k - h] - 0.5 * (x[k - h] + x[k + h])) / (2 * h)
+    return out
 
 
 def _from_the_diagram(v: np.ndarray, why: str) -> tuple[np.ndarray, Lamp]:
