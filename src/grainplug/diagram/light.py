@@ -44,7 +44,7 @@ FRAME_WINDOW = 16
 #: scaled from the other
 SCALED_SPREAD = 3.0
 #: positions along the tube read for the light on the diagram itself, at most
-FRAME_POSITIONS = 1024
+FRAME_POSITIONS = 256
 
 
 @dataclass(frozen=True)
