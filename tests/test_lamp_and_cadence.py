@@ -138,3 +138,23 @@ def test_a_real_oscillation_is_found_through_flicker_and_compression(tmp_path, s
     assert s["oscillation_frequency_hz"] == pytest.approx(OSC.frequency_hz, abs=0.3)
     assert s["celerity_m_s"] == pytest.approx(OSC.celerity_m_s, rel=0.03)
     assert "plugs.frame_cadence" not in s["warning_codes"]
+
+
+def test_the_falling_grains_are_read_on_frames_seen_only(rng):
+    """Bridged frames are interpolations, not observations: their pairs are left out of the grains' correlation
+    (with a ripple taken for dark and bright frames, the bridged ones made the grains read as rising)."""
+    from grainplug.measures.grains import falling_grains
+
+    n, p, d = 120, 600, 9  # specks falling 9 samples a frame (0.34 m/s at 0.15 mm and 250 fps)
+    falling_at = rng.uniform(0, 3 * p, 60)
+    rising_at = rng.uniform(0, 3 * p, 150)
+    bridged = np.flatnonzero(np.arange(n) % 4 >= 2)  # half the frames, in pairs: here a denser, rising pattern
+    z = np.zeros((n, p), np.float32)
+    for k in range(n):
+        pos = (falling_at + d * k) if k % 4 < 2 else (rising_at - d * k)
+        pos = (pos % (3 * p)).astype(int)
+        z[k, pos[pos < p]] = 0.3
+    everything = falling_grains(z, mm_per_sample=0.15, fps=250.0)
+    assert everything.speed_m_s is not None and everything.speed_m_s < 0  # what the bridged frames say
+    seen = falling_grains(z, mm_per_sample=0.15, fps=250.0, unseen=bridged)
+    assert seen.speed_m_s == pytest.approx(d * 0.15 * 250 / 1000, rel=0.02)

@@ -166,7 +166,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     norm = normalize(diagram.values, background_level=tube.background_level,
                      confirm_px=confirm_px(params.min_plug_mm, mm_per_px))
     laps("normalize_s")
-    grains = falling(norm, diagram, info.fps)
+    grains = falling(norm, diagram, info.fps, unseen=repair.bridged)
     flow = resolve_flow(params.flow_direction, tube, grains)
     diagram, norm, grains = orient(diagram, norm, grains, tube, flow.direction)
     found = measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level, normalized=norm,
