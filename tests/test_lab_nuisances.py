@@ -122,9 +122,6 @@ WRONG_TODAY: dict[str, str] = {
     "shake 1.5 px 35 Hz, static plugs": "camera shake on still plugs: the shaking wall taken for a second tube, "
                                         "no plugs found",
     "shake 1 px 8 Hz, static plugs": "camera shake on still plugs: no plugs found (second tube)",
-    "ripple 30 % 120 Hz, front light": "lamp ripple (front light): the falling grains read as rising, the "
-                                       "celerity's sign flipped without a warning",
-    "H.264 crf 35": "H.264 at crf 35: the codec's frame cadence read as the plugs oscillating at 62.6 Hz",
     "combined c=-0.02": "combined: the camera's 30 Hz shake read as the plugs oscillating",
     "combined c=-0.05, scale from tube": "combined: the scale from the tube 11 % off (the shaking tube found wider)",
     "combined c=-0.05, front light": "combined, front light: the passing shadow (not corrected in front light) cuts "

@@ -239,6 +239,25 @@ def near_the_threshold(runs: Runs, motion: Motion | None, params: AnalysisParams
         f"{params.min_plug_mm:g} mm: shorter plugs are likely there, dropped (the bubbles about them are "
         "measured as one) and plugs at the threshold come and go (their tracks split) — lower min_plug_mm=")]
 
+def frame_cadence(motion: Motion | None, info: MovieInfo) -> list[str]:
+    """A warning when the plug edges move back and forth with a period of a few whole frames (the recording's
+    cadence): left out of the oscillation search in a movie compressed between frames, else reported in doubt."""
+    if motion is None or not motion.frame_locked_hz or not info.fps:
+        return []
+    f, amp = motion.frame_locked_hz, motion.frame_locked_mm
+    frames = f"a period of {info.fps / f:.3g} frames"
+    if motion.oscillation_frequency_hz is not None and abs(motion.oscillation_frequency_hz - f) < 1e-9:
+        return [coded("plugs.frame_cadence",
+            f"the oscillation found ({f:.4g} Hz, {amp:.2g} mm) has {frames}: a pattern locked to the camera's "
+            "frame clock is more likely the recording's (a movie compressed and saved again, alternate exposures, "
+            "a lamp's ripple locked to the frame rate) than the plugs' — check the movie was never compressed")]
+    return [coded("plugs.frame_cadence",
+        f"the plug edges move back and forth by {amp:.2g} mm at {f:.4g} Hz ({frames}): the cadence of the "
+        f"movie's compression ({info.format.partition(':')[2] or info.format}: its group of pictures holds the "
+        "edges still in some frames and moves them in others), not an oscillation of the plugs, and not reported "
+        "as one — record losslessly or at a higher quality (lower crf)")]
+
+
 def guessed_sign(flow: Flow, motion: Motion | None) -> list[str]:
     """A warning when a celerity was measured along a flow direction only assumed (down a vertical tube): its
     sign rests on the camera having been upright."""

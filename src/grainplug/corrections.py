@@ -600,7 +600,8 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
                  if any(b.kept and b.blind for b in stretches) else None)
         motion, lengths, statement = measure_train(res.diagram.time_s, new_runs, new_links, fps=res.info.fps,
                                                    mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd,
-                                                   blind=blind, not_hz=shake_hz(res.shake))
+                                                   blind=blind, not_hz=shake_hz(res.shake),
+                                                   frame_cadence=res.info.predicts_frames)
     elif detected_plugs:
         statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
     unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)

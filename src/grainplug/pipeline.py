@@ -39,6 +39,7 @@ from .checks import (
     check_finite,
     check_movie,
     cut_by_the_frame,
+    frame_cadence,
     given_scale_doubts,
     guessed_sign,
     implausible,
@@ -168,11 +169,12 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     norm = normalize(diagram.values, background_level=tube.background_level,
                      confirm_px=confirm_px(params.min_plug_mm, mm_per_px))
     laps("normalize_s")
-    grains = falling(norm, diagram, info.fps)
+    grains = falling(norm, diagram, info.fps, unseen=repair.bridged)
     flow = resolve_flow(params.flow_direction, tube, grains)
     diagram, norm, grains = orient(diagram, norm, grains, tube, flow.direction)
     found = measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level, normalized=norm,
-                            scale_rel_sd=scale.rel_sd, not_hz=shake_hz(shake), blind_margin_px=shaken_margin(shake))
+                            scale_rel_sd=scale.rel_sd, not_hz=shake_hz(shake), blind_margin_px=shaken_margin(shake),
+                            frame_cadence=info.predicts_frames)
     runs, links, motion, lengths = found.runs, found.links, found.motion, found.lengths
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
@@ -192,7 +194,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                   *all_coded("frames.repaired", filter(None, [repair.describe(diagram.n_frames,
                                                                               first=first_movie_frame(info))])),
                   *time_warnings,
-                  *flow.warnings, *guessed_sign(flow, motion), *other_tubes,
+                  *flow.warnings, *guessed_sign(flow, motion), *other_tubes, *frame_cadence(motion, info),
                   *still_regions(found.blind), *shaken(shake, motion),
                   *still_objects(runs, links, diagram.time_s, motion, mm_per_px),
                   *near_the_threshold(runs, motion, params),

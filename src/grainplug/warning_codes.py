@@ -96,6 +96,10 @@ CODES: dict[str, tuple[str, str]] = {
                               "lower min_plug_mm="),
     "plugs.implausible_speed": ("the plugs or the falling grains move faster than grains can fall",
                                 "check the frame rate (fps=) and the scale"),
+    "plugs.frame_cadence": ("the plug edges move back and forth every few whole frames: the recording's cadence "
+                            "(a codec's group of pictures), not read as an oscillation (or, uncompressed, "
+                            "reported with this doubt)",
+                            "record losslessly or at a higher quality; check the movie was never compressed"),
     # the camera's shake (the tube moving in the image)
     "shake.corrected": ("the camera shook; the diagram was held still against the tube",
                         "nothing: a plug motion at the shake's frequency is not reported as the plugs'"),

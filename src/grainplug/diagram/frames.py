@@ -44,6 +44,11 @@ class FrameRepair:
     n_still: int = 0
 
     @property
+    def bridged(self) -> np.ndarray:
+        """Indices of every frame that was bridged (interpolated, not seen), sorted."""
+        return np.union1d(np.union1d(self.dark, self.bright), self.repeated).astype(int)
+
+    @property
     def n_bad(self) -> int:
         return int(len(self.dark) + len(self.bright) + len(self.repeated))
 

@@ -6,9 +6,20 @@ contents were seen under there and then: mains ripple, a slow drift, a shadow pa
 tube (someone walking by the lamp). Dividing the diagram by it, before plugs and bubbles are told
 apart, leaves the contents only. The light is sampled every few positions
 (each sample their mean: :data:`grainplug.diagram.extract.BESIDE_STEP`) and interpolated between,
-never smoothed in time. A front-lit tube has no lamp beside it (the background is dark):
-nothing is divided, and the diagram's own per-frame gain (:func:`grainplug.diagram.normalize`) takes
-the ripple and the drift; a passing shadow is then not corrected.
+never smoothed in time.
+
+A front-lit tube has no lamp beside it (the background is dark), nor has a tube framed without
+background beside it: the light is then read on the diagram itself, frame by frame
+(:func:`frame_light`). The contents move little between consecutive frames while a lamp's ripple
+scales every position alike, so the median along the tube of the log ratio of a frame to the one
+before is the light's change between them; chained over the record and taken about its running
+mean (:data:`FRAME_WINDOW` frames, applied twice: a triangle, which neither takes in nor overshoots a ripple of
+a few frames a period), it is the ripple and the flicker, and the diagram is divided
+by it before doubtful frames are looked for (a ripple of +-30 % was taken for dark and
+over-exposed frames and 44 % of the frames bridged). The slow drift is left to the diagram's own
+per-frame gain (:func:`grainplug.diagram.normalize`); a passing shadow is then not corrected. A frame
+that is not its neighbour times one factor (a blank frame, a flash) is not divided:
+it is left to :func:`grainplug.diagram.frames.repair_frames`.
 """
 
 from __future__ import annotations
@@ -26,6 +37,14 @@ TRUSTED_SHARE = 0.25
 #: a lamp steadier than this (rms of its frame-to-frame level, and deepest local dimming, relative) is not divided
 #: by: the diagram's own per-frame and per-position gains take what is left
 STEADY_RIPPLE, STEADY_SHADOW = 0.005, 0.06
+#: frames over which the light read on the diagram itself is averaged: what changes slower is left to the diagram's
+#: own per-frame gain (a ripple aliased to fewer than this many frames a period is taken out)
+FRAME_WINDOW = 16
+#: a pair of frames whose log ratio spreads along the tube this many times the typical pair's is not one frame
+#: scaled from the other
+SCALED_SPREAD = 3.0
+#: positions along the tube read for the light on the diagram itself, at most
+FRAME_POSITIONS = 256
 
 
 @dataclass(frozen=True)
@@ -73,24 +92,118 @@ def _covers(beside: np.ndarray, at: np.ndarray, n_positions: int) -> bool:
     return beside.shape[1] == len(at) and len(at) >= 4 and float(np.ptp(at)) >= 0.5 * n_positions
 
 
+def frame_light(values: np.ndarray, *, window: int = FRAME_WINDOW) -> tuple[np.ndarray, float, float]:
+    r"""The light's fast change from frame to frame, read on the diagram itself (no lamp beside the tube).
+
+    Parameters
+    ----------
+    values : ndarray, shape (n_frames, n_positions)
+        The diagram.
+    window : int
+        Frames of the running mean the level is taken about (the slow light is not returned).
+
+    Returns
+    -------
+    gain : ndarray, shape (n_frames,)
+        Each frame's light relative to the frames around it (1 for a frame that is not its neighbour
+        scaled by one factor, and for one whose light would be under :data:`TRUSTED_SHARE` or over its inverse).
+    ripple_rms : float
+        The rms of ``log gain`` over the frames read (the ripple's relative rms).
+    noise_rms : float
+        What the same figure would be from the contents and the noise alone, in a steady light.
+
+    Notes
+    -----
+    With :math:`\ell_k(s) = \log D_k(s)`, the step between consecutive frames is
+    :math:`m_k = \mathrm{median}_s(\ell_k - \ell_{k-1})`: a lamp scales every position alike, the contents
+    change at a few (the plugs' edges, the falling grains). Its spread (the median absolute deviation) says
+    whether frame ``k`` is frame ``k-1`` under another light; where it is not (a blank frame, a flash), or the
+    step is beyond :data:`TRUSTED_SHARE`, the chain breaks, and each stretch is read on its own. The level
+    :math:`L_k = \sum m` less its running mean over ``window`` frames taken twice (a triangular window of
+    ``2 window`` frames: its response has no negative lobe, so a ripple of 10 frames a period is not overshot,
+    and a change every other frame cancels in it) is returned, so the chain's error (a random walk) does not
+    build up over the record.
+    """
+    v = np.asarray(values, np.float32)
+    n, p = v.shape
+    if n < 3 or p < 8:
+        return np.ones(n, np.float32), 0.0, 0.0
+    v = v[:, :: max(1, -(-p // FRAME_POSITIONS))]
+    floor = np.float32(max(1e-3 * float(np.median(v[:: max(1, n // 200)])), 1e-6))
+    lv = np.log(np.maximum(v, floor))
+    d = lv[1:] - lv[:-1]
+    step = np.median(d, axis=1)
+    spread = np.median(np.abs(d - step[:, None]), axis=1)
+    del d
+    typical = float(np.median(spread))
+    # pair (k-1, k) is frame k-1 in another light: its log ratio is one number along the tube, and a lamp's
+    # number (a blank frame, a flash, a cut is not: the chain breaks there)
+    scaled = (spread <= SCALED_SPREAD * max(typical, 1e-6)) & (np.abs(step) <= -np.log(TRUSTED_SHARE))
+    piece = np.concatenate(([0], np.cumsum(~scaled)))  # stretches of frames joined by scaled pairs
+    gain = np.ones(n, np.float32)
+    fast_all = []
+    for k in np.unique(piece):
+        idx = np.flatnonzero(piece == k)
+        if len(idx) < 3:  # a frame or two apart: left to the bridging of doubtful frames
+            continue
+        level = np.concatenate(([0.0], np.cumsum(step[idx[1:] - 1])))
+        fast = level - _running_mean(_running_mean(level, window), window)  # triangular: no negative lobe
+        gain[idx] = np.exp(fast)
+        fast_all.append(fast)
+    if not fast_all:
+        return gain, 0.0, 0.0
+    fast = np.concatenate(fast_all)
+    gain[(gain < TRUSTED_SHARE) | (gain > 1 / TRUSTED_SHARE)] = 1.0
+    # a steady light's figure: the steps' own error (median of p values: 1.25 sd / sqrt(p)), over the window
+    noise = 1.4826 * 1.25 * typical / np.sqrt(v.shape[1])
+    return gain, float(np.std(fast)), float(noise * np.sqrt(0.5 * min(window, n)))
+
+
+def _running_mean(x: np.ndarray, window: int) -> np.ndarray:
+    """The mean of ``x`` over ``window`` samples centred on each (an even window: the two end samples at half
+    weight, so that a change every other frame cancels), over those there are at the record's ends."""
+    h = max(1, window // 2)
+    n = len(x)
+    c = np.concatenate(([0.0], np.cumsum(x)))
+    i = np.arange(n)
+    lo, hi = np.maximum(i - h, 0), np.minimum(i + h + 1, n)
+    out = (c[hi] - c[lo]) / (hi - lo)
+    inner = (i >= h) & (i + h < n)
+    k = i[inner]
+    out[inner] = (c[k + h + 1] - c[k - h] - 0.5 * (x[k - h] + x[k + h])) / (2 * h)
+    return out
+
+
+def _from_the_diagram(v: np.ndarray, why: str) -> tuple[np.ndarray, Lamp]:
+    """The diagram divided by the light read on itself (:func:`frame_light`) when it flickers; ``why`` says why
+    there was no lamp beside the tube to read it on."""
+    gain, ripple, noise = frame_light(v)
+    if ripple < max(STEADY_RIPPLE, 3.0 * noise):
+        return v, Lamp(False, f"{why}: each frame's level against the frames around it, read on the diagram itself, "
+                              "is steady; the drift from the diagram's own per-frame gain; a passing shadow is not "
+                              "corrected", ripple)
+    return v / gain[:, None], Lamp(
+        True, f"{why}: each frame's level against the frames around it, read on the diagram itself (ripple, "
+              f"flicker; over {FRAME_WINDOW} frames); the drift from the diagram's own per-frame gain; a passing "
+              "shadow is not corrected", ripple)
+
+
 def divide_by_lamp(values: np.ndarray, beside: np.ndarray, at: np.ndarray, *,
                    back_lit: bool | None) -> tuple[np.ndarray, Lamp]:
     """The diagram divided by the lamp's light (scaled back to its median level), and what was done; ``beside``
-    and ``at`` as :func:`lamp_light` takes them."""
+    and ``at`` as :func:`lamp_light` takes them. Without a lamp beside the tube, the light is read on the diagram
+    itself (:func:`frame_light`)."""
     v = np.asarray(values, np.float32)
     if not back_lit:
-        return v, Lamp(False, "front light (no lamp beside the tube): the ripple and drift from the diagram's own "
-                              "per-frame gain; a passing shadow is not corrected")
+        return _from_the_diagram(v, "front light (no lamp beside the tube)")
     b = np.asarray(beside, np.float32)
     if not _covers(b, np.asarray(at, float), v.shape[1]):
-        return v, Lamp(False, "no background beside the tube in the frame: the ripple and drift from the "
-                              "diagram's own per-frame gain; a passing shadow is not corrected")
+        return _from_the_diagram(v, "no background beside the tube in the frame")
     few = b[:: max(1, len(b) // 500)]  # the light's figures, on at most 500 frames
     typical = float(np.median(few))
     top = float(np.percentile(v[:: max(1, len(v) // 200)], 95))
     if not typical > LAMP_SHARE * top:
-        return v, Lamp(False, "the background beside the tube is darker than the tube (not a lamp): the ripple and "
-                              "drift from the diagram's own per-frame gain; a passing shadow is not corrected")
+        return _from_the_diagram(v, "the background beside the tube is darker than the tube (not a lamp)")
     rel = few / np.maximum(np.median(few, axis=0), 1e-6)[None, :]
     frame_level = np.median(rel, axis=1)
     ripple = float(np.std(frame_level))

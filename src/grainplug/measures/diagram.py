@@ -51,7 +51,8 @@ def find_plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams, *,
 def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks, background_level: float, *, fps: float,
               mm_per_px: float, scale_rel_sd: float,
               params: AnalysisParams, blind: np.ndarray | None = None,
-              not_hz: tuple[float, ...] = ()) -> tuple[Motion | None, Lengths | None, str]:
+              not_hz: tuple[float, ...] = (),
+              frame_cadence: bool = False) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity and oscillation of the plug train, plug and bubble lengths; or why there are none."""
     if not norm.two_phase and weakly_two(norm):
         averaged = ("" if norm.averaged_eta is None else
@@ -72,19 +73,21 @@ def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks,
                             f"{params.min_plug_mm:g} mm long{longer} — lower min_plug_mm= "
                             "(or min_gap_mm=), or check the scale; no celerity, length or frequency is measured")
     return measure_train(diagram.time_s, runs, links, fps=fps, mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd,
-                         blind=blind, not_hz=not_hz)
+                         blind=blind, not_hz=not_hz, frame_cadence=frame_cadence)
 
 
 def measure_train(time_s: np.ndarray, runs: Runs, links: Tracks, *, fps: float, mm_per_px: float,
                   scale_rel_sd: float, blind: np.ndarray | None = None,
-                  not_hz: tuple[float, ...] = ()) -> tuple[Motion | None, Lengths | None, str]:
+                  not_hz: tuple[float, ...] = (),
+                  frame_cadence: bool = False) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity, oscillation and regime of a train of tracked plugs, their lengths and their bubbles' (the step
     that :func:`measure_plugs` ends with and :func:`grainplug.corrections.apply_corrections` repeats on the
     corrected tracks); the statement says why there is no motion, if so."""
     # small least-squares problems: a BLAS thread pool would only add wake-up latency
     with threadpool_limits(limits=1, user_api="blas"):
         motion = measure_motion(time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
-                                mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd, not_hz=not_hz)
+                                mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd, not_hz=not_hz,
+                                frame_cadence=frame_cadence)
         lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd, blind=blind)
     statement = "" if motion is not None else NO_FOLLOWED_EDGE
     return motion, lengths, statement
@@ -105,7 +108,7 @@ class DiagramMeasures:
 def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, fps: float,
                     background_level: float = 0.0, normalized: Normalized | None = None,
                     scale_rel_sd: float = 0.0, not_hz: tuple[float, ...] = (),
-                    blind_margin_px: int = 1) -> DiagramMeasures:
+                    blind_margin_px: int = 1, frame_cadence: bool = False) -> DiagramMeasures:
     """The analysis from the diagram on: plugs, tracks, celerity, regime, plug and bubble lengths.
 
     The stages :func:`analyze` runs after streaming the movie, for a diagram from
@@ -116,7 +119,9 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
     before it decides the flow's direction); ``scale_rel_sd``: the scale's relative uncertainty, carried
     into the intervals; ``not_hz``: frequencies that are not the plugs' (the camera's shake);
     ``blind_margin_px``: how far beside a blind stretch a plug's edge is cut too (its blurred edge, and the swing of
-    a camera shaking along the tube that the diagram was not held still against: :func:`blind_margin`).
+    a camera shaking along the tube that the diagram was not held still against: :func:`blind_margin`);
+    ``frame_cadence``: the movie's codec predicts frames from others
+    (:func:`grainplug.measures.motion.measure_motion`).
     """
     params = params or AnalysisParams()
     if normalized is None:
@@ -130,7 +135,8 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
         runs, links = find_plugs(norm, diagram, params, blind=blind)
         motion, lengths, statement = measure_plugs(norm, diagram, runs, links, background_level, fps=fps,
                                                    mm_per_px=diagram.mm_per_px, scale_rel_sd=scale_rel_sd,
-                                                   params=params, blind=blind, not_hz=not_hz)
+                                                   params=params, blind=blind, not_hz=not_hz,
+                                                   frame_cadence=frame_cadence)
         return DiagramMeasures(norm, runs, links, motion, lengths, statement, stretches)
 
     first = measured(given, normalized)

@@ -28,12 +28,14 @@ class Flow:
     source: str
     warnings: tuple[str, ...] = ()
 
-def falling(norm: Normalized, diagram: Diagram, fps: float) -> GrainMotion | None:
-    """The grains falling through the bubbles (None with one material only)."""
+def falling(norm: Normalized, diagram: Diagram, fps: float, *,
+            unseen: np.ndarray | None = None) -> GrainMotion | None:
+    """The grains falling through the bubbles (None with one material only); ``unseen``: frames bridged by
+    interpolation, whose pairs are left out (:func:`~grainplug.measures.grains.falling_grains`)."""
     if not norm.two_phase:
         return None
     ds = float(diagram.position_mm[1] - diagram.position_mm[0])
-    return falling_grains(norm.z, mm_per_sample=ds, fps=fps)
+    return falling_grains(norm.z, mm_per_sample=ds, fps=fps, unseen=unseen)
 
 def resolve_flow(given: str | None, tube: TubeGeometry, grains: GrainMotion | None) -> Flow:
     """The direction of the flow in the image, decided here and only here.

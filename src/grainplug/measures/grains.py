@@ -44,21 +44,31 @@ class GrainMotion:
 
 
 def falling_grains(z: np.ndarray, *, mm_per_sample: float, fps: float, min_speed_m_s: float = 0.25,
-                   max_speed_m_s: float = 4.0, min_score: float = 8.0, max_pairs: int = 600) -> GrainMotion:
+                   max_speed_m_s: float = 4.0, min_score: float = 8.0, max_pairs: int = 600,
+                   unseen: np.ndarray | None = None) -> GrainMotion:
     """Speed of the specks moving through the bubbles of the contrast diagram ``z``.
 
     The cross-correlation of consecutive frames is summed over every pair, or over
     ``max_pairs`` pairs spread over a record longer than ``2 max_pairs`` frames
     (enough for a clear peak; a long record adds time and memory, not information).
+    A pair with a frame of ``unseen`` (indices of frames bridged by interpolation:
+    :func:`grainplug.diagram.frames.repair_frames`) is left out: an interpolated frame holds
+    the specks of both its neighbours, half-bright, and its pairs correlate at shifts no grain made.
     """
     from .._filters import minimum_filter1d, uniform_filter1d
     n_t, n_s = z.shape
     if n_t < 3 or n_s < 16:
         return GrainMotion(None, 0.0, 0.0)
-    if n_t <= 2 * max_pairs:  # every consecutive pair
-        firsts = np.arange(n_t - 1)
+    seen = np.ones(n_t, bool)
+    if unseen is not None and len(unseen):
+        seen[np.asarray(unseen, int)] = False
+    both = np.flatnonzero(seen[:-1] & seen[1:])  # pairs of frames both seen
+    if len(both) <= 2 * max_pairs:  # every consecutive pair
+        firsts = both
     else:  # pairs spread over the record
-        firsts = np.unique(np.linspace(0, n_t - 2, max_pairs).round().astype(int))
+        firsts = both[np.unique(np.linspace(0, len(both) - 1, max_pairs).round().astype(int))]
+    if len(firsts) < 2:
+        return GrainMotion(None, 0.0, 0.0)
     n_fft = 1 << int(np.ceil(np.log2(2 * n_s)))
     acc = np.zeros(n_fft // 2 + 1, complex)
     n_bubble = n_seen = 0

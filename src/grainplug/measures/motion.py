@@ -28,7 +28,12 @@ variance of ``X(t)`` about the drift, its amplitude (half peak-to-peak) is above
 ``max(0.1 mm, 0.5 px)`` and the record holds at least 1.5 periods; static when,
 at every celerity of the 95% interval, the plugs would have moved by less than a
 pixel over the record (a jammed tube, or a scene where nothing flows); otherwise
-propagative.
+propagative. A periodic part that repeats every whole number of frames, up to
+:data:`FRAME_LOCKED_FRAMES` (``f = h fps / P``), is not looked for: the plugs do not know the camera's
+frame clock, the recording does (a compressed movie's group of pictures holds the edges still in its
+predicted frames and moves them at its reference frames: a staircase of period ``P`` frames; alternate
+exposures; a lamp's ripple locked to the frame rate, 100 Hz at 250 fps repeating every 5 frames). When
+it stands above the oscillation's amplitude threshold it is reported apart (``frame_locked_hz``).
 
 *Confidence interval.* From the drift fit of ``X(t)``, with the standard error
 inflated for the residuals' lag-one autocorrelation ``rho`` by
@@ -46,6 +51,16 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 N_HARMONICS = 3
+#: a periodic part of the plugs' motion that repeats every this many frames or fewer is the recording's
+FRAME_LOCKED_FRAMES = 8
+
+
+def frame_locked_hz(fps: float, f_max: float) -> tuple[float, ...]:
+    """The frequencies up to ``f_max`` of a pattern that repeats every ``P <= FRAME_LOCKED_FRAMES`` frames:
+    ``h fps / P`` (the recording's cadence, not the plugs')."""
+    out = {round(h * fps / p, 9) for p in range(2, FRAME_LOCKED_FRAMES + 1) for h in range(1, p)
+           if h * fps / p <= f_max}
+    return tuple(sorted(out))
 
 
 @dataclass(frozen=True)
@@ -75,6 +90,11 @@ class Motion:
     celerity_se_tracks_m_s : float
         The celerity's standard error from the tracks' scatter alone (the interval adds the scale's,
         ``|celerity| * scale_rel_sd``, in quadrature).
+    frame_locked_hz : float or None
+        Frequency of a periodic part that repeats every few whole frames (the recording's cadence, see the
+        module's notes), strong enough to have been taken for an oscillation; not reported as one.
+    frame_locked_mm : float
+        Its amplitude (0 without one).
     """
 
     celerity_m_s: float
@@ -90,6 +110,8 @@ class Motion:
     n_edges: int
     n_tracks_used: int
     celerity_se_tracks_m_s: float = float("nan")
+    frame_locked_hz: float | None = None
+    frame_locked_mm: float = 0.0
 
 
 def _drift_and_harmonics(t: np.ndarray, f: float | None, n_harm: int) -> np.ndarray:
@@ -230,7 +252,8 @@ NO_FOLLOWED_EDGE = ("plugs were seen, but no upper edge was followed over 3 fram
 
 def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, frame: np.ndarray,
                    *, fps: float, mm_per_px: float, scale_rel_sd: float = 0.0,
-                   min_track_edges: int = 3, not_hz: tuple[float, ...] = ()) -> Motion | None:
+                   min_track_edges: int = 3, not_hz: tuple[float, ...] = (),
+                   frame_cadence: bool = False) -> Motion | None:
     """Celerity, oscillation and regime from the upper edges of all plug tracks.
 
     Parameters
@@ -248,6 +271,11 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     not_hz : tuple of float
         Frequencies that are not the plugs' (the camera's shake, :mod:`grainplug.measures.shake`): an
         oscillation is not looked for within ``max(0.3 Hz, 2 bins)`` of them.
+    frame_cadence : bool
+        The recording may move the edges at a cadence of a few frames (a lossy codec that predicts frames
+        from others): a periodic part that repeats every :data:`FRAME_LOCKED_FRAMES` frames or fewer is then not
+        looked for (and is reported in ``frame_locked_hz`` when strong); otherwise an oscillation found at such a
+        frequency is reported, and named in ``frame_locked_hz`` too.
 
     Returns
     -------
@@ -290,8 +318,19 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     regime, f_osc, amp, explained = "propagative", None, 0.0, 0.0
     f_lo = max(1.5 / max(duration, 1e-9), 0.3)
     band = (freqs >= f_lo) & (freqs <= 0.45 * fps)
+    tol = max(0.3, 2.0 * (freqs[1] - freqs[0]) if len(freqs) > 1 else 0.3)
     for f_no in not_hz:  # the camera's frequency is not the plugs'
-        band &= np.abs(freqs - f_no) > max(0.3, 2.0 * (freqs[1] - freqs[0]) if len(freqs) > 1 else 0.3)
+        band &= np.abs(freqs - f_no) > tol
+    locked_hz = frame_locked_hz(fps, 0.45 * fps) if frame_cadence else ()
+    locked = np.zeros_like(band)
+    for f_l in locked_hz:  # nor is the recording's cadence
+        locked |= band & (np.abs(freqs - f_l) <= tol)
+    threshold = max(0.1, 0.5 * mm_per_px)
+    locked_f, locked_mm = None, 0.0
+    if locked.any() and float(spec[locked].max()) >= threshold and spec[locked].max() >= spec[band].max():
+        i = int(np.argmax(np.where(locked, spec, -np.inf)))
+        locked_f, locked_mm = float(freqs[i]), float(spec[i])
+    band &= ~locked
     var_x = float(np.var(seg))
     if band.any() and var_x > 0:
         f_peak = float(freqs[band][np.argmax(spec[band])])
@@ -327,11 +366,13 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
             resid = seg - (per_frames - per_frames.mean()) - np.polyval(
                 np.polyfit(time_s[first: last + 1], seg - per_frames, 1), time_s[first: last + 1])
             explained = float(1 - np.var(resid) / var_x)
-            threshold = max(0.1, 0.5 * mm_per_px)
-            camera = any(abs(f_best * h - f_no) <= max(0.3, 2.0 * step) for f_no in not_hz for h in (1, 2, 3))
+            camera = any(abs(f_best * h - f_no) <= tol for f_no in not_hz for h in (1, 2, 3)) or \
+                any(abs(f_best - f_l) <= tol for f_l in locked_hz)
             if explained >= 0.5 and amp_fit >= threshold and f_best * duration >= 1.5 and not camera:
                 regime, f_osc, amp = "oscillating", f_best, amp_fit
                 coef = c_best
+                if any(abs(f_best - f_l) <= tol for f_l in frame_locked_hz(fps, 0.45 * fps)):
+                    locked_f, locked_mm = f_best, amp_fit  # reported, and said to repeat every few frames
     celerity = float(coef[0]) / 1000.0  # mm/s -> m/s
     # interval from the drift fit of X(t) + drift, inflated for autocorrelation
     tt = time_s[first: last + 1]
@@ -357,5 +398,6 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
         oscillation_frequency_hz=f_osc, oscillation_amplitude_mm=amp,
         explained_fraction=explained, spectrum_hz=freqs, spectrum_mm=spec,
         time_s=np.asarray(time_s), displacement_mm=X + coef[0] * np.asarray(time_s),
-        n_edges=int(ok.sum()), n_tracks_used=n_tr, celerity_se_tracks_m_s=se_tracks,
+        n_edges=int(ok.sum()), n_tracks_used=n_tr, celerity_se_tracks_m_s=se_tracks, frame_locked_hz=locked_f,
+        frame_locked_mm=locked_mm,
     )

@@ -42,6 +42,14 @@ def choose_fps(given: float | None, in_file: float | None) -> tuple[float | None
     return float(given), "user", []
 
 
+#: lossy codecs that predict frames from others (PyAV's names and OpenCV's four-character codes): their groups of
+#: pictures hold some frames' contents still and refresh them at others, a cadence of a few frames
+PREDICTING_CODECS = frozenset({
+    "h264", "hevc", "h265", "mpeg4", "mpeg2video", "mpeg1video", "msmpeg4v2", "msmpeg4v3", "h263", "vp8", "vp9",
+    "av1", "theora", "wmv2", "wmv3", "vc1", "avc1", "x264", "hev1", "hvc1", "mp4v", "xvid", "divx", "dx50", "vp80",
+    "vp90", "av01", "mpg1", "mpg2"})
+
+
 @dataclass(frozen=True)
 class MovieInfo:
     """What a movie file says about itself.
@@ -105,6 +113,13 @@ class MovieInfo:
     camera: str = ""
     warnings: tuple[str, ...] = ()
     details: dict[str, object] = field(default_factory=dict)
+
+    @property
+    def predicts_frames(self) -> bool:
+        """Whether the file's codec is a lossy one that predicts frames from others (H.264, HEVC, MPEG-4, VP9...):
+        what it holds still and refreshes follows its group of pictures, a cadence of a few frames."""
+        kind, _, codec = self.format.partition("/")
+        return kind.startswith("video") and codec.strip().lower() in PREDICTING_CODECS
 
     @property
     def duration_s(self) -> float | None:
