@@ -56,7 +56,7 @@ from .diagram.light import divide_by_lamp
 from .errors import ParameterError
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
-from .measures.shake import measure_shake, shake_hz, shift_along
+from .measures.shake import measure_shake, register_sample, shake_hz, shift_along
 from .params import AnalysisParams, tube_orientation
 from .plugs import Runs
 from .provenance import fingerprint, movie_identity
@@ -131,7 +131,13 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("sample_s")
         wanted = tube_orientation(params.flow_direction) if params.flow_direction else None
         tube = find_tube(sample, orientation=wanted)
-        other_tubes = other_moving_regions(sample, tube)
+        # the camera's motion across the tube, measured on the sampled frames' walls: the tube is found again on
+        # the frames moved back (a shaking wall is not a second tube, nor the bore found wider by its swing)
+        steady, sample_shake = register_sample(sample, orientation=tube.orientation, tilt_deg=tube.tilt_deg)
+        if sample_shake.registered:
+            tube = find_tube(steady, orientation=tube.orientation)
+        other_tubes = other_moving_regions(steady, tube)
+        del steady
         sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
         laps("tube_s")
         probe_band, axis_px, probes = probes_along_tube(tube)  # the tube's core, and what does not move with it
