@@ -50,13 +50,13 @@ from .checks import (
     still_regions,
 )
 from .diagram import Diagram, normalize
-from .diagram.extract import probes_along_tube
+from .diagram.extract import CORE_FRACTION, probes_along_tube
 from .diagram.frames import repair_frames
 from .diagram.light import divide_by_lamp
 from .errors import ParameterError
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
-from .measures.shake import measure_shake, register_sample, shake_hz, shift_along
+from .measures.shake import band_margin_px, measure_shake, register_sample, shake_hz, shift_along
 from .params import AnalysisParams, tube_orientation
 from .plugs import Runs
 from .provenance import fingerprint, movie_identity
@@ -157,7 +157,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
             light_warnings = all_coded("light.background", light)
         values, lamp = divide_by_lamp(values, beside, beside_at, back_lit=tube.back_lit)
         values = np.ascontiguousarray(values)  # its own memory, not a view of the read
-        shake = measure_shake(across, [beside], fps=info.fps)
+        shake = measure_shake(across, [beside], fps=info.fps,
+                              band_margin_px=band_margin_px(tube.inner_diameter_px, CORE_FRACTION))
         del read, across, beside  # the diagram is all that is kept of the read
         if shake.along_px is not None:  # the diagram held still against the tube
             values = shift_along(values, shake.along_px)
@@ -167,6 +168,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("fingerprint_s")
     values, repair = repair_frames(values, top=_top_value(info))
     mm_per_px = scale.mm_per_px
+    shake = dataclasses.replace(shake, mm_per_px=mm_per_px, sample_registered=sample_shake.registered,
+                                sample_rms_across_px=sample_shake.rms_px)
     diagram = Diagram(values, time_s, axis_px * mm_per_px, mm_per_px)
     norm = normalize(diagram.values, background_level=tube.background_level,
                      confirm_px=confirm_px(params.min_plug_mm, mm_per_px))
@@ -189,8 +192,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *cut_by_the_frame(tube, params), *scale.warnings,
-                  *given_scale_doubts(tube, params, has_plugs=has_plugs, two_phase=norm.two_phase,
-                                      shake_rms_px=(shake.rms_across_px or 0.0) if shake.shaking else 0.0),
+                  *given_scale_doubts(tube, params, has_plugs=has_plugs, two_phase=norm.two_phase),
                   *light_warnings,
                   *all_coded("frames.repaired", filter(None, [repair.describe(diagram.n_frames,
                                                                               first=first_movie_frame(info))])),

@@ -72,12 +72,37 @@ class Shake:
     along_source: str
     #: the frequency of the camera's slow wander (a pixel or more, slower than :data:`WANDER_S`), when it wanders
     wander_hz: float | None = None
+    #: the farthest the tube moved across (px from its median position, the 99th percentile of the frames)
+    reach_across_px: float | None = None
+    #: how far the tube may move across before a share of the diagram's band lies on its walls (px; None: not
+    #: said; :func:`band_margin_px`)
+    band_margin_px: float | None = None
+    #: the sampled frames' motion across the tube (rms, px), measured before the tube was found on them
+    sample_rms_across_px: float | None = None
+    #: whether the sampled frames were moved back before the tube was found (:func:`register_sample`)
+    sample_registered: bool = False
+    #: the scale, for the figures in mm (None: not known yet)
+    mm_per_px: float | None = None
+
+    @property
+    def too_large(self) -> bool:
+        """Whether the tube moved across farther than its band's margin: the band took in the walls."""
+        return (self.reach_across_px is not None and self.band_margin_px is not None
+                and self.reach_across_px > self.band_margin_px)
 
     def as_dict(self) -> dict[str, object]:
+        def mm(px: float | None) -> float | None:
+            return None if px is None or self.mm_per_px is None else px * self.mm_per_px
+
         return {"shaking": self.shaking, "rms_across_px": rounded(self.rms_across_px, 4),
                 "rms_along_px": rounded(self.rms_along_px, 4), "frequency_hz": rounded(self.frequency_hz, 4),
                 "wander_hz": rounded(self.wander_hz, 4),
-                "along_measured": self.along_px is not None, "along_source": self.along_source}
+                "along_measured": self.along_px is not None, "along_source": self.along_source,
+                "rms_across_mm": rounded(mm(self.rms_across_px), 5), "rms_along_mm": rounded(mm(self.rms_along_px), 5),
+                "reach_across_px": rounded(self.reach_across_px, 4),
+                "band_margin_px": rounded(self.band_margin_px, 4), "too_large": self.too_large,
+                "sample_registered": self.sample_registered,
+                "sample_rms_across_px": rounded(self.sample_rms_across_px, 4)}
 
 
 #: the registration's working arrays hold at most this many samples (frames x profile length) at once
@@ -212,7 +237,19 @@ def main_frequency(x: np.ndarray, fps: float, *, lowest_hz: float = 1.0) -> floa
     return float(f[band][np.argmax(spec[band])])
 
 
-def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: float) -> Shake:
+#: the tube has moved too far across when this share of the diagram's band lies outside its bore
+BAND_OUT_SHARE = 0.25
+
+
+def band_margin_px(bore_px: float, core_fraction: float) -> float:
+    """How far (px) the tube may move across before :data:`BAND_OUT_SHARE` of the diagram's band (the central
+    ``core_fraction`` of the bore) lies outside the bore, on the walls."""
+    half = 0.5 * core_fraction * bore_px
+    return 0.5 * bore_px - half + 2.0 * BAND_OUT_SHARE * half
+
+
+def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: float,
+                  band_margin_px: float | None = None) -> Shake:
     """The tube's motion from its probes.
 
     Parameters
@@ -223,6 +260,9 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
         Profiles along the tube of what does not move with the grains (the background beside it).
     fps : float
         Frame rate.
+    band_margin_px : float, optional
+        How far the tube may move across before the diagram's band takes in its walls (:func:`band_margin_px`,
+        :attr:`Shake.too_large`).
     """
     # the profiles across the tube at its several heights move together (the camera moves the whole image): their
     # mean is registered once, with less noise
@@ -247,7 +287,9 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
             wander = main_frequency(slow, fps, lowest_hz=0.3)
     source = ("the background beside the tube" if x_along is not None else
               "nothing still along the tube (a flat background beside it) to register it on")
-    return Shake(x_across, x_along, rms_a, rms_l, freq, bool(shaking), source, wander)
+    reach = None if x_across is None else float(np.percentile(np.abs(x_across - np.median(x_across)), 99))
+    return Shake(x_across, x_along, rms_a, rms_l, freq, bool(shaking), source, wander,
+                 reach_across_px=reach, band_margin_px=band_margin_px)
 
 
 #: a long profile is registered on at most this many samples (neighbours averaged): the same sub-pixel shift,
