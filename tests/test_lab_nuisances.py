@@ -115,21 +115,19 @@ def _xfail(name: str, reason: str) -> pytest.param:
     return pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=reason))
 
 
-#: cases grainplug gets wrong today (2026-11-28, after the shake, lamp and blind-stretch corrections), with the
-#: nuisance that breaks them
+#: cases grainplug gets wrong today (2026-11-28, after the shake registration, lamp and blind-stretch corrections),
+#: with the nuisance that breaks them
 WRONG_TODAY: dict[str, str] = {
-    "shake 1 px 20 Hz + wander 3 px, c=-0.02": "camera shake read as the plugs oscillating at 20 Hz",
-    "shake 1.5 px 35 Hz, static plugs": "camera shake on still plugs: the shaking wall taken for a second tube, "
-                                        "no plugs found",
-    "shake 1 px 8 Hz, static plugs": "camera shake on still plugs: no plugs found (second tube)",
+    "shake 1 px 8 Hz, static plugs": "still plugs in a camera that wanders 2 px along the tube with nothing still "
+                                     "beside it: the wander widens the interval, read as propagative",
     "ripple 30 % 120 Hz, front light": "lamp ripple (front light): the falling grains read as rising, the "
                                        "celerity's sign flipped without a warning",
     "two clamps 6 mm, front light": "two clamps in front light: taken for plugs, oscillation, celerity -6 %",
     "label 12 mm, 55 % through": "translucent label read as part of the plugs (+10 %)",
     "label 20 mm, 30 % through": "translucent label read as part of the plugs (+14 %)",
     "H.264 crf 35": "H.264 at crf 35: the codec's frame cadence read as the plugs oscillating at 62.6 Hz",
-    **{name: "combined shake, ripple, clamp, label and shadow: plug lengths, celerity interval"
-       for name in CASES if name.startswith("combined") and name not in ("combined c=-0.05", "combined c=-0.1")},
+    **{name: "combined shake, ripple, clamp, label and shadow: plug lengths (the label's +7 to +14 %), celerity "
+             "interval" for name in CASES if name.startswith("combined")},
 }
 #: passes today by under 0.2 % of a target (celerity +5.9 % for 6 %) and fails with seeds 2-4: neither
 #: asserted nor expected to fail, so that an unrelated change of a tenth of a per cent does not trip the suite
