@@ -12,7 +12,7 @@ from lab_nuisances import Motion, Scene, Shake, render_frames, truth_record
 
 import grainplug as gp
 from grainplug.calibration import find_tube
-from grainplug.measures.shake import register_sample, register_wide
+from grainplug.measures.shake import register_sample, register_wide, shake_line
 from grainplug.warning_codes import codes_of
 
 #: a short record of the renderer's tube (3 mm bore at 0.15 mm/px: 20 px), quick to draw
@@ -71,7 +71,7 @@ def _analyse(scene: Scene, seed: int) -> tuple[gp.AnalysisResult, dict[str, obje
                                                                          "record": truth_record(truth)}
 
 
-def test_the_tubes_motion_across_is_measured_on_every_frame_within_a_tenth_of_a_pixel():
+def test_the_tubes_motion_across_is_measured_on_every_frame_within_a_tenth_of_a_pixel(tmp_path):
     scene = Scene(height_px=400, n_frames=160, shake=Shake(1.2, 25.0, wander_px=2.5))
     res, t = _analyse(scene, 4)
     across = t["truth"].shake_px[:, 1]
@@ -80,6 +80,10 @@ def test_the_tubes_motion_across_is_measured_on_every_frame_within_a_tenth_of_a_
     s = res.summary["shake"]
     assert s["shaking"] and abs(s["frequency_hz"] - 25.0) < 0.5
     assert s["sample_registered"] and abs(s["rms_across_mm"] - s["rms_across_px"] * scene.mm_per_px) < 1e-4
+    line = shake_line(s)
+    assert f"at {s['frequency_hz']:.3g} Hz" in line and "px rms across" in line and "along not measured" in line
+    res.save(tmp_path / "out", figures=False, report=True)
+    assert line in (tmp_path / "out" / "report.html").read_text()
 
 
 def test_still_plugs_in_a_shaking_camera_are_found_still_and_measured():

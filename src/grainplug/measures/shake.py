@@ -490,3 +490,20 @@ def register_sample(frames: list[np.ndarray], *, orientation: str,
         moved.append(cv2.warpAffine(g, m, (g.shape[1], g.shape[0]), flags=cv2.INTER_LANCZOS4,
                                     borderMode=cv2.BORDER_REPLICATE))
     return moved, SampleShake(s, typical_sd, True)
+
+
+def shake_line(block: dict[str, object] | None) -> str:
+    """One line on the camera's shake from ``summary.json``'s ``shake`` block (empty when the camera was steady):
+    its rms across and along the tube (px and mm), its main frequency, and whether it was too large."""
+    if not block or not (block.get("shaking") or block.get("too_large")):
+        return ""
+
+    def part(name: str, key: str) -> str:
+        px, mm = block.get(f"rms_{key}_px"), block.get(f"rms_{key}_mm")
+        if px is None:
+            return f"{name} not measured"
+        return f"{px:.2g} px rms {name}" + (f" ({mm:.2g} mm)" if mm is not None else "")
+
+    f = block.get("frequency_hz")
+    out = f"{part('across', 'across')}, {part('along', 'along')}" + (f", at {f:.3g} Hz" if f else "")
+    return out + (" — too large: the diagram's band took in the walls" if block.get("too_large") else "")
