@@ -350,8 +350,9 @@ def shake_hz(shake: Shake | None) -> tuple[float, ...]:
 #: the sampled frames are moved back when the tube's motion across them reaches this rms (px): below, the frames are
 #: used as they are (a steady camera costs nothing more)
 SAMPLE_MIN_RMS_PX = 0.15
-#: the profile across the tube is projected along every this many rows (a frame's thousand rows are not needed)
-SAMPLE_ROW_STEP = 2
+#: the profile across the tube is projected along at most this many rows, spread along it (a frame's thousand rows
+#: are not needed: 128 rows average the noise to a small fraction of a grey level)
+SAMPLE_ROWS = 128
 
 
 @dataclass(frozen=True)
@@ -394,7 +395,7 @@ def register_wide(profiles: np.ndarray, *, search_px: int = SAMPLE_SEARCH_PX) ->
     Returns the shifts (samples, positive: the profile moved to higher indices, about their median) and their
     standard errors.
     """
-    P = np.asarray(profiles, np.float64)
+    P = np.asarray(profiles, np.float32)
     n_t, n_x = P.shape
     k = int(min(search_px, n_x // 4))
     d = np.gradient(P, axis=1)
@@ -406,8 +407,11 @@ def register_wide(profiles: np.ndarray, *, search_px: int = SAMPLE_SEARCH_PX) ->
         score[:, j] = (d[:, core] * ref[k - lag: n_x - k - lag][None, :]).sum(axis=1)
     whole = lags[np.argmax(score, axis=1)].astype(float)
     whole -= np.median(whole).round()
-    x = np.arange(n_x, dtype=float)
-    back = np.stack([np.interp(x + w, x, p) for p, w in zip(P, whole, strict=True)])  # p(x + w): moved back
+    if not whole.any():  # a steady camera: Gauss-Newton from zero is enough
+        return register(profiles)
+    # p(x + w): each profile moved back by its whole pixels (held at its ends)
+    idx = np.clip(np.arange(n_x)[None, :] + whole.astype(np.int64)[:, None], 0, n_x - 1)
+    back = np.take_along_axis(np.asarray(profiles, np.float32), idx, axis=1)
     # Gauss-Newton from the whole-pixel guess: the moved-back profiles registered, the guess added back
     s_fine, sd = register(back, n_iter=8, reference=np.median(back, axis=0))
     s = whole + s_fine
@@ -415,7 +419,7 @@ def register_wide(profiles: np.ndarray, *, search_px: int = SAMPLE_SEARCH_PX) ->
 
 
 def across_profiles(frames: list[np.ndarray], *, orientation: str, tilt_deg: float,
-                    row_step: int = SAMPLE_ROW_STEP) -> np.ndarray:
+                    max_rows: int = SAMPLE_ROWS) -> np.ndarray:
     """Every frame's mean grey level along lines parallel to the tube's axis, at every pixel across it
     (``n_frames x n_columns`` of the canonical view; columns some line leaves the frame for are dropped).
 
@@ -427,16 +431,20 @@ def across_profiles(frames: list[np.ndarray], *, orientation: str, tilt_deg: flo
         The tube's axis in the frame (a horizontal tube's frames are transposed: the canonical view).
     tilt_deg : float
         The axis' angle from the canonical view's columns.
-    row_step : int
-        Every this many rows along the tube are projected.
+    max_rows : int
+        At most this many rows along the tube are projected (every ``k``-th).
     """
     from ..calibration.tube import sheared_profile, to_grey
 
-    tan_b = float(np.tan(np.radians(tilt_deg)))
     out = []
     for f in frames:
-        g = to_grey(np.swapaxes(f, 0, 1) if orientation == "horizontal" else f)
-        out.append(sheared_profile(g, tan_b, np.arange(g.shape[1], dtype=float), rows=slice(None, None, row_step)))
+        view = np.swapaxes(f, 0, 1) if orientation == "horizontal" else f
+        step = max(1, view.shape[0] // max_rows)
+        g = to_grey(view[::step])  # only the rows projected are made grey
+        # row k of g is the view's row k * step: the lines' slope per row of g is step times theirs (the constant
+        # left over, the same for every frame, does not move one frame against another)
+        tan_b = float(np.tan(np.radians(tilt_deg))) * step
+        out.append(sheared_profile(g, tan_b, np.arange(g.shape[1], dtype=float)))
     P = np.stack(out) if out else np.zeros((0, 0))
     return P[:, np.isfinite(P).all(axis=0)] if P.size else P
 
