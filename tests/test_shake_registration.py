@@ -12,7 +12,7 @@ from lab_nuisances import Motion, Scene, Shake, render_frames, truth_record
 
 import grainplug as gp
 from grainplug.calibration import find_tube
-from grainplug.measures.shake import register_sample, register_wide, shake_line
+from grainplug.measures.shake import across_profiles, register_sample, register_wide, shake_line
 from grainplug.warning_codes import codes_of
 
 #: a short record of the renderer's tube (3 mm bore at 0.15 mm/px: 20 px), quick to draw
@@ -127,3 +127,15 @@ def test_a_steady_camera_is_not_taken_for_a_shaking_one():
     s = res.summary["shake"]
     assert not s["shaking"] and not s["too_large"] and not s["sample_registered"]
     assert not [c for c in res.summary["warning_codes"] if c.startswith("shake.")]
+
+
+@pytest.mark.parametrize("horizontal", [False, True])
+def test_the_frames_moved_back_hold_the_tube_still_whichever_way_it_lies(horizontal):
+    scene = Scene(height_px=400, n_frames=64, motion=Motion("static"), shake=Shake(1.0, 8.0, wander_px=3.0))
+    frames, _ = render_frames(scene, np.random.default_rng(11))
+    sample = [np.ascontiguousarray(f.T) if horizontal else f for f in frames[::2]]
+    orientation = "horizontal" if horizontal else "vertical"
+    steady, got = register_sample(sample, orientation=orientation)
+    assert got.registered and got.rms_px > 1.0
+    again, _ = register_wide(across_profiles(steady, orientation=orientation, tilt_deg=0.0))
+    assert np.std(again) < 0.05
