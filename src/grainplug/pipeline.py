@@ -53,7 +53,7 @@ from .diagram import Diagram, normalize
 from .diagram.extract import CORE_FRACTION, probes_along_tube
 from .diagram.frames import repair_frames
 from .diagram.light import divide_by_lamp
-from .errors import ParameterError
+from .errors import MovieError, ParameterError
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
 from .measures.shake import band_margin_px, measure_shake, register_sample, shake_hz, shift_along
@@ -135,7 +135,11 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         # the frames moved back (a shaking wall is not a second tube, nor the bore found wider by its swing)
         steady, sample_shake = register_sample(sample, orientation=tube.orientation, tilt_deg=tube.tilt_deg)
         if sample_shake.registered:
-            tube = find_tube(steady, orientation=tube.orientation)
+            try:
+                tube = find_tube(steady, orientation=tube.orientation)
+            except MovieError as err:  # what moved was not a camera carrying a tube (a vibrating object): as found
+                log.info("the tube was not found again on the registered frames (%s): the first look kept", err)
+                steady, sample_shake = sample, dataclasses.replace(sample_shake, registered=False)
         other_tubes = other_moving_regions(steady, tube)
         del steady
         sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
