@@ -101,7 +101,7 @@ SEEN_OVER_BORE = (0.6, 1.15)
 SEEN_OVER_BORE_NO_PLUGS = 0.3
 
 def given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs: bool,
-                        two_phase: bool = True, shake_rms_px: float = 0.0) -> list[str]:
+                        two_phase: bool = True) -> list[str]:
     """A warning when the tube seen is far wider or narrower than a given scale makes its bore (a wrong
     ``mm_per_px`` or tube diameter, or something in view that is not the tube)."""
     if not params.mm_per_px:
@@ -112,8 +112,8 @@ def given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs:
     # material only (an empty tube with a few grains falling): seen over a few pixels, nothing to doubt by
     low = (SEEN_OVER_BORE[0] if has_plugs and tube.back_lit is not None else
            SEEN_OVER_BORE_NO_PLUGS if two_phase else 0.0)
-    # a camera that shakes across the tube widens the contents seen over the sampled frames by about its swing
-    if low <= ratio <= SEEN_OVER_BORE[1] + 2.0 * np.sqrt(2.0) * shake_rms_px / expected_px:
+    # (a camera that shakes across the tube does not widen it: the sampled frames are registered before it is found)
+    if low <= ratio <= SEEN_OVER_BORE[1]:
         return []
     return [coded("scale.given_vs_tube",
         f"the tube's contents are seen over {tube.inner_diameter_px:.1f} px, but the given scale makes its "
@@ -272,7 +272,15 @@ def guessed_sign(flow: Flow, motion: Motion | None) -> list[str]:
 def shaken(shake: Shake | None, motion: Motion | None) -> list[str]:
     """A warning when the camera shook (the tube moved in the image): how much, at what frequency, what was
     corrected, and that a plug motion at that frequency is not reported as the plugs'."""
-    if shake is None or not shake.shaking:
+    if shake is None:
+        return []
+    if shake.too_large:
+        return [coded("shake.too_large",
+            f"the camera moved the tube across by up to {shake.reach_across_px:.2g} px, more than the "
+            f"{shake.band_margin_px:.2g} px it may before the diagram's band takes in the tube's walls: the plug "
+            "edges, lengths and motion may be wrong (a plug motion at the camera's frequency is not reported as "
+            "the plugs') — steady the camera (a heavier stand, away from the pump)")]
+    if not shake.shaking:
         return []
     f = f" at {shake.frequency_hz:.3g} Hz" if shake.frequency_hz else ""
     parts = [f"{v:.2g} px rms {name}" for v, name in ((shake.rms_across_px, "across the tube"),

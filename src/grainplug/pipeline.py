@@ -51,13 +51,13 @@ from .checks import (
     still_regions,
 )
 from .diagram import Diagram, normalize
-from .diagram.extract import probes_along_tube, resample_positions
+from .diagram.extract import CORE_FRACTION, probes_along_tube, resample_positions
 from .diagram.frames import repair_frames
 from .diagram.light import divide_by_lamp
-from .errors import ParameterError
+from .errors import MovieError, ParameterError
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
-from .measures.shake import measure_shake, shake_hz, shift_along
+from .measures.shake import band_margin_px, measure_shake, register_sample, shake_hz, shift_along
 from .measures.still import shaken_margin
 from .params import AnalysisParams, tube_orientation
 from .plugs import Runs
@@ -133,7 +133,17 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("sample_s")
         wanted = tube_orientation(params.flow_direction) if params.flow_direction else None
         tube = find_tube(sample, orientation=wanted)
-        other_tubes = other_moving_regions(sample, tube)
+        # the camera's motion across the tube, measured on the sampled frames' walls: the tube is found again on
+        # the frames moved back (a shaking wall is not a second tube, nor the bore found wider by its swing)
+        steady, sample_shake = register_sample(sample, orientation=tube.orientation, tilt_deg=tube.tilt_deg)
+        if sample_shake.registered:
+            try:
+                tube = find_tube(steady, orientation=tube.orientation)
+            except MovieError as err:  # what moved was not a camera carrying a tube (a vibrating object): as found
+                log.info("the tube was not found again on the registered frames (%s): the first look kept", err)
+                steady, sample_shake = sample, dataclasses.replace(sample_shake, registered=False)
+        other_tubes = other_moving_regions(steady, tube)
+        del steady
         sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
         laps("tube_s")
         probe_band, axis_px, probes = probes_along_tube(tube)  # the tube's core, and what does not move with it
@@ -153,7 +163,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
             light_warnings = all_coded("light.background", light)
         values, lamp = divide_by_lamp(values, beside, beside_at, back_lit=tube.back_lit)
         values = np.ascontiguousarray(values)  # its own memory, not a view of the read
-        shake = measure_shake(across, [beside], fps=info.fps)
+        shake = measure_shake(across, [beside], fps=info.fps,
+                              band_margin_px=band_margin_px(tube.inner_diameter_px, CORE_FRACTION))
         del read, across, beside  # the diagram is all that is kept of the read
         if shake.along_px is not None:  # the diagram held still against the tube
             values = shift_along(values, shake.along_px)
@@ -163,6 +174,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("fingerprint_s")
     values, repair = repair_frames(values, top=_top_value(info))
     mm_per_px = scale.mm_per_px
+    shake = dataclasses.replace(shake, mm_per_px=mm_per_px, sample_registered=sample_shake.registered,
+                                sample_rms_across_px=sample_shake.rms_px)
     if scale.map_through is not None:  # the lens's distortion: the samples placed evenly in mm along the tube
         values = resample_positions(values, uniform_samples(scale.map_through, tube, axis_px, mm_per_px))
     diagram = Diagram(values, time_s, axis_px * mm_per_px, mm_per_px)
@@ -188,8 +201,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
         warnings=[*info.warnings, *cut_by_the_frame(tube, params), *scale.warnings,
-                  *given_scale_doubts(tube, params, has_plugs=has_plugs, two_phase=norm.two_phase,
-                                      shake_rms_px=(shake.rms_across_px or 0.0) if shake.shaking else 0.0),
+                  *given_scale_doubts(tube, params, has_plugs=has_plugs, two_phase=norm.two_phase),
                   *light_warnings,
                   *all_coded("frames.repaired", filter(None, [repair.describe(diagram.n_frames,
                                                                               first=first_movie_frame(info))])),

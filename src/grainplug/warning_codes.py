@@ -105,6 +105,8 @@ CODES: dict[str, tuple[str, str]] = {
                         "nothing: a plug motion at the shake's frequency is not reported as the plugs'"),
     "shake.along_unmeasured": ("the camera shook, and its motion along the tube could not be measured",
                                "steady the camera, or put a still mark beside the tube"),
+    "shake.too_large": ("the camera moved the tube across farther than the diagram's band is from its walls",
+                        "steady the camera"),
     # still objects over the tube
     "still.region": ("a stretch of the tube where nothing changes over the record (a clamp, a fitting, the end)",
                      "leave it out of the region analysed (roi=)"),

@@ -13,6 +13,7 @@ from rich.markup import escape
 
 from .._format import with_interval
 from ..errors import ParameterError
+from ..measures.shake import shake_line
 from ..params import FLOW_DIRECTIONS, AnalysisParams
 from .common import (
     OVERWRITE_HELP,
@@ -302,6 +303,8 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
             click.echo(f"oscillation     {fmt(s['oscillation_frequency_hz'], ' Hz', 3)}, "
                        f"amplitude {fmt(s['oscillation_amplitude_mm'], ' mm', 2)}")
         click.echo(f"scale           {fmt(s['mm_per_px'], ' mm/px', 5)} from {s['scale_source']}")
+        if shake_line(s.get("shake")):
+            click.echo(f"camera shake    {shake_line(s.get('shake'))}")
     click.echo(f"outputs in      {out}")
 
 

@@ -235,6 +235,21 @@ def _periodic_part(coef: np.ndarray, n_tracks: int, f: float, n_harm: int, t: np
     return out
 
 
+def _without_frequencies(x: np.ndarray, t: np.ndarray, freqs: tuple[float, ...], *,
+                         lowest_hz: float) -> np.ndarray:
+    """``x`` less its least-squares sinusoids at ``freqs`` (those at or above ``lowest_hz``: a slower one is
+    not told from the drift), fitted together with a straight line that is kept."""
+    fs = [float(f) for f in freqs if f >= lowest_hz]
+    if not fs or len(x) < 2 * len(fs) + 4:
+        return x
+    cols = [np.ones_like(t), t - t.mean()]
+    for f in fs:
+        cols += [np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)]
+    A = np.stack(cols, axis=1)
+    coef, *_ = np.linalg.lstsq(A, x, rcond=None)
+    return x - A[:, 2:] @ coef[2:]
+
+
 def _spectrum(x: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
     """One-sided amplitude spectrum (mm) of an evenly sampled series, Hann window, zero-padded."""
     n = len(x)
@@ -379,6 +394,8 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     drift_series = seg + coef[0] * tt
     if regime == "oscillating":
         drift_series = drift_series - _periodic_part(coef, n_tr, f_osc, _harmonics_for(f_osc, fps), tt)
+    # the camera's motion (its frequencies, measured on the tube's walls) is not the plugs' scatter about the drift
+    drift_series = _without_frequencies(drift_series, tt, not_hz, lowest_hz=f_lo)
     xm = float(tt.mean())
     sxx = float(((tt - xm) ** 2).sum())
     slope = float(((tt - xm) * (drift_series - drift_series.mean())).sum() / sxx)

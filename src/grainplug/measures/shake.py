@@ -72,12 +72,37 @@ class Shake:
     along_source: str
     #: the frequency of the camera's slow wander (a pixel or more, slower than :data:`WANDER_S`), when it wanders
     wander_hz: float | None = None
+    #: the farthest the tube moved across (px from its median position, the 99th percentile of the frames)
+    reach_across_px: float | None = None
+    #: how far the tube may move across before a share of the diagram's band lies on its walls (px; None: not
+    #: said; :func:`band_margin_px`)
+    band_margin_px: float | None = None
+    #: the sampled frames' motion across the tube (rms, px), measured before the tube was found on them
+    sample_rms_across_px: float | None = None
+    #: whether the sampled frames were moved back before the tube was found (:func:`register_sample`)
+    sample_registered: bool = False
+    #: the scale, for the figures in mm (None: not known yet)
+    mm_per_px: float | None = None
+
+    @property
+    def too_large(self) -> bool:
+        """Whether the tube moved across farther than its band's margin: the band took in the walls."""
+        return (self.reach_across_px is not None and self.band_margin_px is not None
+                and self.reach_across_px > self.band_margin_px)
 
     def as_dict(self) -> dict[str, object]:
+        def mm(px: float | None) -> float | None:
+            return None if px is None or self.mm_per_px is None else px * self.mm_per_px
+
         return {"shaking": self.shaking, "rms_across_px": rounded(self.rms_across_px, 4),
                 "rms_along_px": rounded(self.rms_along_px, 4), "frequency_hz": rounded(self.frequency_hz, 4),
                 "wander_hz": rounded(self.wander_hz, 4),
-                "along_measured": self.along_px is not None, "along_source": self.along_source}
+                "along_measured": self.along_px is not None, "along_source": self.along_source,
+                "rms_across_mm": rounded(mm(self.rms_across_px), 5), "rms_along_mm": rounded(mm(self.rms_along_px), 5),
+                "reach_across_px": rounded(self.reach_across_px, 4),
+                "band_margin_px": rounded(self.band_margin_px, 4), "too_large": self.too_large,
+                "sample_registered": self.sample_registered,
+                "sample_rms_across_px": rounded(self.sample_rms_across_px, 4)}
 
 
 #: the registration's working arrays hold at most this many samples (frames x profile length) at once
@@ -86,7 +111,8 @@ CHUNK_SAMPLES = 1 << 17
 TRIAL_FRAMES = 48
 
 
-def register(profiles: np.ndarray, *, n_iter: int = 4, chunk: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def register(profiles: np.ndarray, *, n_iter: int = 4, chunk: int | None = None,
+             reference: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Shift (samples, positive: the profile moved to higher indices) of each row of ``profiles`` against
     their median over the rows, and its standard error.
 
@@ -99,11 +125,13 @@ def register(profiles: np.ndarray, *, n_iter: int = 4, chunk: int | None = None)
     chunk : int, optional
         Frames registered at once (the working memory is that of ``chunk`` frames, whatever the record's length);
         by default as many as :data:`CHUNK_SAMPLES` allows.
+    reference : ndarray, optional
+        The profile registered on (by default the rows' median).
     """
     P = np.asarray(profiles, np.float32)
     n_t, n_x = P.shape
     chunk = chunk or max(8, CHUNK_SAMPLES // max(n_x, 1))
-    ref = np.median(P, axis=0).astype(np.float64)
+    ref = (np.median(P, axis=0) if reference is None else np.asarray(reference)).astype(np.float64)
     grad = np.gradient(ref)
     var = np.zeros(n_x)
     for lo in range(0, n_t, chunk):  # the variance about the reference, a chunk at a time
@@ -209,7 +237,19 @@ def main_frequency(x: np.ndarray, fps: float, *, lowest_hz: float = 1.0) -> floa
     return float(f[band][np.argmax(spec[band])])
 
 
-def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: float) -> Shake:
+#: the tube has moved too far across when this share of the diagram's band lies outside its bore
+BAND_OUT_SHARE = 0.25
+
+
+def band_margin_px(bore_px: float, core_fraction: float) -> float:
+    """How far (px) the tube may move across before :data:`BAND_OUT_SHARE` of the diagram's band (the central
+    ``core_fraction`` of the bore) lies outside the bore, on the walls."""
+    half = 0.5 * core_fraction * bore_px
+    return 0.5 * bore_px - half + 2.0 * BAND_OUT_SHARE * half
+
+
+def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: float,
+                  band_margin_px: float | None = None) -> Shake:
     """The tube's motion from its probes.
 
     Parameters
@@ -220,12 +260,15 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
         Profiles along the tube of what does not move with the grains (the background beside it).
     fps : float
         Frame rate.
+    band_margin_px : float, optional
+        How far the tube may move across before the diagram's band takes in its walls (:func:`band_margin_px`,
+        :attr:`Shake.too_large`).
     """
     # the profiles across the tube at its several heights move together (the camera moves the whole image): their
     # mean is registered once, with less noise
     full = [p for p in across if p.size and p.shape[1] == max(q.shape[1] for q in across)]
     across = [np.mean(full, axis=0, dtype=np.float32)] if full else []
-    x_across, sd_across = _combine([register(p) for p in _measuring(across, MEASURABLE_SD_PX)])
+    x_across, sd_across = _combine([register_wide(p) for p in _measuring(across, MEASURABLE_SD_PX)])
     x_along, sd_along = _combine([_register_binned(p) for p in _measuring(along, MEASURABLE_ALONG_SD_PX)],
                                  limit_px=MEASURABLE_ALONG_SD_PX)
     if x_along is not None and np.ptp(x_along) > MAX_ALONG_SWING_PX:
@@ -244,7 +287,9 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
             wander = main_frequency(slow, fps, lowest_hz=0.3)
     source = ("the background beside the tube" if x_along is not None else
               "nothing still along the tube (a flat background beside it) to register it on")
-    return Shake(x_across, x_along, rms_a, rms_l, freq, bool(shaking), source, wander)
+    reach = None if x_across is None else float(np.percentile(np.abs(x_across - np.median(x_across)), 99))
+    return Shake(x_across, x_along, rms_a, rms_l, freq, bool(shaking), source, wander,
+                 reach_across_px=reach, band_margin_px=band_margin_px)
 
 
 #: a long profile is registered on at most this many samples (neighbours averaged): the same sub-pixel shift,
@@ -298,3 +343,175 @@ def shake_hz(shake: Shake | None) -> tuple[float, ...]:
     if shake.along_px is None and shake.wander_hz is not None:  # a wander not corrected along the tube
         out.append(shake.wander_hz)
     return tuple(float(f) for f in out)
+
+
+# ---- the sampled frames, registered before the tube is found -----------------------------------------------------
+
+#: the sampled frames are moved back when the tube's motion across them reaches this rms (px): below, the frames are
+#: used as they are (a steady camera costs nothing more)
+SAMPLE_MIN_RMS_PX = 0.15
+#: the profile across the tube is projected along at most this many rows, spread along it (a frame's thousand rows
+#: are not needed: 128 rows average the noise to a small fraction of a grey level)
+SAMPLE_ROWS = 128
+
+
+@dataclass(frozen=True)
+class SampleShake:
+    """The sampled frames' motion across the tube, measured on the structure that does not move with the grains
+    (the walls, the background), before the tube is found on them.
+
+    Attributes
+    ----------
+    across_px : ndarray or None
+        Each sampled frame's displacement across the tube (px, about their median; None when it could not
+        be measured: nothing but the tube's contents has structure across it).
+    sd_px : float
+        The shifts' typical standard error (inf when not measured).
+    registered : bool
+        Whether the frames were moved back (the motion's rms reached :data:`SAMPLE_MIN_RMS_PX` and stood
+        :data:`SHAKE_MIN_SNR` standard errors above the registration's noise).
+    """
+
+    across_px: np.ndarray | None
+    sd_px: float
+    registered: bool
+
+    @property
+    def rms_px(self) -> float | None:
+        """The rms of the shifts about their mean."""
+        return None if self.across_px is None else float(np.std(self.across_px))
+
+
+#: the sampled frames' shifts are first searched in whole pixels up to this far (px): a wander and a shake
+#: together move a camera by a few pixels, more than a wall's edge is wide
+SAMPLE_SEARCH_PX = 8
+
+
+def register_wide(profiles: np.ndarray, *, search_px: int = SAMPLE_SEARCH_PX) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`register` for shifts of up to ``search_px`` (a few pixels, beyond the reach of its Gauss-Newton steps
+    from zero): each profile's gradient is first matched in whole pixels with the median's (its cross-correlation's
+    peak), the profiles moved back, their median taken again as the reference, and :func:`register` refines.
+
+    Returns the shifts (samples, positive: the profile moved to higher indices, about their median) and their
+    standard errors.
+    """
+    P = np.asarray(profiles, np.float32)
+    n_t, n_x = P.shape
+    k = int(min(search_px, n_x // 4))
+    d = np.gradient(P, axis=1)
+    ref = np.median(d, axis=0)
+    lags = np.arange(-k, k + 1)
+    score = np.empty((n_t, len(lags)))
+    core = slice(k, n_x - k)
+    for j, lag in enumerate(lags):  # d_t(x) ~ ref(x - lag)
+        score[:, j] = (d[:, core] * ref[k - lag: n_x - k - lag][None, :]).sum(axis=1)
+    whole = lags[np.argmax(score, axis=1)].astype(float)
+    whole -= np.median(whole).round()
+    if not whole.any():  # a steady camera: Gauss-Newton from zero is enough
+        return register(profiles)
+    # p(x + w): each profile moved back by its whole pixels (held at its ends)
+    idx = np.clip(np.arange(n_x)[None, :] + whole.astype(np.int64)[:, None], 0, n_x - 1)
+    back = np.take_along_axis(np.asarray(profiles, np.float32), idx, axis=1)
+    # Gauss-Newton from the whole-pixel guess: the moved-back profiles registered, the guess added back
+    s_fine, sd = register(back, n_iter=8, reference=np.median(back, axis=0))
+    s = whole + s_fine
+    return s - np.median(s), sd
+
+
+def across_profiles(frames: list[np.ndarray], *, orientation: str, tilt_deg: float,
+                    max_rows: int = SAMPLE_ROWS) -> np.ndarray:
+    """Every frame's mean grey level along lines parallel to the tube's axis, at every pixel across it
+    (``n_frames x n_columns`` of the canonical view; columns some line leaves the frame for are dropped).
+
+    Parameters
+    ----------
+    frames : list of ndarray
+        Grey or colour frames.
+    orientation : {"vertical", "horizontal"}
+        The tube's axis in the frame (a horizontal tube's frames are transposed: the canonical view).
+    tilt_deg : float
+        The axis' angle from the canonical view's columns.
+    max_rows : int
+        At most this many rows along the tube are projected (every ``k``-th).
+    """
+    from ..calibration.tube import sheared_profile, to_grey
+
+    out = []
+    for f in frames:
+        view = np.swapaxes(f, 0, 1) if orientation == "horizontal" else f
+        step = max(1, view.shape[0] // max_rows)
+        g = to_grey(view[::step])  # only the rows projected are made grey
+        # row k of g is the view's row k * step: the lines' slope per row of g is step times theirs (the constant
+        # left over, the same for every frame, does not move one frame against another)
+        tan_b = float(np.tan(np.radians(tilt_deg))) * step
+        out.append(sheared_profile(g, tan_b, np.arange(g.shape[1], dtype=float)))
+    P = np.stack(out) if out else np.zeros((0, 0))
+    return P[:, np.isfinite(P).all(axis=0)] if P.size else P
+
+
+def register_sample(frames: list[np.ndarray], *, orientation: str,
+                    tilt_deg: float = 0.0) -> tuple[list[np.ndarray], SampleShake]:
+    """The sampled frames moved back by the camera's motion across the tube, so that the tube is found where it
+    is on average and as wide as it is (a shaking wall is not taken for a second tube, nor the bore for wider).
+
+    The profiles across the tube (:func:`across_profiles`: the walls, the background, the bore's mean contents)
+    are registered on their median by :func:`register`; the walls' edges weigh most, the bore's changing contents
+    least. The motion along the tube is left: the tube looks the same wherever it is along its axis.
+
+    Parameters
+    ----------
+    frames : list of ndarray
+        The sampled frames (grey or colour).
+    orientation : {"vertical", "horizontal"}
+        The tube's axis (a first look at the unregistered frames finds it: the walls stay parallel to it).
+    tilt_deg : float
+        The axis' angle (canonical view).
+
+    Returns
+    -------
+    frames : list of ndarray
+        Grey float32 frames moved back, or ``frames`` themselves when the camera did not move.
+    shake : SampleShake
+    """
+    if len(frames) < 4:
+        return frames, SampleShake(None, np.inf, False)
+    P = across_profiles(frames, orientation=orientation, tilt_deg=tilt_deg)
+    if P.shape[1] < 8:
+        return frames, SampleShake(None, np.inf, False)
+    s, sd = register_wide(P)
+    typical_sd = float(np.median(sd))
+    if not typical_sd <= MEASURABLE_SD_PX:
+        return frames, SampleShake(None, typical_sd, False)
+    rms = float(np.std(s))
+    if rms < SAMPLE_MIN_RMS_PX or rms < SHAKE_MIN_SNR * typical_sd:
+        return frames, SampleShake(s, typical_sd, False)
+    import cv2
+
+    from ..calibration.tube import to_grey
+
+    moved = []
+    for f, dx in zip(frames, s, strict=True):
+        # the canonical x is the frame's column (vertical tube) or row (horizontal): moved back by -dx
+        m = np.array([[1.0, 0.0, -dx], [0.0, 1.0, 0.0]] if orientation != "horizontal" else
+                     [[1.0, 0.0, 0.0], [0.0, 1.0, -dx]], np.float64)
+        g = to_grey(f)
+        moved.append(cv2.warpAffine(g, m, (g.shape[1], g.shape[0]), flags=cv2.INTER_LANCZOS4,
+                                    borderMode=cv2.BORDER_REPLICATE))
+    return moved, SampleShake(s, typical_sd, True)
+
+
+def shake_line(block: dict[str, object] | None) -> str:
+    """One line on the camera's shake from ``summary.json``'s ``shake`` block (empty when the camera was steady):
+    its rms across and along the tube (px and mm), its main frequency, and whether it was too large."""
+    if not block or not (block.get("shaking") or block.get("too_large")):
+        return ""
+
+    def part(name: str, key: str) -> str:
+        px, mm = block.get(f"rms_{key}_px"), block.get(f"rms_{key}_mm")
+        if px is None:
+            return f"{name} not measured"
+        return f"{px:.2g} px rms {name}" + (f" ({mm:.2g} mm)" if mm is not None else "")
+
+    f = block.get("frequency_hz")
+    out = f"{part('across', 'across')}, {part('along', 'along')}" + (f", at {f:.3g} Hz" if f else "")
+    return out + (" — too large: the diagram's band took in the walls" if block.get("too_large") else "")

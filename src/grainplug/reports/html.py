@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .._format import duration
+from ..measures.shake import shake_line
 from ..params import with_options
 
 if TYPE_CHECKING:
@@ -234,6 +235,8 @@ def _details(res: AnalysisResult, s: dict) -> str:
     ]
     if res.falling_grain_speed_m_s is not None:
         rows.append(("grains in the bubbles fall at", f"{number(res.falling_grain_speed_m_s, 2)} m/s"))
+    if shake_line(s.get("shake")):
+        rows.append(("camera shake", shake_line(s.get("shake"))))
     return _table(rows)
 
 
