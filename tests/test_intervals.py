@@ -62,3 +62,18 @@ def test_the_intervals_hold_the_truth_on_the_plain_band_renderer(tmp_path):
                                h=500, n_frames=150)
     res = gp.analyze(tmp_path / "m.tif", fps=250.0, tube_diameter_mm=12.0 * 0.27)
     check(res, 0.27, c, length)
+
+
+def test_a_shake_across_the_tube_widens_a_scale_read_from_the_contents_only():
+    from grainplug.calibration.scale import Scale, shaken_rel_sd
+    from grainplug.calibration.tube_model import BoreEstimate
+
+    contents = Scale(0.15, "tube inner width seen through its contents (bore 3 mm = 20.00 px)", 0.03,
+                     bore=BoreEstimate(20.0, "contents", {"contents": 20.0}, rel_sd=0.03))
+    # a 0.5 px rms shake sweeps the contents over about 2 sqrt(2) x 0.5 = 1.41 px of a 20 px bore: 7.1 %
+    assert shaken_rel_sd(contents, 0.5) == pytest.approx(np.hypot(0.03, 1.4142 / 20), rel=1e-3)
+    assert shaken_rel_sd(contents, 0.0) == 0.03
+    stripes = Scale(0.15, "tube model: refraction stripes", 0.008,
+                    bore=BoreEstimate(20.0, "stripe + outer", {"stripe + outer": 20.0}, rel_sd=0.008))
+    assert shaken_rel_sd(stripes, 0.5) == 0.008  # found on the mean image, which a shake blurs symmetrically
+    assert shaken_rel_sd(Scale(0.15, "user", 0.0), 0.5) == 0.0

@@ -157,6 +157,30 @@ def bore_source(bore: BoreEstimate, facts: TubeFacts) -> str:
         return f"tube inner width seen through its contents ({d})"
     return f"tube edges in the mean image ({d})"
 
+def shaken_rel_sd(scale: Scale, shake_rms_across_px: float) -> float:
+    """The scale's relative uncertainty once a camera's shake across the tube is known.
+
+    A bore read from its contents' width (``method == "contents"``) is widened by the camera's swing across
+    the tube over the sampled frames: about ``2 sqrt(2)`` times its rms for a sine (as
+    :func:`grainplug.checks.given_scale_doubts` allows), up to twice that for a random shake over a few hundred
+    frames. That swing over the bore is added (one standard deviation) in quadrature. The walls' features
+    (stripes, silhouette) are found on the mean image, whose symmetric blur by a shake does not move them, and a
+    scale given or calibrated is not read from the tube: unchanged.
+
+    Parameters
+    ----------
+    scale : Scale
+        The scale decided.
+    shake_rms_across_px : float
+        The camera's rms motion across the tube (0 when it did not shake).
+    """
+    bore = scale.bore
+    from_contents = bore is not None and bore.method == "contents" and scale.source.startswith("tube inner width")
+    if not (from_contents and shake_rms_across_px > 0 and bore.diameter_px > 0):
+        return scale.rel_sd
+    return math.hypot(scale.rel_sd, 2.0 * math.sqrt(2.0) * shake_rms_across_px / bore.diameter_px)
+
+
 #: a bore narrower than this (px) is too few pixels for a scale within a few per cent
 NARROW_TUBE_PX = 15.0
 
