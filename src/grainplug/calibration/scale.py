@@ -203,7 +203,8 @@ def tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, facts: TubeFacts) 
         out.append(coded("scale.edges_only",
             f"the scale comes from the tube's edges in the mean image ({bore.diameter_px:.1f} px): {why}, so "
             "neither the bore nor the walls' optics could be measured and the scale may be off by any amount "
-            "(by up to a factor 8 on a sweep of an independent renderer, where a wide tube was misfound), which "
+            "(by +67 % on a sweep of an independent renderer, where a front-lit 60 px tube in MJPEG was misfound), "
+            "which "
             f"the intervals do not carry — {fix}"))
     elif bore.method == "contents" and tube.back_lit:
         out.append(coded("scale.contents_back_lit",
