@@ -33,7 +33,7 @@ import numpy as np
 
 from .calibration import find_tube
 from .calibration.background import flat_field
-from .calibration.scale import decide_scale, uniform_samples
+from .calibration.scale import decide_scale, shaken_rel_sd, uniform_samples
 from .checks import (
     check_background,
     check_finite,
@@ -185,8 +185,9 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     grains = falling(norm, diagram, info.fps, unseen=repair.bridged)
     flow = resolve_flow(params.flow_direction, tube, grains)
     diagram, norm, grains = orient(diagram, norm, grains, tube, flow.direction)
+    scale_rel_sd = shaken_rel_sd(scale, (shake.rms_across_px or 0.0) if shake.shaking else 0.0)
     found = measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level, normalized=norm,
-                            scale_rel_sd=scale.rel_sd, not_hz=shake_hz(shake), blind_margin_px=shaken_margin(shake),
+                            scale_rel_sd=scale_rel_sd, not_hz=shake_hz(shake), blind_margin_px=shaken_margin(shake),
                             frame_cadence=info.predicts_frames)
     runs, links, motion, lengths = found.runs, found.links, found.motion, found.lengths
     laps("measures_s")
@@ -210,7 +211,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                   *still_regions(found.blind), *shaken(shake, motion),
                   *still_objects(runs, links, diagram.time_s, motion, mm_per_px),
                   *near_the_threshold(runs, motion, params),
-                  *implausible(motion, grains, saturation)], scale_rel_sd=scale.rel_sd, bore=scale.bore,
+                  *implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=scale.bore,
         blind=found.blind, shake=shake, lamp=lamp,
     )
 

@@ -44,9 +44,11 @@ CODES: dict[str, tuple[str, str]] = {
     # the scale
     "scale.given_vs_tube": ("the tube seen is far wider or narrower than the given scale makes its bore",
                             "check mm_per_px= and tube_diameter_mm=, and that what was found is the tube"),
-    "scale.edges_only": ("the scale comes from the tube's edges in the mean image (nothing moved, or the tube is cut)",
+    "scale.edges_only": ("the scale comes from the tube's edges in the mean image (nothing moved, or the tube is "
+                         "cut): it may be off by any amount and the intervals do not carry it",
                          "take a calibration image or give mm_per_px="),
-    "scale.contents_back_lit": ("the scale comes from the width of the contents of a back-lit tube, uncorrected",
+    "scale.contents_back_lit": ("the scale comes from the width of the contents of a back-lit tube, uncorrected "
+                                "(the intervals carry the lamp's narrowing, up to 35 %)",
                                 "take a calibration image or give mm_per_px="),
     "scale.contents_unchecked": ("the scale comes from the tube's inner width seen through its contents, "
                                  "not cross-checked", "give tube_outer_diameter_mm=, or a calibration"),

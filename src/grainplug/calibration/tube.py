@@ -467,7 +467,14 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     grid1 = np.arange(-pad, w + pad, 0.5)
     pf = sheared_profile(feat, tan_b, grid1)
     pf = gaussian_filter1d(np.nan_to_num(pf, nan=float(np.nanmin(pf))), 2.0)
-    x0 = float(grid1[int(np.argmax(pf))])
+    # the middle of the peak's span above half its height over the median: in a wide bore the walls' edges
+    # (the mean image's gradient) can top the contents' flat plateau, and the peak alone would be a wall
+    k = int(np.argmax(pf))
+    level = 0.5 * (float(pf[k]) + float(np.median(pf)))
+    above = pf >= level
+    lo = k - int(np.argmin(above[k::-1])) + 1 if not above[: k + 1].all() else 0
+    hi = k + int(np.argmin(above[k:])) - 1 if not above[k:].all() else len(pf) - 1
+    x0 = float(0.5 * (grid1[lo] + grid1[hi]))
     # refine the axis from the bore's centre in blocks of rows
     half = max(0.25 * w, 40.0)
     fine = np.arange(x0 - half, x0 + half, 0.1)

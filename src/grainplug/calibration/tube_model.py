@@ -53,6 +53,20 @@ from .refraction import BOROSILICATE_INDEX, bisect, lamp_table
 TYPICAL_OUTER_OVER_INNER = 1.83
 #: estimates further apart than this (relative) are reported as disagreeing
 AGREEMENT = 0.03
+#: how far (px, on the diameter) the edges of the contents' variation may lie from the bore's edges on any camera:
+#: blur, noise and a lossy codec's blocks move a half-height crossing by a few tenths of a pixel on each side.
+#: Calibrated on the sweep of ``benchmarks/intervals.py`` (front light, 10-60 px bores, TIFF/H.264/MJPEG: 95 % of
+#: the errors of the seeds it was fitted on are within 1.96 times ``hypot(0.6 px / bore, 1 %)``)
+CONTENTS_EDGE_PX = 0.6
+#: the same for the bright stripes' centroids (px, on their separation): a centroid, not an edge, so less
+STRIPE_CENTROID_PX = 0.1
+#: how much narrower than its bore a back-lit tube's contents can look (the lamp's angular size; the renderers tried:
+#: up to 35 %; a 15 deg lamp, 24 %)
+BACK_LIT_NARROWING = 0.35
+#: the relative standard uncertainty that a bore read from the contents alone in back light carries for it: the bore
+#: is between the contents' width and 1 / (1 - BACK_LIT_NARROWING) times it, and the estimate is the lower end, so
+#: 1.96 standard deviations reach the upper end
+BACK_LIT_CONTENTS_SD = (1 / (1 - BACK_LIT_NARROWING) - 1) / 1.96
 
 
 @dataclass(frozen=True)
@@ -362,8 +376,13 @@ def bore_from_model(walls: WallMeasure, *, visible_diameter_px: float, back_lit:
     trusted over the other), else ``outer`` > ``stripe + outer`` > ``stripe`` >
     ``contents``. In back light ``contents`` is only a lower bound and is used
     alone with a warning. The uncertainty of a single estimate is its model's:
-    0.5 px on each silhouette edge, 1 % for the stripe with the outer silhouette
-    (the glass's index), 3 % for the stripe alone (index and wall thickness).
+    0.5 px on each silhouette edge, ``STRIPE_CENTROID_PX`` on the stripes' separation
+    and the lamp's range with 0.5 % (the glass's index) for the stripe with the outer
+    silhouette, 2 % more for the stripe alone (index and wall thickness),
+    ``CONTENTS_EDGE_PX`` and 1 % for the contents' width, and in back light
+    ``BACK_LIT_CONTENTS_SD`` more (the lamp's narrowing, one-sided). The edge and
+    centroid floors were calibrated on a sweep of an independent renderer
+    (``benchmarks/intervals.py``, docs/accuracy.md "Intervals on a sweep").
     """
     est: dict[str, float] = {}
     sd: dict[str, float] = {}
@@ -378,7 +397,7 @@ def bore_from_model(walls: WallMeasure, *, visible_diameter_px: float, back_lit:
             beta, a, u = solve_lamp(v, s, w, outer_over_inner=q_known, n_glass=n_glass)
             if math.isfinite(a):
                 est["stripe"] = 2 * a
-                sd["stripe"] = math.hypot(u, 0.005)
+                sd["stripe"] = math.hypot(u, 0.005, STRIPE_CENTROID_PX / (2 * s))
         elif math.isfinite(o) and 0 < s < o:
             def mismatch(q: float) -> float:
                 _, a_q, _ = solve_lamp(v, s, w, outer_over_inner=q, n_glass=n_glass)
@@ -391,15 +410,18 @@ def bore_from_model(walls: WallMeasure, *, visible_diameter_px: float, back_lit:
                 q = float(bisect(mismatch, qs[i], qs[i + 1], xtol=1e-4))
                 beta, a, u = solve_lamp(v, s, w, outer_over_inner=q, n_glass=n_glass)
                 est["stripe + outer"] = 2 * a
-                sd["stripe + outer"] = math.hypot(u, 0.005)
+                sd["stripe + outer"] = math.hypot(u, 0.005, STRIPE_CENTROID_PX / (2 * s))
         if "stripe" not in est and "stripe + outer" not in est:
             beta, a, u = solve_lamp(v, s, w, outer_over_inner=TYPICAL_OUTER_OVER_INNER, n_glass=n_glass)
             if math.isfinite(a):
                 est["stripe"] = 2 * a
-                sd["stripe"] = math.hypot(u, 0.02)  # and the wall's thickness assumed
+                # and the wall's thickness assumed
+                sd["stripe"] = math.hypot(u, 0.02, STRIPE_CENTROID_PX / (2 * s))
     if math.isfinite(v) and v > 0:
         est["contents"] = 2 * v
-        sd["contents"] = math.hypot(0.25 / v, 0.01)
+        sd["contents"] = math.hypot(CONTENTS_EDGE_PX / (2 * v), 0.01)
+        if back_lit:  # only a lower bound: the lamp's size, which nothing here measures, narrows it
+            sd["contents"] = math.hypot(sd["contents"], BACK_LIT_CONTENTS_SD)
     warnings: list[str] = []
     if back_lit and "contents" in est:
         # the contents cannot be seen wider than the bore: an estimate below that is a misread wall
