@@ -14,7 +14,7 @@ the celerity interval, the warning codes and a verdict against the targets:
 
 The bubble length is shown, not judged. Usage::
 
-    .venv/bin/python benchmarks/nuisances.py CACHE [--cases REGEX] [--out DIR] [--jobs 1]
+    .venv/bin/python benchmarks/nuisances.py CACHE [--cases REGEX] [--out DIR] [--jobs 1] [--seed N]
 
 ``--out DIR`` writes ``nuisances.md`` (the table) and ``nuisances.json`` (every figure) there.
 """
@@ -54,11 +54,14 @@ def cached_movie(case: Case, cache: Path) -> tuple[Path, dict[str, object]]:
     return movie, record
 
 
-def run_case(name: str, cache: str) -> dict[str, object]:
-    """Render (or reuse) and analyse one case; every figure of the row."""
+def run_case(name: str, cache: str, seed: int | None = None) -> dict[str, object]:
+    """Render (or reuse) and analyse one case (with another seed: another draw of its noise, grains, plug lengths
+    and shake phases); every figure of the row."""
+    import dataclasses
+
     import grainplug as gp
 
-    case = CASES[name]
+    case = CASES[name] if seed is None else dataclasses.replace(CASES[name], seed=seed)
     t0 = time.perf_counter()
     movie, truth = cached_movie(case, Path(cache))
     t1 = time.perf_counter()
@@ -138,6 +141,9 @@ def main() -> int:
     ap.add_argument("--cases", default="", help="only the cases whose name matches this regular expression")
     ap.add_argument("--out", type=Path, default=None, help="write nuisances.md and nuisances.json here")
     ap.add_argument("--jobs", type=int, default=1, help="cases run at once (processes)")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="render every case with this seed instead of its own (movies the methods were not "
+                         "developed on)")
     args = ap.parse_args()
     pattern = re.compile(args.cases) if args.cases else None
     names = [n for n in CASES if pattern is None or pattern.search(n)]
@@ -150,16 +156,17 @@ def main() -> int:
     t0 = time.perf_counter()
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs) as pool:
-            rows = list(pool.map(run_case, names, [str(args.cache)] * len(names)))
+            rows = list(pool.map(run_case, names, [str(args.cache)] * len(names), [args.seed] * len(names)))
     else:
         rows = []
         for n in names:
-            rows.append(run_case(n, str(args.cache)))
+            rows.append(run_case(n, str(args.cache), args.seed))
             r = rows[-1]
             print(f"{'ok  ' if r['ok'] else 'FAIL'} {n} ({r['render_s']:.1f} s + {r['analyze_s']:.1f} s) "
                   f"{', '.join(r['fails'])}", file=sys.stderr, flush=True)
     header = (f"Run on {datetime.date.today().isoformat()}, grainplug {grainplug.__version__} at commit "
-              f"{_commit()}, {len(rows)} cases, {time.perf_counter() - t0:.0f} s.")
+              f"{_commit()}, {len(rows)} cases, {time.perf_counter() - t0:.0f} s"
+              + (f", every case rendered with seed {args.seed}." if args.seed is not None else "."))
     table = markdown(rows, header)
     print(table)
     if args.out:

@@ -46,3 +46,27 @@ def test_the_frames_without_the_tube_are_found_from_its_walls(movie, name):
     _, across, _, _ = probes.split(np.stack([band.profile(f) for f in m]))
     view = tube_view(across, len(m))
     assert view.stretches == ([(80, 109)] if lost else [])
+
+
+@pytest.mark.parametrize("name", ["knocked aside", "hidden"])
+def test_an_analysis_says_which_frames_lost_the_tube_and_does_not_measure_them(movie, name, tmp_path):
+    import json
+
+    import grainplug as gp
+    from warned import of_code
+
+    cfg, fr = movie
+    m, _ = variants(fr)[name]
+    clean = gp.analyze(fr, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
+    res = gp.analyze(m, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
+    [said] = of_code(res, "frames.tube_unseen")
+    assert "80-109" in said
+    assert res.tube_unseen == ((80, 109),)
+    assert not np.isin(res.runs.frame, np.arange(80, 110)).any()  # nothing measured there
+    assert res.celerity_m_s == pytest.approx(cfg.celerity_m_s, rel=0.03)
+    assert res.plug_length_mm == pytest.approx(clean.plug_length_mm, rel=0.03)
+    assert not of_code(clean, "frames.tube_unseen")
+    res.save(tmp_path / "o", figures=False, report=False)
+    assert json.loads((tmp_path / "o" / "summary.json").read_text())["tube_unseen_frames"] == [[80, 109]]
+    again = gp.apply_corrections(gp.load_result(tmp_path / "o"), gp.Corrections().add("blind", from_mm=20, to_mm=25))
+    assert not np.isin(again.runs.frame, np.arange(80, 110)).any()  # found again: still not there

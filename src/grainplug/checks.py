@@ -294,3 +294,17 @@ def shaken(shake: Shake | None, motion: Motion | None) -> list[str]:
         f"the camera shook{f} ({', '.join(parts)}, measured on the tube's walls); its motion along the tube could "
         f"not be measured ({shake.along_source}), so the plug edges carry it: a plug motion at that frequency is "
         f"taken for the camera's and not reported{osc} — steady the camera, or put a mark beside the tube")]
+
+
+def tube_out_of_view(stretches: tuple[tuple[int, int], ...], time_s: np.ndarray, *, first: int = 0) -> list[str]:
+    """A warning naming the stretches of frames in which the tube's walls were not seen (``first``: the movie's
+    number of the first analysed frame), which were not measured."""
+    if not stretches:
+        return []
+    n = sum(b - a + 1 for a, b in stretches)
+    where = ", ".join(f"{first + a}-{first + b} ({time_s[a]:.3f}-{time_s[b]:.3f} s)" for a, b in stretches[:4])
+    more = ", ..." if len(stretches) > 4 else ""
+    return [coded("frames.tube_unseen",
+        f"the tube is not in view in {n} of {len(time_s)} frames ({where}{more}): its walls are not seen there "
+        "(something in front of it, the camera knocked off it, the lamp out) — those frames are doubtful and were "
+        "not measured; check them in the movie")]

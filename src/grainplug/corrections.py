@@ -57,6 +57,7 @@ from .errors import ParameterError
 from .measures.diagram import find_plugs, measure_train
 from .measures.shake import shake_hz
 from .measures.still import REVIEW, BlindStretch, blind_positions, shaken_margin
+from .measures.view import unseen_mask
 from .plugs import Runs, Tracks
 from .warning_codes import code_of, coded
 
@@ -485,7 +486,8 @@ def detection(res: AnalysisResult, corr: Corrections) -> tuple[Runs, Tracks, tup
     if kept(stretches) != kept(blind_after(res.blind, ())) and res.normalized is not None:
         blind = (blind_positions(res.diagram.position_mm, stretches, margin_samples=shaken_margin(res.shake))
                  if kept(stretches) else None)
-        runs, links = find_plugs(res.normalized, res.diagram, res.params, blind=blind)
+        runs, links = find_plugs(res.normalized, res.diagram, res.params, blind=blind,
+                                 unseen=unseen_mask(res.tube_unseen, res.diagram.n_frames))
     return runs, links, stretches
 
 

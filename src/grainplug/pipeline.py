@@ -49,6 +49,7 @@ from .checks import (
     shaken,
     still_objects,
     still_regions,
+    tube_out_of_view,
 )
 from .diagram import Diagram, normalize
 from .diagram.extract import CORE_FRACTION, probes_along_tube, resample_positions
@@ -59,6 +60,7 @@ from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
 from .measures.shake import band_margin_px, measure_shake, register_sample, shake_hz, shift_along
 from .measures.still import shaken_margin
+from .measures.view import tube_view
 from .params import AnalysisParams, tube_orientation
 from .plugs import Runs
 from .provenance import fingerprint, movie_identity
@@ -165,6 +167,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         values = np.ascontiguousarray(values)  # its own memory, not a view of the read
         shake = measure_shake(across, [beside], fps=info.fps,
                               band_margin_px=band_margin_px(tube.inner_diameter_px, CORE_FRACTION))
+        view = tube_view(across, len(values))  # frames where the tube's walls are not seen: not measured
         del read, across, beside  # the diagram is all that is kept of the read
         if shake.along_px is not None:  # the diagram held still against the tube
             values = shift_along(values, shake.along_px)
@@ -182,13 +185,13 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     norm = normalize(diagram.values, background_level=tube.background_level,
                      confirm_px=confirm_px(params.min_plug_mm, mm_per_px))
     laps("normalize_s")
-    grains = falling(norm, diagram, info.fps, unseen=repair.bridged)
+    grains = falling(norm, diagram, info.fps, unseen=np.union1d(repair.bridged, np.flatnonzero(view.unseen)))
     flow = resolve_flow(params.flow_direction, tube, grains)
     diagram, norm, grains = orient(diagram, norm, grains, tube, flow.direction)
     scale_rel_sd = shaken_rel_sd(scale, (shake.rms_across_px or 0.0) if shake.shaking else 0.0)
     found = measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level, normalized=norm,
                             scale_rel_sd=scale_rel_sd, not_hz=shake_hz(shake), blind_margin_px=shaken_margin(shake),
-                            frame_cadence=info.predicts_frames)
+                            frame_cadence=info.predicts_frames, unseen=view.unseen)
     runs, links, motion, lengths = found.runs, found.links, found.motion, found.lengths
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
@@ -207,12 +210,13 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                   *all_coded("frames.repaired", filter(None, [repair.describe(diagram.n_frames,
                                                                               first=first_movie_frame(info))])),
                   *time_warnings,
+                  *tube_out_of_view(tuple(view.stretches), diagram.time_s, first=first_movie_frame(info)),
                   *flow.warnings, *guessed_sign(flow, motion), *other_tubes, *frame_cadence(motion, info),
                   *still_regions(found.blind), *shaken(shake, motion),
                   *still_objects(runs, links, diagram.time_s, motion, mm_per_px),
                   *near_the_threshold(runs, motion, params),
                   *implausible(motion, grains, saturation)], scale_rel_sd=scale_rel_sd, bore=scale.bore,
-        blind=found.blind, shake=shake, lamp=lamp,
+        blind=found.blind, shake=shake, lamp=lamp, tube_unseen=tuple(view.stretches),
     )
 
 

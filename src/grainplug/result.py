@@ -126,6 +126,10 @@ class AnalysisResult:
         The tube's motion in the image (camera shake), measured on its walls and what is still beside it.
     lamp : Lamp or None
         The lamp's light read beside the tube, and whether the diagram was divided by it.
+    tube_unseen : tuple of (int, int)
+        Stretches of frames (first, last analysed frame) in which the tube was not in view (its walls not seen:
+        something in front of it, the camera knocked off it): no plug is found there
+        (:mod:`grainplug.measures.view`).
     """
 
     params: AnalysisParams
@@ -156,6 +160,7 @@ class AnalysisResult:
     blind: tuple[BlindStretch, ...] = ()
     shake: Shake | None = None
     lamp: Lamp | None = None
+    tube_unseen: tuple[tuple[int, int], ...] = ()
 
     # -- figures --------------------------------------------------------------
     @property

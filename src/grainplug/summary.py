@@ -195,6 +195,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "flow_direction_source": res.flow_direction_source,
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
         "blind_stretches": [b.as_dict() for b in res.blind],
+        "tube_unseen_frames": [[int(a), int(b)] for a, b in res.tube_unseen],
         "shake": res.shake.as_dict() if res.shake is not None else None,
         "light": res.lamp.as_dict() if res.lamp is not None else None,
         "warnings": list(res.warnings),

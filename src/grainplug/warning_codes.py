@@ -85,6 +85,8 @@ CODES: dict[str, tuple[str, str]] = {
     # frames and time
     "frames.repaired": ("frames unlike their neighbours (flicker, dropped, blank) were bridged",
                         "check those frames in the movie"),
+    "frames.tube_unseen": ("frames in which the tube is not in view (its walls not seen): not measured",
+                           "check those frames in the movie (something in front of the tube, the camera moved)"),
     "time.uneven": ("the frames are not evenly spaced in time: the file's own stamps are used",
                     "check how the file was made, or give fps= to time the frames by their number"),
     # the flow's direction

@@ -37,14 +37,17 @@ from .still import (
 CONTRAST_ADVICE = "raise the contrast between grains and air (lighting, exposure, a less compressed file)"
 
 def find_plugs(norm: Normalized, diagram: Diagram, params: AnalysisParams, *,
-               blind: np.ndarray | None = None) -> tuple[Runs, Tracks]:
+               blind: np.ndarray | None = None, unseen: np.ndarray | None = None) -> tuple[Runs, Tracks]:
     """Plugs in every frame (runs of grains along the tube), linked into tracks over time; ``blind``: the
-    positions whose contents are hidden (:func:`grainplug.measures.still.blind_positions`)."""
+    positions whose contents are hidden (:func:`grainplug.measures.still.blind_positions`); ``unseen``: the frames
+    in which the tube is not in view (:func:`grainplug.measures.view.tube_view`), where no plug is found."""
     ds = float(diagram.position_mm[1] - diagram.position_mm[0])
     mask = plug_mask(norm.z, mm_per_sample=ds, min_plug_mm=params.min_plug_mm, min_gap_mm=params.min_gap_mm,
                      blind=blind)
     if not norm.two_phase:  # one material only: no plug to find
         mask[:] = False
+    if unseen is not None and unseen.any():
+        mask[np.asarray(unseen, bool)] = False
     runs = find_runs(norm.z, mask, diagram.position_mm, blind=blind)
     return runs, link(runs, diagram.n_frames, blind=blind)
 
@@ -108,7 +111,8 @@ class DiagramMeasures:
 def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, fps: float,
                     background_level: float = 0.0, normalized: Normalized | None = None,
                     scale_rel_sd: float = 0.0, not_hz: tuple[float, ...] = (),
-                    blind_margin_px: int = 1, frame_cadence: bool = False) -> DiagramMeasures:
+                    blind_margin_px: int = 1, frame_cadence: bool = False,
+                    unseen: np.ndarray | None = None) -> DiagramMeasures:
     """The analysis from the diagram on: plugs, tracks, celerity, regime, plug and bubble lengths.
 
     The stages :func:`analyze` runs after streaming the movie, for a diagram from
@@ -121,7 +125,7 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
     ``blind_margin_px``: how far beside a blind stretch a plug's edge is cut too (its blurred edge, and the swing of
     a camera shaking along the tube that the diagram was not held still against: :func:`blind_margin`);
     ``frame_cadence``: the movie's codec predicts frames from others
-    (:func:`grainplug.measures.motion.measure_motion`).
+    (:func:`grainplug.measures.motion.measure_motion`); ``unseen``: the frames in which the tube is not in view.
     """
     params = params or AnalysisParams()
     if normalized is None:
@@ -132,7 +136,7 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
     def measured(stretches: tuple[BlindStretch, ...], norm: Normalized) -> DiagramMeasures:
         blind = (blind_positions(diagram.position_mm, stretches, margin_samples=blind_margin_px)
                  if any(b.blind for b in stretches) else None)
-        runs, links = find_plugs(norm, diagram, params, blind=blind)
+        runs, links = find_plugs(norm, diagram, params, blind=blind, unseen=unseen)
         motion, lengths, statement = measure_plugs(norm, diagram, runs, links, background_level, fps=fps,
                                                    mm_per_px=diagram.mm_per_px, scale_rel_sd=scale_rel_sd,
                                                    params=params, blind=blind, not_hz=not_hz,

@@ -55,6 +55,14 @@ class TubeView:
                                                        strict=True)]
 
 
+def unseen_mask(stretches: tuple[tuple[int, int], ...] | list[tuple[int, int]], n_frames: int) -> np.ndarray:
+    """Per frame, whether it lies in one of ``stretches`` (``(first, last)`` frame indices)."""
+    out = np.zeros(n_frames, bool)
+    for a, b in stretches:
+        out[a: b + 1] = True
+    return out
+
+
 def tube_view(across: list[np.ndarray], n_frames: int) -> TubeView:
     """Which of ``n_frames`` frames show the tube, from profiles across it (each ``frames x samples``)."""
     scores = []
