@@ -118,8 +118,6 @@ def _xfail(name: str, reason: str) -> pytest.param:
 #: cases grainplug gets wrong today (2026-11-28, after the shake registration, lamp and blind-stretch corrections),
 #: with the nuisance that breaks them
 WRONG_TODAY: dict[str, str] = {
-    "shake 1 px 8 Hz, static plugs": "still plugs in a camera that wanders 2 px along the tube with nothing still "
-                                     "beside it: the wander widens the interval, read as propagative",
     "combined oscillating 5 Hz": "combined oscillating: the train travels less than a plug and a bubble, the clamp "
                                  "is not found; celerity -25 %, plug lengths -14 %",
 }
@@ -151,4 +149,23 @@ def test_targets_on_representative_cases(tmp_path, name):
 @pytest.mark.parametrize("name", _params([n for n in CASES if n not in FAST and n not in MARGINAL]))
 def test_targets_on_the_whole_bench(tmp_path, name):
     got = _measure(name, tmp_path)
+    assert got["ok"], got
+
+
+#: with another seed (movies the methods were not developed on), the celerity's interval must still hold the truth
+#: where the camera wandered along the tube unmeasured: it missed in these before the wander's term (issue 33,
+#: item 5; seed 2 of the whole bench: 39 of 50 cases met every target, 45 after)
+OTHER_SEED = ["combined c=-0.05", "combined c=-0.1", "stick-slip 4 Hz, shake 1 px 30 Hz"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", OTHER_SEED)
+def test_the_interval_holds_with_another_seed(tmp_path, name):
+    import dataclasses
+
+    case = dataclasses.replace(CASES[name], seed=2)
+    movie = tmp_path / case.movie_name()
+    truth = render_movie(movie, case.scene, np.random.default_rng(case.seed))
+    res = gp.analyze(movie, **case.analysis_kwargs())
+    got = judge(case, truth_record(truth), res.summary)
     assert got["ok"], got

@@ -52,8 +52,9 @@ def test_the_frames_without_the_tube_are_found_from_its_walls(movie, name):
 def test_an_analysis_says_which_frames_lost_the_tube_and_does_not_measure_them(movie, name, tmp_path):
     import json
 
-    import grainplug as gp
     from warned import of_code
+
+    import grainplug as gp
 
     cfg, fr = movie
     m, _ = variants(fr)[name]

@@ -56,7 +56,7 @@ import numpy as np
 from .errors import ParameterError
 from .measures.diagram import find_plugs, measure_train
 from .measures.shake import shake_hz
-from .measures.still import REVIEW, BlindStretch, blind_positions, shaken_margin
+from .measures.still import REVIEW, BlindStretch, blind_positions, shaken_margin, unmeasured_wander_mm
 from .measures.view import unseen_mask
 from .plugs import Runs, Tracks
 from .warning_codes import code_of, coded
@@ -603,7 +603,8 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
         motion, lengths, statement = measure_train(res.diagram.time_s, new_runs, new_links, fps=res.info.fps,
                                                    mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd,
                                                    blind=blind, not_hz=shake_hz(res.shake),
-                                                   frame_cadence=res.info.predicts_frames)
+                                                   frame_cadence=res.info.predicts_frames,
+                                                   wander_mm=unmeasured_wander_mm(res.shake, res.mm_per_px))
     elif detected_plugs:
         statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
     unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)

@@ -59,7 +59,7 @@ from .errors import MovieError, ParameterError
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
 from .measures.shake import band_margin_px, measure_shake, register_sample, shake_hz, shift_along
-from .measures.still import shaken_margin
+from .measures.still import shaken_margin, unmeasured_wander_mm
 from .measures.view import tube_view
 from .params import AnalysisParams, tube_orientation
 from .plugs import Runs
@@ -191,7 +191,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     scale_rel_sd = shaken_rel_sd(scale, (shake.rms_across_px or 0.0) if shake.shaking else 0.0)
     found = measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level, normalized=norm,
                             scale_rel_sd=scale_rel_sd, not_hz=shake_hz(shake), blind_margin_px=shaken_margin(shake),
-                            frame_cadence=info.predicts_frames, unseen=view.unseen)
+                            frame_cadence=info.predicts_frames, unseen=view.unseen,
+                            wander_mm=unmeasured_wander_mm(shake, mm_per_px))
     runs, links, motion, lengths = found.runs, found.links, found.motion, found.lengths
     laps("measures_s")
     best = _most_edges(runs, sample_idx)

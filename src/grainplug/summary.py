@@ -129,6 +129,13 @@ def uncertainty(res: AnalysisResult) -> dict[str, object] | None:
                 "dominant": "scale" if scale > tracks else "tracks"}
 
     out: dict[str, object] = {"celerity": split(m.celerity_se_tracks_m_s, abs(m.celerity_m_s) * k, "m_s", 8)}
+    camera = float(getattr(m, "celerity_se_camera_m_s", 0.0) or 0.0)
+    if out["celerity"] is not None and camera > 0:  # the camera's unmeasured wander along the tube, a third term
+        c = dict(out["celerity"])  # type: ignore[arg-type]
+        c["camera_se_m_s"] = _r(camera, 8)
+        terms = {"tracks": m.celerity_se_tracks_m_s, "scale": abs(m.celerity_m_s) * k, "camera": camera}
+        c["dominant"] = max(terms, key=lambda name: terms[name])
+        out["celerity"] = c
     if ln is not None and ln.plug_length_mm is not None and ln.plug_length_sd_mm is not None and ln.n_plugs_measured:
         out["plug_length"] = split(ln.plug_length_sd_mm / np.sqrt(ln.n_plugs_measured), ln.plug_length_mm * k, "mm", 4)
     return out

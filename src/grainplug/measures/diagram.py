@@ -55,7 +55,7 @@ def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks,
               mm_per_px: float, scale_rel_sd: float,
               params: AnalysisParams, blind: np.ndarray | None = None,
               not_hz: tuple[float, ...] = (),
-              frame_cadence: bool = False) -> tuple[Motion | None, Lengths | None, str]:
+              frame_cadence: bool = False, wander_mm: float = 0.0) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity and oscillation of the plug train, plug and bubble lengths; or why there are none."""
     if not norm.two_phase and weakly_two(norm):
         averaged = ("" if norm.averaged_eta is None else
@@ -76,13 +76,13 @@ def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks,
                             f"{params.min_plug_mm:g} mm long{longer} — lower min_plug_mm= "
                             "(or min_gap_mm=), or check the scale; no celerity, length or frequency is measured")
     return measure_train(diagram.time_s, runs, links, fps=fps, mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd,
-                         blind=blind, not_hz=not_hz, frame_cadence=frame_cadence)
+                         blind=blind, not_hz=not_hz, frame_cadence=frame_cadence, wander_mm=wander_mm)
 
 
 def measure_train(time_s: np.ndarray, runs: Runs, links: Tracks, *, fps: float, mm_per_px: float,
                   scale_rel_sd: float, blind: np.ndarray | None = None,
                   not_hz: tuple[float, ...] = (),
-                  frame_cadence: bool = False) -> tuple[Motion | None, Lengths | None, str]:
+                  frame_cadence: bool = False, wander_mm: float = 0.0) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity, oscillation and regime of a train of tracked plugs, their lengths and their bubbles' (the step
     that :func:`measure_plugs` ends with and :func:`grainplug.corrections.apply_corrections` repeats on the
     corrected tracks); the statement says why there is no motion, if so."""
@@ -90,7 +90,7 @@ def measure_train(time_s: np.ndarray, runs: Runs, links: Tracks, *, fps: float, 
     with threadpool_limits(limits=1, user_api="blas"):
         motion = measure_motion(time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
                                 mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd, not_hz=not_hz,
-                                frame_cadence=frame_cadence)
+                                frame_cadence=frame_cadence, wander_mm=wander_mm)
         lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd, blind=blind)
     statement = "" if motion is not None else NO_FOLLOWED_EDGE
     return motion, lengths, statement
@@ -112,7 +112,7 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
                     background_level: float = 0.0, normalized: Normalized | None = None,
                     scale_rel_sd: float = 0.0, not_hz: tuple[float, ...] = (),
                     blind_margin_px: int = 1, frame_cadence: bool = False,
-                    unseen: np.ndarray | None = None) -> DiagramMeasures:
+                    unseen: np.ndarray | None = None, wander_mm: float = 0.0) -> DiagramMeasures:
     """The analysis from the diagram on: plugs, tracks, celerity, regime, plug and bubble lengths.
 
     The stages :func:`analyze` runs after streaming the movie, for a diagram from
@@ -125,7 +125,9 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
     ``blind_margin_px``: how far beside a blind stretch a plug's edge is cut too (its blurred edge, and the swing of
     a camera shaking along the tube that the diagram was not held still against: :func:`blind_margin`);
     ``frame_cadence``: the movie's codec predicts frames from others
-    (:func:`grainplug.measures.motion.measure_motion`); ``unseen``: the frames in which the tube is not in view.
+    (:func:`grainplug.measures.motion.measure_motion`); ``unseen``: the frames in which the tube is not in view;
+    ``wander_mm``: the rms of a motion of the view along the tube that could not be measured (the celerity's
+    interval carries it).
     """
     params = params or AnalysisParams()
     if normalized is None:
@@ -140,7 +142,7 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
         motion, lengths, statement = measure_plugs(norm, diagram, runs, links, background_level, fps=fps,
                                                    mm_per_px=diagram.mm_per_px, scale_rel_sd=scale_rel_sd,
                                                    params=params, blind=blind, not_hz=not_hz,
-                                                   frame_cadence=frame_cadence)
+                                                   frame_cadence=frame_cadence, wander_mm=wander_mm)
         return DiagramMeasures(norm, runs, links, motion, lengths, statement, stretches)
 
     first = measured(given, normalized)

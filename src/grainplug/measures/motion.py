@@ -89,7 +89,9 @@ class Motion:
         Observations and tracks in the fit.
     celerity_se_tracks_m_s : float
         The celerity's standard error from the tracks' scatter alone (the interval adds the scale's,
-        ``|celerity| * scale_rel_sd``, in quadrature).
+        ``|celerity| * scale_rel_sd``, and the camera's, in quadrature).
+    celerity_se_camera_m_s : float
+        Its standard error from a motion of the view along the tube that could not be measured (``wander_mm``).
     frame_locked_hz : float or None
         Frequency of a periodic part that repeats every few whole frames (the recording's cadence, see the
         module's notes), strong enough to have been taken for an oscillation; not reported as one.
@@ -110,6 +112,7 @@ class Motion:
     n_edges: int
     n_tracks_used: int
     celerity_se_tracks_m_s: float = float("nan")
+    celerity_se_camera_m_s: float = 0.0
     frame_locked_hz: float | None = None
     frame_locked_mm: float = 0.0
 
@@ -268,7 +271,7 @@ NO_FOLLOWED_EDGE = ("plugs were seen, but no upper edge was followed over 3 fram
 def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, frame: np.ndarray,
                    *, fps: float, mm_per_px: float, scale_rel_sd: float = 0.0,
                    min_track_edges: int = 3, not_hz: tuple[float, ...] = (),
-                   frame_cadence: bool = False) -> Motion | None:
+                   frame_cadence: bool = False, wander_mm: float = 0.0) -> Motion | None:
     """Celerity, oscillation and regime from the upper edges of all plug tracks.
 
     Parameters
@@ -405,16 +408,24 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     rho = float(np.corrcoef(r[:-1], r[1:])[0, 1]) if len(r) > 3 and np.std(r) > 0 else 0.0
     rho = float(np.clip(np.nan_to_num(rho), 0.0, 0.98))
     se_tracks = float(se * np.sqrt((1 + rho) / (1 - rho)) / 1000.0)
-    se_c = float(np.hypot(se_tracks, abs(celerity) * scale_rel_sd))
+    # a motion of the view along the tube that could not be measured (the camera's wander, rms ``wander_mm``) moves
+    # every edge alike: the drift takes up its trend over the record, at most that of a ramp of that rms
+    se_camera = float(np.sqrt(12.0) * max(wander_mm, 0.0) / max(duration, 1e-9) / 1000.0)
+    se_c = float(np.sqrt(se_tracks**2 + (abs(celerity) * scale_rel_sd) ** 2 + se_camera**2))
     tq = t_quantile_975(max(len(tt) - 2, 1))
     ci = (celerity - tq * se_c, celerity + tq * se_c)
-    if regime == "propagative" and max(abs(ci[0]), abs(ci[1])) * 1000.0 * duration < mm_per_px:
-        regime = "static"  # no celerity of the interval moves the plugs by a pixel over the record
+    # static: no celerity of the interval (the camera's unmeasured wander left out) moves the plugs over the record
+    # by more than a pixel and what that wander could make of still plugs
+    se_seen = float(np.hypot(se_tracks, abs(celerity) * scale_rel_sd))
+    reach = max(abs(celerity - tq * se_seen), abs(celerity + tq * se_seen)) * 1000.0 * duration
+    if regime == "propagative" and reach < mm_per_px + np.sqrt(12.0) * max(wander_mm, 0.0):
+        regime = "static"
     return Motion(
         celerity_m_s=celerity, celerity_ci95_m_s=ci, regime=regime,
         oscillation_frequency_hz=f_osc, oscillation_amplitude_mm=amp,
         explained_fraction=explained, spectrum_hz=freqs, spectrum_mm=spec,
         time_s=np.asarray(time_s), displacement_mm=X + coef[0] * np.asarray(time_s),
-        n_edges=int(ok.sum()), n_tracks_used=n_tr, celerity_se_tracks_m_s=se_tracks, frame_locked_hz=locked_f,
+        n_edges=int(ok.sum()), n_tracks_used=n_tr, celerity_se_tracks_m_s=se_tracks,
+        celerity_se_camera_m_s=se_camera, frame_locked_hz=locked_f,
         frame_locked_mm=locked_mm,
     )

@@ -272,6 +272,15 @@ def shaken_margin(shake: Shake | None) -> int:
     return blind_margin(float(np.nanmax(np.abs(across - np.nanmedian(across)))))
 
 
+def unmeasured_wander_mm(shake: Shake | None, mm_per_px: float) -> float:
+    """The rms (mm) of the camera's motion along the tube when it shook but that motion could not be measured (the
+    diagram not held still against it): its motion across, measured on the walls, stands for it; 0 otherwise."""
+    if (shake is None or not shake.shaking or shake.along_px is not None or shake.across_px is None
+            or not len(shake.across_px)):
+        return 0.0
+    return float(np.nanstd(np.asarray(shake.across_px, float))) * mm_per_px
+
+
 def blind_positions(position_mm: np.ndarray, stretches: tuple[BlindStretch, ...] | list[BlindStretch], *,
                     margin_samples: int = 1) -> np.ndarray:
     """Which positions along the tube (samples of the diagram) are blind: inside a kept stretch, or within
