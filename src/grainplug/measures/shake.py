@@ -351,8 +351,8 @@ def shake_hz(shake: Shake | None) -> tuple[float, ...]:
 #: used as they are (a steady camera costs nothing more)
 SAMPLE_MIN_RMS_PX = 0.15
 #: the profile across the tube is projected along at most this many rows, spread along it (a frame's thousand rows
-#: are not needed: 128 rows average the noise to a small fraction of a grey level)
-SAMPLE_ROWS = 128
+#: are not needed: 32 rows average the noise to a fraction of a grey level, and the walls run along every one)
+SAMPLE_ROWS = 32
 
 
 @dataclass(frozen=True)
