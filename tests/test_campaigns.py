@@ -262,23 +262,24 @@ def test_batch_serial_cache_and_failures(campaign_dir, tmp_path, capsys):
 
 def test_batch_prints_each_runs_warnings(campaign_dir, tmp_path, capsys, monkeypatch):
     """A run's warnings reach the terminal as analyze's do (they were only in campaign.csv and the report: a
-    frame rate ten times off went unsaid), at most MAX_RUN_WARNINGS lines and a count of the rest."""
+    frame rate ten times off went unsaid), the same sentence of several runs once naming them, at most
+    MAX_RUN_WARNINGS lines and a count of the rest."""
     from grainplug.cli import campaigns as app
 
     (campaign_dir / "fast.csv").write_text("run,movie,mm_per_px,fps\na,a/movie.avi,0.185,5000\n"
                                            "b,b/movie.avi,0.185,5000\n")
     code, _, err = run(capsys, "batch", campaign_dir / "fast.csv", "--out", tmp_path / "o", "--no-figures",
                        "--no-simulations")
-    said = [ln for ln in err.splitlines() if ln.startswith("warning: run ")]
-    assert code == 0 and [ln.split(":")[1] for ln in said if "frame rate given" in ln] == [" run a", " run b"]
+    said = [ln for ln in err.splitlines() if ln.startswith(("warning: run ", "warning: runs "))]
+    assert code == 0 and [ln.split(":")[1] for ln in said if "frame rate given" in ln] == [" runs a, b"]
     monkeypatch.setattr(app, "MAX_RUN_WARNINGS", 1)
     code, _, err = run(capsys, "batch", campaign_dir / "fast.csv", "--out", tmp_path / "o", "--no-figures",
                        "--no-simulations")
     lines = [ln for ln in err.splitlines() if ln.startswith("warning:")]
-    assert lines[0].startswith("warning: run a: ") and f"{len(said) - 1} more run warnings" in lines[1]
+    assert lines[0].startswith("warning: runs a, b: ") and f"{len(said) - 1} more run warnings" in lines[1]
     code, out, err = run(capsys, "batch", campaign_dir / "fast.csv", "--out", tmp_path / "o", "--no-figures",
                          "--no-simulations", "--json")  # on stderr too, the JSON alone on stdout
-    assert code == 0 and err.startswith("warning: run a: ") and json.loads(out)["n_reused"] == 2
+    assert code == 0 and err.startswith("warning: runs a, b: ") and json.loads(out)["n_reused"] == 2
 
 
 def test_batch_workers_match_serial(campaign_dir, tmp_path):

@@ -33,7 +33,7 @@ import numpy as np
 
 from .calibration import find_tube
 from .calibration.background import flat_field
-from .calibration.scale import decide_scale, shaken_rel_sd, uniform_samples
+from .calibration.scale import decide_scale, shaken_scale, uniform_samples
 from .checks import (
     check_background,
     check_finite,
@@ -188,7 +188,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     grains = falling(norm, diagram, info.fps, unseen=np.union1d(repair.bridged, np.flatnonzero(view.unseen)))
     flow = resolve_flow(params.flow_direction, tube, grains)
     diagram, norm, grains = orient(diagram, norm, grains, tube, flow.direction)
-    scale_rel_sd = shaken_rel_sd(scale, (shake.rms_across_px or 0.0) if shake.shaking else 0.0)
+    scale = shaken_scale(scale, tube, params, (shake.rms_across_px or 0.0) if shake.shaking else 0.0)
+    scale_rel_sd = scale.rel_sd
     found = measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level, normalized=norm,
                             scale_rel_sd=scale_rel_sd, not_hz=shake_hz(shake), blind_margin_px=shaken_margin(shake),
                             frame_cadence=info.predicts_frames, unseen=view.unseen,

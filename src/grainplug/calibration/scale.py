@@ -9,6 +9,7 @@ dataclasses in, the same out: no file is read here.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass
@@ -179,6 +180,17 @@ def shaken_rel_sd(scale: Scale, shake_rms_across_px: float) -> float:
     if not (from_contents and shake_rms_across_px > 0 and bore.diameter_px > 0):
         return scale.rel_sd
     return math.hypot(scale.rel_sd, 2.0 * math.sqrt(2.0) * shake_rms_across_px / bore.diameter_px)
+
+
+def shaken_scale(scale: Scale, tube: TubeGeometry, facts: TubeFacts, shake_rms_across_px: float) -> Scale:
+    """``scale`` once a camera's shake across the tube is known: its uncertainty widened
+    (:func:`shaken_rel_sd`) and, when it was, the tube's doubts said again with it (a warning that gives the
+    scale's uncertainty gives the one the intervals carry)."""
+    rel_sd = shaken_rel_sd(scale, shake_rms_across_px)
+    if rel_sd == scale.rel_sd or scale.bore is None:
+        return scale
+    bore = dataclasses.replace(scale.bore, rel_sd=rel_sd)
+    return dataclasses.replace(scale, rel_sd=rel_sd, bore=bore, warnings=tuple(tube_scale_doubts(tube, bore, facts)))
 
 
 #: a bore narrower than this (px) is too few pixels for a scale within a few per cent
