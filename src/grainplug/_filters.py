@@ -18,6 +18,13 @@ import numpy as np
 _BORDERS = {"reflect": 2, "nearest": 1, "constant": 0}  # cv2.BORDER_REFLECT, _REPLICATE, _CONSTANT
 
 
+def true_runs(flag: np.ndarray, min_len: int = 1) -> list[tuple[int, int]]:
+    """Runs ``[a, b)`` of True in the 1-D ``flag``, at least ``min_len`` long."""
+    step = np.diff(np.concatenate([[0], np.asarray(flag, bool).astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(step == 1), np.flatnonzero(step == -1)
+    return [(int(a), int(b)) for a, b in zip(starts, stops, strict=True) if b - a >= min_len]
+
+
 def _gauss_kernel(sigma: float, truncate: float = 4.0) -> np.ndarray:
     radius = int(truncate * float(sigma) + 0.5)
     x = np.arange(-radius, radius + 1, dtype=np.float64)

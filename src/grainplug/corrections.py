@@ -379,6 +379,8 @@ class Replay:
     not_applied: tuple[str, ...] = ()
     applied: tuple[Edit, ...] = ()
     empty_windows: tuple[Edit, ...] = ()
+    #: the tracks the edits were replayed on (:func:`detection`)
+    links: Tracks | None = None
 
 
 def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> Replay:
@@ -453,7 +455,8 @@ def _replay(runs: Runs, links: Tracks, corr: Corrections, diagram: Diagram) -> R
             spans.append((float(e.start_s), float(e.end_s)))  # type: ignore[arg-type]
         elif e.action == "clear_no_plugs":
             spans.clear()
-    return Replay(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied), tuple(empty))
+    return Replay(track, _excluded(applied), window, tuple(spans), tuple(skipped), tuple(applied), tuple(empty),
+                  links)
 
 
 def _blind_misfit(e: Edit, diagram: Diagram) -> str | None:

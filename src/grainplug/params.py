@@ -11,6 +11,7 @@ import dataclasses
 import decimal
 import math
 import numbers
+import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -297,9 +298,6 @@ def with_options(text: str) -> str:
     """``text`` with each analysis keyword it names (``tube_outer_diameter_mm=``) followed by its command-line
     option (``tube_outer_diameter_mm= (--tube-outer-diameter-mm)``): saved results keep the library's words,
     and a reader who ran the command line finds the flag beside them."""
-    import dataclasses
-    import re
-
     names = {f.name for f in dataclasses.fields(AnalysisParams)} | set(OPTION_ALIASES)
 
     def one(m: re.Match[str]) -> str:

@@ -116,28 +116,25 @@ def _tube_model(res: AnalysisResult) -> dict[str, object] | None:
 
 
 def uncertainty(res: AnalysisResult) -> dict[str, object] | None:
-    """The celerity's and the plug length's standard errors by source — the tracks' scatter and the scale — and
-    which dominates their intervals (for summary.json)."""
+    """The celerity's and the plug length's standard errors by source — the tracks' scatter, the scale and, for the
+    celerity, the camera's unmeasured wander along the tube when there is one — and which dominates their
+    intervals (for summary.json)."""
     m, ln, k = res.motion, res.lengths, res.scale_rel_sd
     if m is None:
         return None
 
-    def split(tracks: float | None, scale: float | None, unit: str, nd: int) -> dict[str, object] | None:
-        if tracks is None or scale is None or not (np.isfinite(tracks) and np.isfinite(scale)):
+    def split(terms: dict[str, float | None], unit: str, nd: int) -> dict[str, object] | None:
+        if not all(v is not None and np.isfinite(v) for v in terms.values()):
             return None
-        return {f"tracks_se_{unit}": _r(tracks, nd), f"scale_se_{unit}": _r(scale, nd),
-                "dominant": "scale" if scale > tracks else "tracks"}
+        return {**{f"{name}_se_{unit}": _r(v, nd) for name, v in terms.items()},
+                "dominant": max(terms, key=lambda name: terms[name])}  # type: ignore[arg-type, return-value]
 
-    out: dict[str, object] = {"celerity": split(m.celerity_se_tracks_m_s, abs(m.celerity_m_s) * k, "m_s", 8)}
-    camera = float(getattr(m, "celerity_se_camera_m_s", 0.0) or 0.0)
-    if out["celerity"] is not None and camera > 0:  # the camera's unmeasured wander along the tube, a third term
-        c = dict(out["celerity"])  # type: ignore[arg-type]
-        c["camera_se_m_s"] = _r(camera, 8)
-        terms = {"tracks": m.celerity_se_tracks_m_s, "scale": abs(m.celerity_m_s) * k, "camera": camera}
-        c["dominant"] = max(terms, key=lambda name: terms[name])
-        out["celerity"] = c
+    camera = float(m.celerity_se_camera_m_s or 0.0)
+    out: dict[str, object] = {"celerity": split({"tracks": m.celerity_se_tracks_m_s, "scale": abs(m.celerity_m_s) * k,
+                                                 **({"camera": camera} if camera > 0 else {})}, "m_s", 8)}
     if ln is not None and ln.plug_length_mm is not None and ln.plug_length_sd_mm is not None and ln.n_plugs_measured:
-        out["plug_length"] = split(ln.plug_length_sd_mm / np.sqrt(ln.n_plugs_measured), ln.plug_length_mm * k, "mm", 4)
+        out["plug_length"] = split({"tracks": ln.plug_length_sd_mm / np.sqrt(ln.n_plugs_measured),
+                                    "scale": ln.plug_length_mm * k}, "mm", 4)
     return out
 
 

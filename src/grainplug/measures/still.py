@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._filters import true_runs
 from ..diagram import Diagram
 from .lengths import Lengths
 from .motion import Motion
@@ -168,13 +169,6 @@ def travelled_enough(diagram: Diagram, motion: Motion | None, lengths: Lengths |
     return travel_mm >= longest
 
 
-def _runs_of(flag: np.ndarray, min_samples: int = 1) -> list[tuple[int, int]]:
-    """Runs ``[a, b)`` of True in ``flag``, at least ``min_samples`` long."""
-    step = np.diff(np.concatenate([[0], np.asarray(flag, bool).astype(np.int8), [0]]))
-    starts, stops = np.nonzero(step == 1)[0], np.nonzero(step == -1)[0]
-    return [(int(a), int(b)) for a, b in zip(starts, stops, strict=True) if b - a >= min_samples]
-
-
 def seen_through(z: np.ndarray, diagram: Diagram, levels: ColumnLevels, *,
                  blind: np.ndarray | None = None) -> tuple[np.ndarray, list[tuple[float, float, float]],
                                                            list[tuple[float, float]]]:
@@ -204,7 +198,7 @@ def seen_through(z: np.ndarray, diagram: Diagram, levels: ColumnLevels, *,
 
         jump[maximum_filter1d(hide.astype(np.uint8), 2 * (2 * g + 3) + 1).astype(bool)] = 0.0
     reported, hidden = [], []
-    for a, b in _runs_of(clear, max(1, int(np.ceil(STILL_MIN_MM / ds - 1e-9)))):
+    for a, b in true_runs(clear, max(1, int(np.ceil(STILL_MIN_MM / ds - 1e-9)))):
         # the edges inside the run, or at an end of the view or a blind stretch
         lo, hi = max(a - g, 0), min(b + g, len(pos))
         edges = np.nonzero(jump[lo:hi] > SEEN_THROUGH_REPORTED)[0] + lo
@@ -220,7 +214,7 @@ def seen_through(z: np.ndarray, diagram: Diagram, levels: ColumnLevels, *,
         inside = levels.separated[a:b]
         left = float(np.median(levels.contrast[a:b][inside])) if inside.any() else 0.0
         reported.append((float(pos[a] - half), float(pos[b - 1] + half), left))
-        for c, d in _runs_of(~inside):  # every run, however short: no plug is read there
+        for c, d in true_runs(~inside):  # every run, however short: no plug is read there
             hidden.append((float(pos[a + c] - half), float(pos[a + d - 1] + half)))
     if not fix.any():
         return z, reported, hidden
@@ -247,10 +241,8 @@ def still_stretches(diagram: Diagram, motion: Motion | None, lengths: Lengths | 
     typical = float(np.median(sd))
     if not typical > 0.01 * max(float(np.median(np.abs(d))), 1e-6):  # nothing moves anywhere (a jammed or empty
         return []  # record): no contrast to judge by
-    step = np.diff(np.concatenate([[0], (sd < STILL_REGION_SHARE * typical).astype(np.int8), [0]]))
-    starts, stops = np.nonzero(step == 1)[0], np.nonzero(step == -1)[0]
     pos, half = diagram.position_mm, 0.5 * diagram.mm_per_px
-    return [(float(pos[a] - half), float(pos[b - 1] + half)) for a, b in zip(starts, stops, strict=True)
+    return [(float(pos[a] - half), float(pos[b - 1] + half)) for a, b in true_runs(sd < STILL_REGION_SHARE * typical)
             if (b - a) * diagram.mm_per_px >= STILL_MIN_MM]
 
 
@@ -261,24 +253,27 @@ def blind_margin(swing_px: float = 0.0) -> int:
     return 1 + int(np.ceil(max(float(swing_px), 0.0) - 1e-9))
 
 
-def shaken_margin(shake: Shake | None) -> int:
-    """How far beside a blind stretch plugs are cut (:func:`blind_margin`): a camera that shook along the tube, when
-    the diagram could not be held still against it, moves a clamp in the diagram by as much as it moved across (the
-    motion along unmeasured, the swing across stands for it)."""
+def _standing_in_along(shake: Shake | None) -> np.ndarray | None:
+    """The camera's motion across the tube (px), when it shook and its motion along could not be measured (the
+    diagram not held still against it): the motion across then stands for the motion along; None otherwise."""
     if (shake is None or not shake.shaking or shake.along_px is not None or shake.across_px is None
             or not len(shake.across_px)):
-        return blind_margin()
-    across = np.asarray(shake.across_px, float)
-    return blind_margin(float(np.nanmax(np.abs(across - np.nanmedian(across)))))
+        return None
+    return np.asarray(shake.across_px, float)
+
+
+def shaken_margin(shake: Shake | None) -> int:
+    """How far beside a blind stretch plugs are cut (:func:`blind_margin`): a camera that shook along the tube, when
+    the diagram could not be held still against it, moves a clamp in the diagram by as much as it moved across."""
+    across = _standing_in_along(shake)
+    return blind_margin() if across is None else blind_margin(float(np.nanmax(np.abs(across - np.nanmedian(across)))))
 
 
 def unmeasured_wander_mm(shake: Shake | None, mm_per_px: float) -> float:
-    """The rms (mm) of the camera's motion along the tube when it shook but that motion could not be measured (the
-    diagram not held still against it): its motion across, measured on the walls, stands for it; 0 otherwise."""
-    if (shake is None or not shake.shaking or shake.along_px is not None or shake.across_px is None
-            or not len(shake.across_px)):
-        return 0.0
-    return float(np.nanstd(np.asarray(shake.across_px, float))) * mm_per_px
+    """The rms (mm) of the camera's motion along the tube when it shook but that motion could not be measured: its
+    motion across, measured on the walls, stands for it; 0 otherwise."""
+    across = _standing_in_along(shake)
+    return 0.0 if across is None else float(np.nanstd(across)) * mm_per_px
 
 
 def blind_positions(position_mm: np.ndarray, stretches: tuple[BlindStretch, ...] | list[BlindStretch], *,

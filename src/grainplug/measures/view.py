@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._filters import true_runs
+
 #: a frame whose walls correlate with the record's below this is one where the tube is not seen
 UNSEEN_CORRELATION = 0.5
 #: ... judged only on profiles whose median has this much structure (the walls' contrast over the profile's noise)
@@ -50,9 +52,7 @@ class TubeView:
     @property
     def stretches(self) -> list[tuple[int, int]]:
         """The unseen stretches as ``(first, last)`` frame indices."""
-        step = np.diff(np.concatenate([[0], self.unseen.astype(np.int8), [0]]))
-        return [(int(a), int(b) - 1) for a, b in zip(np.flatnonzero(step == 1), np.flatnonzero(step == -1),
-                                                       strict=True)]
+        return [(a, b - 1) for a, b in true_runs(self.unseen)]
 
 
 def unseen_mask(stretches: tuple[tuple[int, int], ...] | list[tuple[int, int]], n_frames: int) -> np.ndarray:
@@ -91,11 +91,7 @@ def tube_view(across: list[np.ndarray], n_frames: int) -> TubeView:
         nan = np.full(n_frames, np.nan)
         return TubeView(np.zeros(n_frames, bool), nan)
     likeness = np.median(np.stack(scores), axis=0)
-    low = likeness < UNSEEN_CORRELATION
     # only stretches long enough: shorter ones are the frames' repair's (and a noisy frame's dip)
-    step = np.diff(np.concatenate([[0], low.astype(np.int8), [0]]))
-    unseen = np.zeros(n_frames, bool)
-    for a, b in zip(np.flatnonzero(step == 1), np.flatnonzero(step == -1), strict=True):
-        if b - a >= MIN_UNSEEN_FRAMES:
-            unseen[a:b] = True
+    unseen = unseen_mask([(a, b - 1) for a, b in true_runs(likeness < UNSEEN_CORRELATION, MIN_UNSEEN_FRAMES)],
+                         n_frames)
     return TubeView(unseen, likeness)

@@ -262,7 +262,7 @@ class ReviewSession:
         s = res.summary
         st = replayed(res)  # what the corrections exclude and keep, as applied
         excluded, window, spans = (frozenset(), (None, None), ()) if st is None else (st.excluded, st.window, st.spans)
-        detected_links = detection(res, res.corrections or Corrections())[1]
+        detected_links = st.links if st is not None else detection(res, Corrections())[1]
         rows = [{k: None if isinstance(v, float) and not np.isfinite(v) else v for k, v in r.items()}
                 for r in track_rows(res)]
         shown = {int(r["plug_id"]) for r in rows}
