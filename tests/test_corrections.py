@@ -542,3 +542,61 @@ def test_remeasure_says_the_edits_it_did_not_apply(result, tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     [said] = of_code(summary, "corrections.not_applied")
     assert "was applied but holds none" in said, summary["warnings"]
+
+
+def test_an_excluded_plug_is_never_taken_for_air(result):
+    """Excluding a plug used to join the bubbles either side into one (the mean bubble went from 27.7 to 89 mm on
+    this movie): the bubbles beside it are cut there and not measured; every other bubble keeps its length."""
+    det = result.lengths
+    assert det.n_bubbles_measured >= 2
+    detected = {tuple(p): v for p, v in zip(det.bubble_tracks.tolist(), det.per_bubble_mm, strict=True)}
+    for tid in {t for pair in detected for t in pair}:
+        ex = apply_corrections(result, Corrections().add("exclude", track=tid))
+        kept = {tuple(p): v for p, v in zip(ex.lengths.bubble_tracks.tolist(), ex.lengths.per_bubble_mm, strict=True)}
+        assert kept == {p: v for p, v in detected.items() if tid not in p}, tid
+        assert ex.lengths.plug_length_mm is not None and tid not in ex.lengths.per_track_mm
+
+
+@pytest.fixture(scope="module")
+def still_object():
+    """A dark object laid over the tube (55.5-61.1 mm) a quarter into the record of a climbing train: not still over
+    the whole record, so not a blind stretch, and taken for a plug that stays put."""
+    from grainplug.synthetic.render import Renderer
+    cfg = SynthConfig(n_frames=200, seed=5, celerity_m_s=0.05, plug_length_mm=10, bubble_length_mm=8,
+                      plug_length_sd_mm=1, bubble_length_sd_mm=1)
+    frames = np.stack(list(Renderer(cfg).frames()))
+    frames[60:, 300:330] = np.clip(30 + np.random.default_rng(1).normal(0, 3, frames[60:, 300:330].shape), 0, 255)
+    return gp.analyze(frames, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
+
+
+def test_the_warnings_follow_the_corrections(still_object):
+    """The warnings that judge the plug train are given again on what the corrections keep: the still object's
+    warning goes with its track, and comes back with it."""
+    [said] = of_code(still_object, "still.track")
+    tid = int(said.split()[1])  # "plug N at ..."
+    ex = apply_corrections(still_object, Corrections().add("exclude", track=tid))
+    assert "still.track" not in codes(ex), ex.warnings
+    back = apply_corrections(ex, ex.corrections.add("restore", track=tid))
+    assert back.warnings == still_object.warnings
+    none = Corrections()
+    for t in range(len(still_object.links)):
+        none = none.add("exclude", track=t)
+    empty = apply_corrections(still_object, none)
+    assert not empty.has_plugs and not (codes(empty) & {"still.track", "plugs.near_min_length"}), empty.warnings
+
+
+def test_a_blind_stretch_removed_takes_its_warning():
+    """A clamp over the whole record is found as a blind stretch and said; the reviewer removes it (it was not
+    one): the warning goes with it, and comes back when it is marked again."""
+    from grainplug.synthetic.render import Renderer
+    cfg = SynthConfig(n_frames=200, seed=5, celerity_m_s=0.05, plug_length_mm=10, bubble_length_mm=8,
+                      plug_length_sd_mm=1, bubble_length_sd_mm=1)
+    frames = np.stack(list(Renderer(cfg).frames()))
+    frames[:, 300:330] = np.clip(30 + np.random.default_rng(1).normal(0, 3, frames[:, 300:330].shape), 0, 255)
+    res = gp.analyze(frames, fps=cfg.fps, mm_per_px=cfg.mm_per_px)
+    assert "still.region" in codes(res)
+    gone = apply_corrections(res, Corrections().add("unblind", from_mm=56.0, to_mm=60.0))
+    assert "still.region" not in codes(gone), gone.warnings
+    assert "still.track" in codes(gone)  # measured as a plug again, it is said to stay put
+    again = apply_corrections(gone, gone.corrections.add("blind", from_mm=55.5, to_mm=61.1))
+    assert "still.region" not in codes(again) and "still.track" not in codes(again)  # marked by the reviewer

@@ -14,7 +14,7 @@ from .calibration.scale import CUT_SIDE_SHARE
 from .calibration.tube import TubeGeometry
 from .errors import ParameterError, non_finite_frames
 from .measures import Motion
-from .measures.flow import GRAVITY_DOWN, Flow
+from .measures.flow import GRAVITY_DOWN
 from .measures.grains import GrainMotion
 from .measures.shake import Shake
 from .measures.still import STILL_CONTENTS, BlindStretch
@@ -149,26 +149,32 @@ def saturated_share(frames: list[np.ndarray], band: Band, info: MovieInfo) -> fl
 
 def implausible(motion: Motion | None, grains: GrainMotion | None, saturation: float) -> list[str]:
     """Warnings for numbers that cannot be right, each with what to check."""
-    out = []
-    if motion is not None and motion.celerity_m_s is not None and abs(motion.celerity_m_s) > IMPLAUSIBLE_SPEED_M_S:
-        out.append(coded("plugs.implausible_speed",
-            f"the plugs move at {motion.celerity_m_s:.3g} m/s, faster than grains can fall in a pipe: check "
-            "the frame rate (fps=) and the scale (calibration= or mm_per_px=)"))
-    if grains is not None and grains.speed_m_s is not None and abs(grains.speed_m_s) > IMPLAUSIBLE_SPEED_M_S:
-        out.append(coded("plugs.implausible_speed",
-            f"the grains fall through the bubbles at {grains.speed_m_s:.3g} m/s, faster than free fall "
-            "allows: check the frame rate (fps=) and the scale"))
+    out = implausible_speeds(None if motion is None else motion.celerity_m_s,
+                             None if grains is None else grains.speed_m_s)
     if saturation > SATURATION_WARN:
         out.append(coded("light.saturated",
             f"{100 * saturation:.1f} % of the tube's pixels are at the camera's top value (saturated): plug "
             "and bubble contrast is lost there — lower the exposure or the light"))
     return out
 
+def implausible_speeds(celerity_m_s: float | None, falling_m_s: float | None) -> list[str]:
+    """Warnings for a plug celerity or a falling grains' speed no gravity-driven pipe flow reaches."""
+    out = []
+    if celerity_m_s is not None and abs(celerity_m_s) > IMPLAUSIBLE_SPEED_M_S:
+        out.append(coded("plugs.implausible_speed",
+            f"the plugs move at {celerity_m_s:.3g} m/s, faster than grains can fall in a pipe: check "
+            "the frame rate (fps=) and the scale (calibration= or mm_per_px=)"))
+    if falling_m_s is not None and abs(falling_m_s) > IMPLAUSIBLE_SPEED_M_S:
+        out.append(coded("plugs.implausible_speed",
+            f"the grains fall through the bubbles at {falling_m_s:.3g} m/s, faster than free fall "
+            "allows: check the frame rate (fps=) and the scale"))
+    return out
+
 def still_regions(blind: tuple[BlindStretch, ...]) -> list[str]:
     """A warning naming the stretches of the tube (1 mm or more) where nothing changed over the record while the
     rest of it did (an opaque object over the tube: a clamp, a fitting, the tube's end), which the measures took
     as blind (:func:`grainplug.measures.diagram.measure_diagram`)."""
-    spans = [(b.from_mm, b.to_mm) for b in blind if b.found_by == STILL_CONTENTS and b.blind]
+    spans = [(b.from_mm, b.to_mm) for b in blind if b.found_by == STILL_CONTENTS and b.blind and b.kept]
     if not spans:
         return []
     where = ", ".join(f"{lo:.1f}-{hi:.1f} mm" for lo, hi in spans[:4]) + (", ..." if len(spans) > 4 else "")
@@ -258,10 +264,10 @@ def frame_cadence(motion: Motion | None, info: MovieInfo) -> list[str]:
         "as one — record losslessly or at a higher quality (lower crf)")]
 
 
-def guessed_sign(flow: Flow, motion: Motion | None) -> list[str]:
-    """A warning when a celerity was measured along a flow direction only assumed (down a vertical tube): its
-    sign rests on the camera having been upright."""
-    if flow.source != GRAVITY_DOWN or motion is None or motion.celerity_m_s is None:
+def guessed_sign(flow_source: str, motion: Motion | None) -> list[str]:
+    """A warning when a celerity was measured along a flow direction only assumed (``flow_source`` is
+    gravity's: down a vertical tube): its sign rests on the camera having been upright."""
+    if flow_source != GRAVITY_DOWN or motion is None or motion.celerity_m_s is None:
         return []
     return [coded("flow.sign_assumed",
         "no grains were seen falling through the bubbles, so the flow is assumed to run down the image "
@@ -308,3 +314,22 @@ def tube_out_of_view(stretches: tuple[tuple[int, int], ...], time_s: np.ndarray,
         f"the tube is not in view in {n} of {len(time_s)} frames ({where}{more}): its walls are not seen there "
         "(something in front of it, the camera knocked off it, the lamp out) — those frames are doubtful and were "
         "not measured; check them in the movie")]
+
+
+#: the codes of the warnings :func:`train_warnings` gives: those a reviewer's corrections change, recomputed at
+#: each replay (:func:`grainplug.corrections.apply_corrections`)
+TRAIN_CODES = frozenset({"flow.sign_assumed", "plugs.frame_cadence", "still.region", "shake.too_large",
+                         "shake.corrected", "shake.along_unmeasured", "still.track", "plugs.near_min_length",
+                         "plugs.implausible_speed"})
+
+
+def train_warnings(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion | None, *, mm_per_px: float,
+                   params: AnalysisParams, info: MovieInfo, blind: tuple[BlindStretch, ...], shake: Shake | None,
+                   flow_source: str, falling_m_s: float | None) -> list[str]:
+    """The warnings that judge the plug train (its tracks, motion and blind stretches), in the order a report
+    gives them: the analysis gives them on what it detected, and a reviewer's corrections give them again on
+    what they keep (a plug excluded takes its warnings with it). Their codes are :data:`TRAIN_CODES`."""
+    return [*guessed_sign(flow_source, motion), *frame_cadence(motion, info), *still_regions(blind),
+            *shaken(shake, motion), *still_objects(runs, links, time_s, motion, mm_per_px),
+            *near_the_threshold(runs, motion, params),
+            *implausible_speeds(None if motion is None else motion.celerity_m_s, falling_m_s)]

@@ -53,6 +53,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .checks import TRAIN_CODES, train_warnings
 from .errors import ParameterError
 from .measures.diagram import find_plugs, measure_train
 from .measures.shake import shake_hz
@@ -583,15 +584,18 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     runs, links, stretches = detection(res, corr)
     st = _replay(runs, links, corr, res.diagram)
     t = res.diagram.time_s[runs.frame]
-    keep = ~np.isin(st.run_track, np.fromiter(st.excluded, np.int64, len(st.excluded)))
+    excluded = np.isin(st.run_track, np.fromiter(st.excluded, np.int64, len(st.excluded)))
+    in_time = np.ones(len(runs), bool)
     lo, hi = st.window
     if lo is not None:
-        keep &= t >= lo
+        in_time &= t >= lo
     if hi is not None:
-        keep &= t <= hi
+        in_time &= t <= hi
     for a, b in st.spans:
-        keep &= ~((t >= a) & (t <= b))
-    new_runs = Runs(runs.frame[keep], runs.start[keep], runs.stop[keep], runs.top_mm[keep], runs.bottom_mm[keep])
+        in_time &= ~((t >= a) & (t <= b))
+    keep = in_time & ~excluded
+    new_runs = _rows(runs, keep)
+    walls = _rows(runs, in_time & excluded)  # excluded plugs are not air: the bubbles beside them are cut there
     new_links = _tracks_of(st.run_track[keep], runs.frame[keep], _how_tracks_begin_and_end(st.run_track, runs, links))
     # excluded and emptied tracks keep their ids (so edits and tables stay readable) but have no runs
     motion = lengths = None
@@ -607,7 +611,8 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
                                                    mm_per_px=res.mm_per_px, scale_rel_sd=res.scale_rel_sd,
                                                    blind=blind, not_hz=shake_hz(res.shake),
                                                    frame_cadence=res.info.predicts_frames,
-                                                   wander_mm=unmeasured_wander_mm(res.shake, res.mm_per_px))
+                                                   wander_mm=unmeasured_wander_mm(res.shake, res.mm_per_px),
+                                                   walls=walls)
     elif detected_plugs:
         statement = "no plugs left after the corrections: no celerity, length or frequency is measured"
     unchecked = sum(e.action in TRACK_ACTIONS and e.track_trace is None for e in corr.edits)
@@ -615,6 +620,17 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     # those of an earlier replay go, and are said again if they still hold
     warnings = [w for w in res.warnings if not (_is(w, "corrections.not_applied", NOT_APPLIED)
                                                 or _is(w, "corrections.unchecked", UNCHECKED))]
+    # the plug train's own warnings are given again on what the corrections keep, where the analysis gave them
+    # (a result saved before warnings had codes keeps its own: they cannot be told apart from the others)
+    legacy = any(code_of(w) == "legacy.uncoded" for w in warnings)
+    train = [i for i, w in enumerate(warnings) if code_of(w) in TRAIN_CODES]
+    again = [] if legacy else train_warnings(new_runs, new_links, res.diagram.time_s, motion, mm_per_px=res.mm_per_px,
+                           params=res.params, info=res.info, blind=stretches, shake=res.shake,
+                           flow_source=res.flow_direction_source, falling_m_s=res.falling_grain_speed_m_s)
+    if not legacy:
+        at = train[0] if train else len(warnings)
+        warnings = [w for w in warnings[:at] if code_of(w) not in TRAIN_CODES] + again + [
+            w for w in warnings[at:] if code_of(w) not in TRAIN_CODES]
     warnings += [coded("corrections.not_applied", f"{NOT_APPLIED}: {note} — review the run again")
                  for note in st.not_applied]
     if unchecked and flagged:
@@ -627,6 +643,10 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
     return dataclasses.replace(res, runs=new_runs, links=new_links, motion=motion, lengths=lengths,
                                has_plugs=has_plugs, statement=statement, detected=analysed,
                                corrections=corr, warnings=warnings, blind=stretches)
+
+
+def _rows(runs: Runs, sel: np.ndarray) -> Runs:
+    return Runs(runs.frame[sel], runs.start[sel], runs.stop[sel], runs.top_mm[sel], runs.bottom_mm[sel])
 
 
 def blind_after(found: tuple[BlindStretch, ...], edits: tuple[Edit, ...]) -> tuple[BlindStretch, ...]:

@@ -82,16 +82,18 @@ def measure_plugs(norm: Normalized, diagram: Diagram, runs: Runs, links: Tracks,
 def measure_train(time_s: np.ndarray, runs: Runs, links: Tracks, *, fps: float, mm_per_px: float,
                   scale_rel_sd: float, blind: np.ndarray | None = None,
                   not_hz: tuple[float, ...] = (),
-                  frame_cadence: bool = False, wander_mm: float = 0.0) -> tuple[Motion | None, Lengths | None, str]:
+                  frame_cadence: bool = False, wander_mm: float = 0.0,
+                  walls: Runs | None = None) -> tuple[Motion | None, Lengths | None, str]:
     """Celerity, oscillation and regime of a train of tracked plugs, their lengths and their bubbles' (the step
     that :func:`measure_plugs` ends with and :func:`grainplug.corrections.apply_corrections` repeats on the
-    corrected tracks); the statement says why there is no motion, if so."""
+    corrected tracks); the statement says why there is no motion, if so. ``walls``: plugs left out of the train
+    (excluded by a reviewer) that cut the bubbles beside them (:func:`~grainplug.measures.lengths.measure_lengths`)."""
     # small least-squares problems: a BLAS thread pool would only add wake-up latency
     with threadpool_limits(limits=1, user_api="blas"):
         motion = measure_motion(time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
                                 mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd, not_hz=not_hz,
                                 frame_cadence=frame_cadence, wander_mm=wander_mm)
-        lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd, blind=blind)
+        lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd, blind=blind, walls=walls)
     statement = "" if motion is not None else NO_FOLLOWED_EDGE
     return motion, lengths, statement
 

@@ -12,7 +12,9 @@ scale's relative uncertainty added in quadrature.
 
 A bubble is the gap between the lower edge of one plug and the upper edge of
 the next in the same frame; bubbles are grouped by the pair of tracks that
-bound them and averaged the same way.
+bound them and averaged the same way. A plug a reviewer excluded (``walls``) is
+not air: the gaps either side of it are cut there, as the view's end cuts a
+plug, and are not measured.
 """
 
 from __future__ import annotations
@@ -53,14 +55,21 @@ def _mean_ci(values: np.ndarray, scale_rel_sd: float) -> tuple[float, tuple[floa
     return m, (max(m - tq * se, 0.0), m + tq * se), sd  # a length is never negative: few values, a clipped interval
 
 
-def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int,
-                    blind: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int, blind: np.ndarray | None = None,
+                    walls: Runs | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Median gap between each pair of tracks seen one after the other in a frame
     (the bubble between them), for pairs seen in at least ``min_frames`` frames,
-    and the pairs ``(upstream track, downstream track)``."""
+    and the pairs ``(upstream track, downstream track)``; a gap with one of ``walls`` in it is none."""
+    track = tracks.run_track
+    if walls is not None and len(walls):  # the walls among the runs, by frame then position, with no track
+        both = Runs(*(np.concatenate([getattr(runs, f), getattr(walls, f)])
+                      for f in ("frame", "start", "stop", "top_mm", "bottom_mm")))
+        order = np.lexsort((both.start, both.frame))
+        runs = Runs(*(getattr(both, f)[order] for f in ("frame", "start", "stop", "top_mm", "bottom_mm")))
+        track = np.concatenate([track, np.full(len(walls), -1, track.dtype)])[order]
     u = np.nonzero(runs.frame[1:] == runs.frame[:-1])[0]  # runs sorted by frame, then position
     d = u + 1
-    ok = np.isfinite(runs.bottom_mm[u]) & np.isfinite(runs.top_mm[d])
+    ok = np.isfinite(runs.bottom_mm[u]) & np.isfinite(runs.top_mm[d]) & (track[u] >= 0) & (track[d] >= 0)
     if blind is not None and np.any(blind):  # a gap across a blind stretch may hide a plug: not a bubble
         hidden = np.concatenate([[0], np.cumsum(np.asarray(blind, bool), dtype=np.int64)])
         ok &= hidden[runs.start[d]] == hidden[runs.stop[u]]
@@ -68,7 +77,7 @@ def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int,
     if not u.size:
         return np.zeros(0), np.zeros((0, 2), np.int64)
     gap = runs.top_mm[d] - runs.bottom_mm[u]
-    ku, kd = tracks.run_track[u], tracks.run_track[d]
+    ku, kd = track[u], track[d]
     order = np.lexsort((kd, ku))
     ku, kd, gap = ku[order], kd[order], gap[order]
     starts = np.flatnonzero(np.r_[True, (ku[1:] != ku[:-1]) | (kd[1:] != kd[:-1])])
@@ -80,10 +89,11 @@ def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int,
 
 
 def measure_lengths(runs: Runs, tracks: Tracks, *, scale_rel_sd: float = 0.0,
-                    min_frames: int = 3, blind: np.ndarray | None = None) -> Lengths:
+                    min_frames: int = 3, blind: np.ndarray | None = None, walls: Runs | None = None) -> Lengths:
     """Mean plug and bubble lengths (see module notes); ``blind``: positions whose contents are hidden (a
     bubble across them is not measured; a plug against them is cut, as :func:`grainplug.plugs.find_runs`
-    marks it)."""
+    marks it); ``walls``: runs left out of the train (plugs a reviewer excluded) that still bound the gaps
+    beside them: a gap between a plug and one of them is not a bubble measured."""
     both = np.isfinite(runs.top_mm) & np.isfinite(runs.bottom_mm)
     per_track: dict[int, float] = {}
     for tid in range(len(tracks)):
@@ -97,7 +107,7 @@ def measure_lengths(runs: Runs, tracks: Tracks, *, scale_rel_sd: float = 0.0,
         plug, plug_ci, plug_sd = _mean_ci(vals, scale_rel_sd)
     else:
         plug, plug_ci, plug_sd = None, None, None
-    bub_vals, bub_pairs = _bubble_medians(runs, tracks, min_frames, blind)
+    bub_vals, bub_pairs = _bubble_medians(runs, tracks, min_frames, blind, walls)
     if bub_vals.size:
         bub, bub_ci, _ = _mean_ci(bub_vals, scale_rel_sd)
     else:
