@@ -47,7 +47,11 @@ class BandGather:
         if n_ch > 1:
             ch = np.arange(n_ch)
             off = off[:, :, None] + (ch[::-1] if frame.strides[2] < 0 else ch) * st[2]
-        self._idx = np.ascontiguousarray(off.reshape(b.n_positions, -1), dtype=np.intp)
+        # gathered sample by sample across the band (every position's first sample, then every second...): one
+        # frame's rows are far apart in memory, and a gather that goes down them at one stride lets the processor
+        # fetch the next rows ahead (twice as fast, on a memory-mapped frame, as one that reads the band's
+        # samples at one position after another); the same sums follow, in the same order
+        self._idx = np.ascontiguousarray(off.reshape(b.n_positions, -1).T, dtype=np.intp)
         self._span = int(self._idx.max()) + 1
         w = b.weights if n_ch == 1 else np.repeat(b.weights, n_ch, axis=1) / n_ch
         self._w = np.ascontiguousarray(w, dtype=np.float32)
@@ -76,7 +80,7 @@ class BandGather:
             frame = frame[self._lowest]
         flat = np.lib.stride_tricks.as_strided(frame, shape=(self._span,), strides=(frame.itemsize,))
         vals = np.take(flat, self._idx)
-        return np.einsum("ij,ij->i", vals.astype(np.float32), self._w)
+        return np.einsum("ij,ij->i", np.ascontiguousarray(vals.T, dtype=np.float32), self._w)
 
 
 def profiles_from_frames(frames: Iterable[np.ndarray], band: Band, *, n_frames: int,
