@@ -121,11 +121,13 @@ def given_scale_doubts(tube: TubeGeometry, params: AnalysisParams, *, has_plugs:
         "and tube_diameter_mm=, and that what was found is the tube")]
 
 def check_background(params: AnalysisParams, info: MovieInfo) -> None:
-    bg = params.background
-    if bg is not None and tuple(bg.image.shape[:2]) != (info.height, info.width):
-        raise ParameterError(f"the background is {bg.image.shape[1]} x {bg.image.shape[0]} px but the movie's frames "
-                             f"are {info.width} x {info.height}: take it with the movie's camera and settings",
-                             param="background")
+    """Refuse a background or packed picture of another size than the movie's frames."""
+    for name, what, bg in (("background", "background", params.background),
+                            ("packed", "packed picture", params.packed)):
+        if bg is not None and tuple(bg.image.shape[:2]) != (info.height, info.width):
+            raise ParameterError(f"the {what} is {bg.image.shape[1]} x {bg.image.shape[0]} px but the "
+                                 f"movie's frames are {info.width} x {info.height}: take it with the movie's camera "
+                                 "and settings", param=name)
 
 def check_finite(values: np.ndarray, info: MovieInfo) -> None:
     """Float frames with NaN or infinite pixels in the tube (beyond the sampled frames, checked with the tube) are

@@ -55,6 +55,7 @@ import numpy as np
 
 from .checks import TRAIN_CODES, train_warnings
 from .errors import ParameterError
+from .measures.compactness import phase_compactness
 from .measures.diagram import find_plugs, measure_train
 from .measures.shake import shake_hz
 from .measures.still import REVIEW, BlindStretch, blind_positions, shaken_margin, unmeasured_wander_mm
@@ -640,7 +641,10 @@ def apply_corrections(res: AnalysisResult, corr: Corrections, *, reanalysed: boo
             "of this run without where those tracks were, and the movie or the parameters have "
             "changed since — check them in `grainplug review` (edits made there again keep their "
             "tracks' place)"))
+    compactness = (phase_compactness(res.compactness_field, new_runs, new_links)
+                   if res.compactness_field is not None else res.compactness)
     return dataclasses.replace(res, runs=new_runs, links=new_links, motion=motion, lengths=lengths,
+                               compactness=compactness,
                                has_plugs=has_plugs, statement=statement, detected=analysed,
                                corrections=corr, warnings=warnings, blind=stretches)
 

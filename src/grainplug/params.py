@@ -80,6 +80,7 @@ RANGES: dict[str, Range] = {
     "min_plug_mm": Range(0.01, 1e4, "mm"),
     "min_gap_mm": Range(0, 1e4, "mm"),
     "sample_frames": Range(4, 10_000, "frames", integer=True),
+    "packed_compactness": Range(0.05, 0.95, "(a packing's volume fraction)"),
 }
 
 
@@ -149,6 +150,13 @@ class AnalysisParams:
         camera and lamp (:func:`grainplug.read_background`); the diagram is divided by
         its light along the tube. :func:`grainplug.analyze` also takes the path of the
         picture or movie.
+    packed : Background, optional
+        The tube packed with still grains at ``packed_compactness``, with the same camera and
+        lamp (read as ``background`` is): with ``background`` the tube *empty*, the grains'
+        compactness is read along the tube from the light they let through
+        (:mod:`grainplug.measures.compactness`).
+    packed_compactness : float
+        The packed reference's compactness (0.60: glass beads poured and settled).
     start_frame, end_frame : int, optional
         Analyse frames ``start_frame`` (included) to ``end_frame`` (excluded) only, e.g. to
         leave out the start-up transient; counted from 0.
@@ -184,6 +192,8 @@ class AnalysisParams:
     allow_truncated: bool = False
     calibration: Calibration | None = None
     background: Background | None = None
+    packed: Background | None = None
+    packed_compactness: float = 0.60
     start_frame: int | None = None
     end_frame: int | None = None
     start_s: float | None = None
@@ -230,6 +240,12 @@ class AnalysisParams:
         check(self.background is None or hasattr(self.background, "image"), "background",
               f"must be a Background (gp.read_background(path), or the path itself to gp.analyze), got a "
               f"{type(self.background).__name__}")
+        check(self.packed is None or hasattr(self.packed, "image"), "packed",
+              f"must be a Background (gp.read_background(path), or the path itself to gp.analyze), got a "
+              f"{type(self.packed).__name__}")
+        check(self.packed is None or self.background is not None, "packed",
+              "needs the empty tube's picture too (background=, --background): the compactness is read between "
+              "the two")
         check(self.calibration is None or self.mm_per_px is None, "calibration",
               "give either a calibration or mm_per_px (the scale), not both")
         if self.roi is not None:
@@ -251,8 +267,9 @@ class AnalysisParams:
     def as_record(self) -> dict[str, object]:
         """The parameters as plain data, for provenance and run keys: a background is recorded by its
         identity (name, size, SHA-256), not its pixels."""
-        d = dataclasses.asdict(dataclasses.replace(self, background=None))
+        d = dataclasses.asdict(dataclasses.replace(self, background=None, packed=None))
         d["background"] = self.background.describe() if self.background is not None else None
+        d["packed"] = self.packed.describe() if self.packed is not None else None
         return d
 
     def replace(self, **changes: object) -> AnalysisParams:

@@ -51,12 +51,13 @@ from .diagram.extract import CORE_FRACTION, probes_along_tube, resample_position
 from .diagram.frames import repair_frames
 from .diagram.light import divide_by_lamp
 from .errors import MovieError, ParameterError
+from .measures.compactness import grain_contents, reference_reads
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
 from .measures.shake import band_margin_px, measure_shake, register_sample, shake_hz, shift_along
 from .measures.still import shaken_margin, unmeasured_wander_mm
 from .measures.view import tube_view
-from .params import AnalysisParams, tube_orientation
+from .params import AnalysisParams, runs_backwards, tube_orientation
 from .plugs import Runs
 from .provenance import fingerprint, movie_identity
 from .readers import Movie, MovieInfo, as_movie
@@ -112,7 +113,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     elif params is not None and not isinstance(params, AnalysisParams):
         raise ParameterError(f"must be an AnalysisParams (or its fields as keywords), got a {type(params).__name__}",
                              param="params")
-    for key, read in (("calibration", _load_calibration), ("background", _read_background)):
+    for key, read in (("calibration", _load_calibration), ("background", _read_background),
+                      ("packed", _read_background)):
         if isinstance(overrides.get(key), (str, os.PathLike)):  # a file, as the command line takes it
             overrides[key] = read(overrides[key])
     params = (params or AnalysisParams()).replace(**overrides)
@@ -149,6 +151,9 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         scale = decide_scale(tube, params, mm_per_px=params.mm_per_px, calibration=params.calibration,
                              frame_shape=(info.height, info.width))
         check_background(params, info)
+        reads = None if params.packed is None or not tube.back_lit else reference_reads(
+            probe_band, probes, params.background.image, params.packed.image,
+            packed_compactness=params.packed_compactness)
         laps("setup_s")
         read = movie.read_band(probe_band, threads=threads,
                                progress=(lambda k: progress(k, info.n_frames)) if progress else None)
@@ -158,6 +163,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         if params.background is not None:
             values, light = flat_field(values, band, params.background)
             light_warnings = all_coded("light.background", light)
+        movie_beside = None if reads is None else np.array(beside[:: max(1, len(beside) // 500)])
         values, lamp = divide_by_lamp(values, beside, beside_at, back_lit=tube.back_lit)
         values = np.ascontiguousarray(values)  # its own memory, not a view of the read
         shake = measure_shake(across, [beside], fps=info.fps,
@@ -172,10 +178,12 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         laps("fingerprint_s")
     values, repair = repair_frames(values, top=_top_value(info))
     mm_per_px = scale.mm_per_px
+    at = None
     shake = dataclasses.replace(shake, mm_per_px=mm_per_px, sample_registered=sample_shake.registered,
                                 sample_rms_across_px=sample_shake.rms_px)
     if scale.map_through is not None:  # the lens's distortion: the samples placed evenly in mm along the tube
-        values = resample_positions(values, uniform_samples(scale.map_through, tube, axis_px, mm_per_px))
+        at = uniform_samples(scale.map_through, tube, axis_px, mm_per_px)
+        values = resample_positions(values, at)
     diagram = Diagram(values, time_s, axis_px * mm_per_px, mm_per_px)
     norm = normalize(diagram.values, background_level=tube.background_level,
                      confirm_px=confirm_px(params.min_plug_mm, mm_per_px))
@@ -190,6 +198,9 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                             frame_cadence=info.predicts_frames, unseen=view.unseen,
                             wander_mm=unmeasured_wander_mm(shake, mm_per_px))
     runs, links, motion, lengths = found.runs, found.links, found.motion, found.lengths
+    contents = grain_contents(diagram, reads, movie_beside, runs, links, given=params.packed is not None,
+                              back_lit=tube.back_lit,
+                              backwards=runs_backwards(flow.direction), resample_at=at)
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
     timings = dict(laps.timings, stream_fps=round(diagram.n_frames / max(laps.timings["stream_s"], 1e-9), 1))
@@ -212,8 +223,9 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                   *train_warnings(runs, links, diagram.time_s, motion, mm_per_px=mm_per_px, params=params,
                                   info=info, blind=found.blind, shake=shake, flow_source=flow.source,
                                   falling_m_s=None if grains is None else grains.speed_m_s),
-                  *implausible(None, None, saturation)], scale_rel_sd=scale_rel_sd, bore=scale.bore,
+                  *implausible(None, None, saturation), *contents.warnings], scale_rel_sd=scale_rel_sd, bore=scale.bore,
         blind=found.blind, shake=shake, lamp=lamp, tube_unseen=tuple(view.stretches),
+        compactness=contents.phases, compactness_field=contents.field, compactness_note=contents.note,
     )
 
 

@@ -33,6 +33,7 @@ from .calibration.tube_model import BoreEstimate
 from .diagram import Diagram, Normalized
 from .diagram.light import Lamp
 from .measures import Lengths, Motion
+from .measures.compactness import PhaseCompactness
 from .measures.shake import Shake
 from .measures.still import BlindStretch
 from .params import AnalysisParams
@@ -130,6 +131,13 @@ class AnalysisResult:
         Stretches of frames (first, last analysed frame) in which the tube was not in view (its walls not seen:
         something in front of it, the camera knocked off it): no plug is found there
         (:mod:`grainplug.measures.view`).
+    compactness : PhaseCompactness or None
+        The plugs' and the bubbles' compactness, read from the light between an empty and a packed
+        reference (:mod:`grainplug.measures.compactness`); None when not measured.
+    compactness_field : ndarray or None
+        The compactness at every frame and position (the diagram's shape).
+    compactness_note : str
+        Why the compactness was not measured (empty when it was).
     """
 
     params: AnalysisParams
@@ -161,6 +169,9 @@ class AnalysisResult:
     shake: Shake | None = None
     lamp: Lamp | None = None
     tube_unseen: tuple[tuple[int, int], ...] = ()
+    compactness: PhaseCompactness | None = None
+    compactness_field: np.ndarray | None = field(default=None, repr=False)
+    compactness_note: str = ""
 
     # -- figures --------------------------------------------------------------
     @property
@@ -331,6 +342,9 @@ class AnalysisResult:
             ("bubble length", f"{num(s['bubble_length_mm'], 2)} mm{ci(s['bubble_length_ci95_mm'], 2)}"),
             ("oscillation", "none" if not s["oscillation_frequency_hz"] else
              f"{num(s['oscillation_frequency_hz'], 2)} Hz, amplitude {num(s['oscillation_amplitude_mm'], 2)} mm"),
+            ("compactness", s["compactness"]["note"] or
+             f"plugs {num(s['compactness']['plugs'], 3)}{ci(s['compactness']['plugs_ci95'], 3)}, "
+             f"bubbles {num(s['compactness']['bubbles'], 3)}{ci(s['compactness'].get('bubbles_ci95'), 3)}"),
             ("frames", f"{s['n_frames']} at {s['fps']:g} fps ({s['duration_s']:.3f} s)"),
             ("scale", f"{s['mm_per_px']:.5g} mm/px — {s['scale_source']}"),
             ("flow", f"{s['flow_direction']} — {s['flow_direction_source']}"),
@@ -423,7 +437,7 @@ def result_types() -> dict[str, type]:
 
     return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
                                     Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate,
-                                    Background, Corrections, Edit, BlindStretch, Shake, Lamp)}
+                                    Background, Corrections, Edit, BlindStretch, Shake, Lamp, PhaseCompactness)}
 
 
 def load_result(folder: str | Path) -> AnalysisResult:

@@ -149,6 +149,20 @@ def flow_angle_deg(tube: TubeGeometry, direction: str) -> float:
     return float(np.degrees(np.arctan2(ey, ex)))
 
 
+def _compactness(res: AnalysisResult) -> dict[str, Any]:
+    """The plugs' and the bubbles' compactness with their intervals, or why it was not measured."""
+    c = res.compactness
+    if c is None:
+        return {"plugs": None, "bubbles": None, "note": res.compactness_note or None}
+
+    def ci(v: tuple[float, float] | None) -> list[float | None] | None:
+        return [_r(x, 4) for x in v] if v else None
+
+    return {"plugs": _r(c.plug, 4), "plugs_ci95": ci(c.plug_ci95), "n_plugs": c.n_plugs,
+            "bubbles": _r(c.bubble, 4), "bubbles_ci95": ci(c.bubble_ci95), "n_bubbles": c.n_bubbles,
+            "packed_reference": res.params.packed_compactness, "note": None}
+
+
 def build_summary(res: AnalysisResult) -> dict[str, Any]:
     """JSON-ready summary with provenance (see ``summary.json`` in the docs)."""
     m, ln, tube = res.motion, res.lengths, res.tube
@@ -198,6 +212,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "flow_direction": res.flow_direction,
         "flow_direction_source": res.flow_direction_source,
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
+        "compactness": _compactness(res),
         "blind_stretches": [b.as_dict() for b in res.blind],
         "tube_unseen_frames": [[int(a), int(b)] for a, b in res.tube_unseen],
         "shake": res.shake.as_dict() if res.shake is not None else None,

@@ -8,8 +8,8 @@ code with its meaning and fix; ``docs/analysis.md`` shows the same table (a test
 
 The codes are ``area.kind``: ``shake.*``, ``movie.*`` (what a file says of itself), ``window.*``, ``tube.*``,
 ``scale.*``, ``calibration.*``, ``light.*``, ``frames.*``, ``time.*``, ``flow.*``, ``plugs.*``, ``still.*``,
-``corrections.*``, ``manifest.*``. A warning read back from an older ``result.npz`` (saved as plain text) has the
-code ``legacy.uncoded``.
+``compactness.*``, ``corrections.*``, ``manifest.*``. A warning read back from an older ``result.npz`` (saved as
+plain text) has the code ``legacy.uncoded``.
 """
 
 from __future__ import annotations
@@ -116,6 +116,11 @@ CODES: dict[str, tuple[str, str]] = {
                      "leave it out of the region analysed (roi=)"),
     "still.track": ("a track that stays put while the plugs move (a still object taken for a plug)",
                     "exclude it (grainplug review) or leave it out with roi="),
+    # the grains' compactness
+    "compactness.unmeasured": ("references were given, but the compactness cannot be read (front light)",
+                               "film in back light (a lamp behind the tube)"),
+    "compactness.lamp_unknown": ("the lamp could not be compared between the movie and the references",
+                                 "keep the lamp and the exposure unchanged between them"),
     # a reviewer's corrections
     "corrections.not_applied": ("an edit of corrections.json could not be applied to this analysis",
                                 "review the run again"),

@@ -77,10 +77,11 @@ def pixel_box(value: object) -> tuple[int, ...]:
 ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "tube_outer_diameter_mm": float,
                  "glass_index": float, "flow_direction": str, "glob": str, "min_plug_mm": float,
                  "min_gap_mm": float, "sample_frames": int, "allow_truncated": yes_or_no, "roi": pixel_box,
-                 "start_frame": int, "end_frame": int, "start_s": float, "end_s": float}
+                 "start_frame": int, "end_frame": int, "start_s": float, "end_s": float,
+                 "packed_compactness": float}
 KNOWN_META = {"mass_flow_rate_g_s": float, "humidity_pct": float, "surface": str, "group": str}
 #: the columns with a meaning (the others are metadata)
-KNOWN_COLUMNS = (*ANALYSIS_KEYS, *KNOWN_META, "run", "movie", "calibration", "background")
+KNOWN_COLUMNS = (*ANALYSIS_KEYS, *KNOWN_META, "run", "movie", "calibration", "background", "packed")
 
 
 @dataclass(frozen=True)
@@ -162,6 +163,8 @@ def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec
         kw["calibration"] = _calibration(str(row["calibration"]), base, where)
     if row.get("background"):
         kw["background"] = _background(str(row["background"]), base, where)
+    if row.get("packed"):
+        kw["packed"] = _background(str(row["packed"]), base, where, "packed")
     try:
         params = AnalysisParams(**kw)
     except ParameterError as exc:
@@ -175,7 +178,7 @@ def _spec(row: dict[str, object], index: int, base: Path, where: str) -> RunSpec
     return RunSpec(run, movie, params, meta, tuple(_misspelt(row)))
 
 
-def _background(value: str, base: Path, where: str) -> Background:
+def _background(value: str, base: Path, where: str, column: str = "background") -> Background:
     from ..calibration_files import read_background
     from ..errors import GrainplugError
 
@@ -183,7 +186,7 @@ def _background(value: str, base: Path, where: str) -> Background:
     try:
         return read_background(path if path.is_absolute() else base / path)
     except GrainplugError as exc:
-        raise ParameterError(f"{where}: background: {exc}") from None
+        raise ParameterError(f"{where}: {column}: {exc}") from None
 
 
 def _calibration(value: str, base: Path, where: str) -> Calibration:

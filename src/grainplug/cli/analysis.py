@@ -190,6 +190,11 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
 @click.option("--background", "background", type=click.Path(path_type=Path), default=None,
               help="Light calibration: a picture or short movie of the tube empty (or full), nothing moving, "
                    "to flat-field the light along the tube.")
+@click.option("--packed", "packed", type=click.Path(path_type=Path), default=None,
+              help="A picture (or short movie) of the tube packed with still grains, with the movie's camera and "
+                   "lamp: with --background (the tube empty), the grains' compactness is read from the light.")
+@click.option("--packed-compactness", type=Number(0.05, 0.95), default=0.60, show_default=True,
+              help="The compactness of the grains in the --packed picture (poured and settled glass beads: 0.60).")
 @click.option("--allow-truncated", is_flag=True,
               help="For camera files that end early: analyse the complete frames instead of refusing.")
 @click.option("--start", "start", type=FRAME_OR_TIME, default=None,
@@ -217,7 +222,8 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
             tube_diameter_mm: float | None, tube_outer_diameter_mm: float | None, glass_index: float,
             flow_direction: str | None, min_plug_mm: float, min_gap_mm: float, glob_: str | None,
             threads: int | None,
-            calibration: Path | None, background: Path | None, allow_truncated: bool,
+            calibration: Path | None, background: Path | None, packed: Path | None, packed_compactness: float,
+            allow_truncated: bool,
             start: tuple[str, float] | None, end: tuple[str, float] | None, roi: str | None,
             mask: tuple[str, ...], no_figures: bool,
             dpi: int | None,
@@ -228,7 +234,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
     from ..plotting.worker import FigureWorker
 
     # before the analysis, not after it: the folder is replaced whole, so it must hold none of the inputs
-    check_output_place(out, inputs=[p for p in (movie, calibration, background, config) if p is not None],
+    check_output_place(out, inputs=[p for p in (movie, calibration, background, packed, config) if p is not None],
                        replace=True, kind="analysis")
     refuse_existing(out, overwrite)
     # a setting of grainplug.toml gives way to the command line: --figure-formats over publication = true, and
@@ -248,9 +254,11 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
                             tube_outer_diameter_mm=tube_outer_diameter_mm, glass_index=glass_index,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, min_gap_mm=min_gap_mm, glob=glob_,
                             allow_truncated=allow_truncated, roi=roi_px, mask_mm=mask_option(mask),
+                            packed_compactness=packed_compactness,
                             **window_params(start, end))
     # the calibration and background files are read by the library, once (gp.analyze takes their paths)
-    files = {k: v for k, v in (("calibration", calibration), ("background", background)) if v is not None}
+    files = {k: v for k, v in (("calibration", calibration), ("background", background), ("packed", packed))
+             if v is not None}
     # the figures' worker starts now, before the analysis' own imports (numpy among them): it imports
     # matplotlib while they load, the tube is found and the frames stream
     with (FigureWorker(figure_options.formats, preload=("grainplug.result",)) if not no_figures
@@ -302,6 +310,12 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
         if s["oscillation_frequency_hz"]:
             click.echo(f"oscillation     {fmt(s['oscillation_frequency_hz'], ' Hz', 3)}, "
                        f"amplitude {fmt(s['oscillation_amplitude_mm'], ' mm', 2)}")
+        comp = s.get("compactness") or {}
+        if comp.get("plugs") is not None or comp.get("bubbles") is not None:
+            def with_ci(key: str) -> str:
+                lo_hi = comp.get(f"{key}_ci95")
+                return fmt(comp.get(key), "", 3) + (f" (95% CI {lo_hi[0]:.3f} to {lo_hi[1]:.3f})" if lo_hi else "")
+            click.echo(f"compactness     plugs {with_ci('plugs')}, bubbles {with_ci('bubbles')}")
         click.echo(f"scale           {fmt(s['mm_per_px'], ' mm/px', 5)} from {s['scale_source']}")
         if shake_line(s.get("shake")):
             click.echo(f"camera shake    {shake_line(s.get('shake'))}")

@@ -176,6 +176,13 @@ def _cards(res: AnalysisResult) -> str:
         ci = ln.bubble_length_ci95_mm or (None, None)
         cards.append(("bubble length (mm)", with_uncertainty(ln.bubble_length_mm, *ci),
                       f"{ln.n_bubbles_measured} bubbles"))
+    comp = res.compactness
+    if comp is not None and comp.plug is not None:
+        ci = comp.plug_ci95 or (None, None)
+        bubbles = ("" if comp.bubble is None else
+                   f"bubbles {with_uncertainty(comp.bubble, *(comp.bubble_ci95 or (None, None)))}, ")
+        cards.append(("compactness in plugs", with_uncertainty(comp.plug, *ci),
+                      f"{bubbles}packed reference {res.params.packed_compactness:g}"))
     return '<div class="headline">' + "".join(
         f'<div class="card"><div class="k">{html.escape(k)}</div><div class="v">{html.escape(v)}</div>'
         f'<div class="k">{html.escape(n)}</div></div>' for k, v, n in cards) + "</div>"
