@@ -733,6 +733,10 @@ def _cases() -> list[Case]:
                                                                    kind="edge"),))),
         Case("shadow band 50 % at 5 mm/s, c=-0.1", Scene(motion=m[-0.1], shadows=(Shadow(0.5, 5.0, 5.0,
                                                                                          start_mm=45.0),))),
+        Case("shadow band 40 % at 40 mm/s, front light", Scene(lighting="front", shadows=(
+            Shadow(0.4, 6.0, 40.0, start_mm=5.0, t_on_s=0.1, t_off_s=0.9),))),
+        Case("shadow band 60 % at 60 mm/s, front light", Scene(lighting="front", shadows=(
+            Shadow(0.6, 6.0, 60.0, start_mm=5.0, t_on_s=0.1, t_off_s=0.9),))),
         # clamps and labels
         Case("clamp 3 mm", Scene(clamps=(Clamp(30.0, 3.0),))),
         Case("clamp 8 mm", Scene(clamps=(CLAMP,))),

@@ -108,7 +108,14 @@ def test_the_command_line_reads_it_and_corrections_recount_it(tmp_path, capsys):
     assert s["parameters"]["packed"]["sha256"]  # the reference's identity kept
     # every compactness scales with the packed reference's
     assert abs(s["compactness"]["plugs"] - cfg.c_plug * 0.62 / 0.60) <= WITHIN
+    import xarray as xr
+    with xr.open_dataset(out / "fields.nc", engine="scipy") as ds:  # beside the simulation's: same names and units
+        assert ds["c"].dims == ("time", "z") and ds["c"].attrs["units"] == "1"
+        assert ds["time_s"].shape == (cfg.n_frames,) and "position_mm" in ds.coords
+        assert s["outputs"]["fields"] == "fields.nc"
+        field = ds["c"].values
     res = gp.load_result(out)
+    np.testing.assert_allclose(field, res.compactness_field)
     tid = next(iter(res.compactness.per_track))
     ex = apply_corrections(res, Corrections().add("exclude", track=tid))
     assert ex.compactness.n_plugs == res.compactness.n_plugs - 1 and tid not in ex.compactness.per_track

@@ -132,7 +132,8 @@ for _name in MARGINAL:
 FAST = ["clean c=-0.05", "shake 0.5 px 10 Hz", "shake 1.5 px 35 Hz, oscillating 5 Hz", "ripple 40 % 100 Hz",
         "shadow edge 50 % at 100 mm/s", "label 12 mm, front light", "H.264 crf 35", "stick-slip 4 Hz, shake 1 px 30 Hz",
         "shake 1.5 px 35 Hz", "shake 1.5 px 35 Hz, static plugs", "ripple 30 % 120 Hz, front light",
-        "shadow band 50 % at 5 mm/s, c=-0.1", "clamp 8 mm", "label 12 mm, 55 % through", "combined c=-0.05"]
+        "shadow band 50 % at 5 mm/s, c=-0.1", "clamp 8 mm", "label 12 mm, 55 % through", "combined c=-0.05",
+        "shadow band 40 % at 40 mm/s, front light"]
 
 
 def _params(names: list[str]) -> list[object]:
@@ -152,10 +153,13 @@ def test_targets_on_the_whole_bench(tmp_path, name):
     assert got["ok"], got
 
 
-#: with another seed (movies the methods were not developed on), the celerity's interval must still hold the truth
-#: where the camera wandered along the tube unmeasured: it missed in these before the wander's term (issue 33,
-#: item 5; seed 2 of the whole bench: 39 of 50 cases met every target, 45 after)
-OTHER_SEED = ["combined c=-0.05", "combined c=-0.1", "stick-slip 4 Hz, shake 1 px 30 Hz"]
+#: with another seed (movies the methods were not developed on), every target must still be met: the celerity's
+#: interval where the camera wandered along the tube unmeasured (it missed in the first three before the wander's
+#: term: issue 33, item 5; seed 2 of the whole bench: 39 of 50 cases met every target, 45 after), and the plugs
+#: under a shadow passing in front light
+OTHER_SEED = ["combined c=-0.05", "combined c=-0.1", "stick-slip 4 Hz, shake 1 px 30 Hz",
+              # a passing shadow in front light, read on the contents (plugs -26 % without a word before)
+              "shadow band 40 % at 40 mm/s, front light", "shadow band 60 % at 60 mm/s, front light"]
 
 
 @pytest.mark.slow
@@ -169,3 +173,15 @@ def test_the_interval_holds_with_another_seed(tmp_path, name):
     res = gp.analyze(movie, **case.analysis_kwargs())
     got = judge(case, truth_record(truth), res.summary)
     assert got["ok"], got
+
+
+def test_a_passing_shadow_in_front_light_is_read_on_the_contents_and_said(tmp_path):
+    """A 40 % shadow crossing a front-lit tube (no lamp beside it to read it on) cut the plugs by 38 % without a
+    word; it is now divided out and said. A 60 % one left plugs missed in some frames, and the gap across each was
+    taken for one bubble (+58 %): a gap whose plugs are mostly seen with another between them is no bubble."""
+    got = _measure("shadow band 40 % at 40 mm/s, front light", tmp_path)
+    assert got["ok"] and "light.moving_shadow" in got["codes"], got
+    deep = _measure("shadow band 60 % at 60 mm/s, front light", tmp_path)
+    assert deep["ok"] and abs(deep["bubble_err"]) < 0.2, deep  # +12 % and +8 % (seeds 1, 2): the gaps beside a plug
+    clean = _measure("clean c=-0.05, front light", tmp_path)
+    assert "light.moving_shadow" not in clean["codes"], clean

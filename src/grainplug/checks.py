@@ -12,6 +12,7 @@ import numpy as np
 from .band import Band
 from .calibration.scale import CUT_SIDE_SHARE
 from .calibration.tube import TubeGeometry
+from .diagram.light import MovingLight
 from .errors import ParameterError, non_finite_frames
 from .measures import Motion
 from .measures.flow import GRAVITY_DOWN
@@ -335,3 +336,14 @@ def train_warnings(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion
             *shaken(shake, motion), *still_objects(runs, links, time_s, motion, mm_per_px),
             *near_the_threshold(runs, motion, params),
             *implausible_speeds(None if motion is None else motion.celerity_m_s, falling_m_s)]
+
+
+def passing_shadow(shadow: MovingLight | None) -> list[str]:
+    """A warning when a light moving along the tube (a passing shadow) was read on the contents and divided out."""
+    if shadow is None or shadow.log_gain is None:
+        return []
+    return [coded("light.moving_shadow",
+        f"a light that moves along the tube (a passing shadow, up to {100 * shadow.depth:.0f} % darker, over "
+        f"{100 * shadow.share:.0f} % of the diagram) was read on the plugs and bubbles themselves and divided out "
+        "(no lamp beside the tube to read it on) — keep people and things from passing between the lamp and the "
+        "tube, or film in back light")]

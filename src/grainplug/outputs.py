@@ -38,6 +38,8 @@ FILES = {
     **FIGURE_FILES,
     "result": RESULT_FILE,
 }
+#: the grains' fields over time and position, written when a field beyond the diagram was measured
+FIELDS_FILE = "fields.nc"
 
 
 def edges_table(res: AnalysisResult) -> str:
@@ -86,8 +88,8 @@ def input_files(movie: str | Path | None, p: AnalysisParams) -> list[str]:
     files: list[object] = [movie]
     if p.calibration is not None:
         files.append(getattr(p.calibration, "source", None))
-    if p.background is not None:
-        identity = getattr(p.background, "identity", None)
+    for picture in (p.background, p.packed):
+        identity = getattr(picture, "identity", None)
         files.append(identity.get("path") if isinstance(identity, dict) else None)
     return [str(f) for f in files if f]
 
@@ -132,6 +134,9 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
                                        "input": summary["input"], "parameters": summary["parameters"]},
                                       default=jsonio.default),
             )
+        if res.compactness_field is not None:  # the grains' fields, beside the simulation's (fields.nc)
+            res.fields().to_netcdf(tmp / FIELDS_FILE, engine="scipy")
+            summary["outputs"]["fields"] = FIELDS_FILE
         write_result(res, tmp / FILES["result"])
         if res.corrections is not None:
             (tmp / CORRECTIONS_FILE).write_text(jsonio.dumps(res.corrections.as_dict()))

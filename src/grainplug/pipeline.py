@@ -42,20 +42,21 @@ from .checks import (
     given_scale_doubts,
     implausible,
     other_moving_regions,
+    passing_shadow,
     saturated_share,
     train_warnings,
     tube_out_of_view,
 )
-from .diagram import Diagram, normalize
+from .diagram import Diagram, Normalized, normalize
 from .diagram.extract import CORE_FRACTION, probes_along_tube, resample_positions
 from .diagram.frames import repair_frames
-from .diagram.light import divide_by_lamp
+from .diagram.light import divide_by_lamp, moving_light
 from .errors import MovieError, ParameterError
 from .measures.compactness import grain_contents, reference_reads
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
 from .measures.shake import band_margin_px, measure_shake, register_sample, shake_hz, shift_along
-from .measures.still import shaken_margin, unmeasured_wander_mm
+from .measures.still import blind_positions, shaken_margin, unmeasured_wander_mm
 from .measures.view import tube_view
 from .params import AnalysisParams, runs_backwards, tube_orientation
 from .plugs import Runs
@@ -193,10 +194,28 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     diagram, norm, grains = orient(diagram, norm, grains, tube, flow.direction)
     scale = shaken_scale(scale, tube, params, (shake.rms_across_px or 0.0) if shake.shaking else 0.0)
     scale_rel_sd = scale.rel_sd
-    found = measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level, normalized=norm,
-                            scale_rel_sd=scale_rel_sd, not_hz=shake_hz(shake), blind_margin_px=shaken_margin(shake),
-                            frame_cadence=info.predicts_frames, unseen=view.unseen,
-                            wander_mm=unmeasured_wander_mm(shake, mm_per_px))
+
+    def measured(diagram: Diagram, norm: Normalized) -> DiagramMeasures:
+        return measure_diagram(diagram, params, fps=info.fps, background_level=tube.background_level,
+                               normalized=norm, scale_rel_sd=scale_rel_sd, not_hz=shake_hz(shake),
+                               blind_margin_px=shaken_margin(shake), frame_cadence=info.predicts_frames,
+                               unseen=view.unseen, wander_mm=unmeasured_wander_mm(shake, mm_per_px))
+
+    found = measured(diagram, norm)
+    shadow = None
+    if not tube.back_lit and norm.two_phase:  # no lamp beside the tube: a passing shadow read on the contents
+        cp = confirm_px(params.min_plug_mm, mm_per_px)
+        still = tuple(dataclasses.replace(b, seen_through=None) for b in found.blind)  # seen through or not
+        blind = blind_positions(diagram.position_mm, still, margin_samples=shaken_margin(shake) + cp // 2)
+        for _ in range(2):  # read again once divided: a deep shadow's plugs are told apart better
+            more = moving_light(norm, fps=info.fps, window_px=4 * cp + 1, edge_px=max(2, cp // 2),
+                                blind=blind if blind.any() else None)
+            if more.log_gain is None:
+                break
+            shadow = more if shadow is None else shadow.then(more)
+            diagram = dataclasses.replace(diagram, values=more.divide(diagram.values))
+            norm = normalize(diagram.values, background_level=tube.background_level, confirm_px=cp)
+            found = measured(diagram, norm)
     runs, links, motion, lengths = found.runs, found.links, found.motion, found.lengths
     contents = grain_contents(diagram, reads, movie_beside, runs, links, given=params.packed is not None,
                               back_lit=tube.back_lit,
@@ -223,7 +242,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                   *train_warnings(runs, links, diagram.time_s, motion, mm_per_px=mm_per_px, params=params,
                                   info=info, blind=found.blind, shake=shake, flow_source=flow.source,
                                   falling_m_s=None if grains is None else grains.speed_m_s),
-                  *implausible(None, None, saturation), *contents.warnings], scale_rel_sd=scale_rel_sd, bore=scale.bore,
+                  *implausible(None, None, saturation), *passing_shadow(shadow),
+                  *contents.warnings], scale_rel_sd=scale_rel_sd, bore=scale.bore,
         blind=found.blind, shake=shake, lamp=lamp, tube_unseen=tuple(view.stretches),
         compactness=contents.phases, compactness_field=contents.field, compactness_note=contents.note,
     )

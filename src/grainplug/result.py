@@ -281,6 +281,30 @@ class AnalysisResult:
                    "conventions": CONVENTIONS, "grainplug_version": __version__},
         )
 
+    def fields(self) -> xr.Dataset:
+        """The fields over ``(time, z)``, with ``time_s`` and ``position_mm`` coordinates, as
+        ``grainplug simulate`` writes its own (``fields.nc``): ``grey_level`` (the diagram), ``contrast``
+        (0 bubble, 1 plug) and, when measured, ``c`` (the grains' compactness, the same name and unit as the
+        simulation's)."""
+        import xarray as xr
+
+        d = self.diagram
+        dims = ("time", "z")
+        data = {"grey_level": (dims, d.values.astype(np.float32), {"long_name": "the band's grey level"}),
+                "contrast": (dims, self.normalized.z.astype(np.float32),
+                             {"long_name": "plug contrast (0 bubble, 1 plug)", "units": "1"})}
+        if self.compactness_field is not None:
+            data["c"] = (dims, self.compactness_field.astype(np.float32),
+                         {"long_name": "compactness", "units": "1",
+                          "packed_reference": float(self.params.packed_compactness)})
+        return xr.Dataset(
+            data, coords={"time_s": ("time", d.time_s, {"units": "s"}),
+                          "position_mm": ("z", d.position_mm, {"units": "mm",
+                                                               "long_name": "from the upstream end of the view"})},
+            attrs={"grainplug_version": __version__, "movie": self.info.path, "mm_per_px": self.mm_per_px,
+                   "scale_source": self.scale_source, "flow_direction": self.flow_direction,
+                   "conventions": CONVENTIONS})
+
     # -- display ----------------------------------------------------------------
     def _headline(self) -> list[str]:
         name = Path(self.info.path).name or self.info.path

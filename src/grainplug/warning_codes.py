@@ -80,6 +80,8 @@ CODES: dict[str, tuple[str, str]] = {
                                     "where the tube is"),
     # light
     "light.background": ("the background (light calibration) leaves something doubtful", "as the sentence says"),
+    "light.moving_shadow": ("a light moving along the tube (a passing shadow) was read on the contents and divided "
+                            "out", "keep people and things from passing between the lamp and the tube"),
     "light.saturated": ("part of the tube's pixels are at the camera's top value",
                         "lower the exposure or the light"),
     # frames and time

@@ -17,9 +17,22 @@ mean (:data:`FRAME_WINDOW` frames, applied twice: a triangle, which neither take
 a few frames a period), it is the ripple and the flicker, and the diagram is divided
 by it before doubtful frames are looked for (a ripple of +-30 % was taken for dark and
 over-exposed frames and 44 % of the frames bridged). The slow drift is left to the diagram's own
-per-frame gain (:func:`grainplug.diagram.normalize`); a passing shadow is then not corrected. A frame
+per-frame gain (:func:`grainplug.diagram.normalize`). A frame
 that is not its neighbour times one factor (a blank frame, a flash) is not divided:
 it is left to :func:`grainplug.diagram.frames.repair_frames`.
+
+*A passing shadow without a lamp beside the tube* (:func:`moving_light`) is read on the contents
+themselves, once plugs and bubbles are told apart: each material has one level (a plug's grains, a
+bubble's air), so a pixel's log ratio to its material's level is the light there, apart from the
+texture and the noise. Averaged over a few millimetres and a few hundredths of a second (weighted by
+each material's brightness: the lit material says the most; the samples beside an edge between the
+materials, and the still objects over the tube, blind or seen through, left out) and taken about each
+position's median over the record (what stays is the still light, the diagram's own per-position
+gain's), it is the light that moves:
+a shadow passing along the tube. What stays under 5 % is left alone, and nothing is divided unless
+it changes at least 1 % of the diagram by more than 10 %. On an independent renderer's
+front-lit tube, a 40 % shadow 6 mm wide crossing at 40 mm/s cut the plugs by 26-38 %, silently; read
+this way, they are within 0.3 %.
 """
 
 from __future__ import annotations
@@ -29,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._format import rounded
+from .normalize import Normalized
 
 #: the background beside the tube must be at least this share of the tube's brightest contents to be a lamp
 LAMP_SHARE = 0.5
@@ -180,12 +194,12 @@ def _from_the_diagram(v: np.ndarray, why: str) -> tuple[np.ndarray, Lamp]:
     gain, ripple, noise = frame_light(v)
     if ripple < max(STEADY_RIPPLE, 3.0 * noise):
         return v, Lamp(False, f"{why}: each frame's level against the frames around it, read on the diagram itself, "
-                              "is steady; the drift from the diagram's own per-frame gain; a passing shadow is not "
-                              "corrected", ripple)
+                              "is steady; the drift from the diagram's own per-frame gain; a passing shadow is read "
+                              "on the contents", ripple)
     return v / gain[:, None], Lamp(
         True, f"{why}: each frame's level against the frames around it, read on the diagram itself (ripple, "
               f"flicker; over {FRAME_WINDOW} frames); the drift from the diagram's own per-frame gain; a passing "
-              "shadow is not corrected", ripple)
+              "shadow is read on the contents", ripple)
 
 
 def divide_by_lamp(values: np.ndarray, beside: np.ndarray, at: np.ndarray, *,
@@ -216,3 +230,88 @@ def divide_by_lamp(values: np.ndarray, beside: np.ndarray, at: np.ndarray, *,
     gain /= np.float32(typical)
     np.divide(v, gain, out=gain)
     return gain, Lamp(True, "the background beside the tube, row by row and frame by frame", ripple, shadow)
+
+
+#: a moving light weaker than this (relative, in logarithm) is not corrected: the texture's and the noise's share
+SHADOW_FLOOR = 0.05
+#: ... nor one that changes less than this share of the diagram by more than twice that
+SHADOW_MIN_SHARE = 0.01
+#: the time over which the moving light is averaged, s
+SHADOW_WINDOW_S = 0.03
+
+
+@dataclass(frozen=True)
+class MovingLight:
+    """A light that moves along the tube (a passing shadow), read on the contents (:func:`moving_light`).
+
+    Attributes
+    ----------
+    log_gain : ndarray or None
+        Its logarithm at every frame and position (the diagram's shape); None when none was found.
+    depth : float
+        The deepest dimming (relative: 0.4 is 40 % darker).
+    share : float
+        The share of the diagram it changes by more than twice :data:`SHADOW_FLOOR`.
+    """
+
+    log_gain: np.ndarray | None
+    depth: float = 0.0
+    share: float = 0.0
+
+    def then(self, other: MovingLight) -> MovingLight:
+        """This light and ``other``, read after this one was divided out: their product."""
+        if self.log_gain is None or other.log_gain is None:
+            return other if self.log_gain is None else self
+        g = self.log_gain + other.log_gain
+        return MovingLight(g, float(1.0 - np.exp(min(float(g.min()), 0.0))),
+                           float(np.mean(np.abs(g) > np.float32(SHADOW_FLOOR))))
+
+    def divide(self, values: np.ndarray) -> np.ndarray:
+        """``values`` with this light divided out (float32)."""
+        v = np.asarray(values, np.float32)
+        return v if self.log_gain is None else (v * np.exp(-self.log_gain)).astype(np.float32)
+
+
+def moving_light(norm: Normalized, *, fps: float, window_px: int, edge_px: int,
+                 blind: np.ndarray | None = None) -> MovingLight:
+    """The light that moves along the tube, read on the contents (see module notes).
+
+    Parameters
+    ----------
+    norm : Normalized
+        The diagram's two materials and contrast (:func:`grainplug.diagram.normalize`).
+    fps : float
+        Frame rate: the light is averaged over :data:`SHADOW_WINDOW_S`.
+    window_px : int
+        Positions along the tube it is averaged over.
+    edge_px : int
+        Samples beside an edge between the materials left out (its blur, a codec's smear).
+    blind : ndarray of bool, optional
+        Positions whose contents are hidden (clamps, labels): left out.
+    """
+    from .._filters import minimum_filter1d, uniform_filter1d
+
+    z = norm.z
+    lp, lb = float(norm.plug_level), float(norm.bubble_level)
+    top = max(lp, lb, 1e-9)
+    plug = z > 0.5
+    level = z * np.float32(lp - lb) + np.float32(lb)  # the pixel's light at unit gains
+    ref = np.where(plug, np.float32(lp), np.float32(lb))
+    r = np.log(np.maximum(level, np.float32(1e-3 * top)) / ref).astype(np.float32)
+    w = np.where(plug, np.float32((lp / top) ** 2), np.float32((lb / top) ** 2))
+    steady = np.ones(z.shape, np.float32)
+    steady[:, 1:] = plug[:, 1:] == plug[:, :-1]
+    w *= minimum_filter1d(steady, 2 * edge_px + 1, axis=1)  # 0 within edge_px of a change of material
+    if blind is not None and np.any(blind):
+        w[:, np.asarray(blind, bool)] = 0
+    frames = max(3, int(round(SHADOW_WINDOW_S * fps)) | 1)
+    num = uniform_filter1d(uniform_filter1d(r * w, frames, axis=0, mode="nearest"), window_px, axis=1,
+                           mode="nearest")
+    den = uniform_filter1d(uniform_filter1d(w, frames, axis=0, mode="nearest"), window_px, axis=1, mode="nearest")
+    g = np.where(den > 1e-3, num / np.maximum(den, 1e-9), np.float32(0)).astype(np.float32)
+    g -= np.median(g[:: max(1, len(g) // 400)], axis=0)[None, :]  # the still light is the per-position gain's
+    g = np.sign(g) * np.maximum(np.abs(g) - np.float32(SHADOW_FLOOR), 0)  # the texture's and the noise's share
+    share = float(np.mean(np.abs(g) > np.float32(SHADOW_FLOOR)))  # changed by more than twice the floor
+    if share < SHADOW_MIN_SHARE:
+        return MovingLight(None, 0.0, share)
+    return MovingLight(g.astype(np.float32), float(1.0 - np.exp(min(float(g.min()), 0.0))), share)

@@ -12,13 +12,16 @@ scale's relative uncertainty added in quadrature.
 
 A bubble is the gap between the lower edge of one plug and the upper edge of
 the next in the same frame; bubbles are grouped by the pair of tracks that
-bound them and averaged the same way. A plug a reviewer excluded (``walls``) is
+bound them and averaged the same way. A pair seen one after the other in fewer
+than half of the frames that show both is two plugs with a third between them,
+missed in those frames (a shadow, a splash): its gap is no bubble. A plug a reviewer excluded (``walls``) is
 not air: the gaps either side of it are cut there, as the view's end cuts a
 plug, and are not measured.
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -69,6 +72,8 @@ def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int, blind: np.ndarr
         track = np.concatenate([track, np.full(len(walls), -1, track.dtype)])[order]
     u = np.nonzero(runs.frame[1:] == runs.frame[:-1])[0]  # runs sorted by frame, then position
     d = u + 1
+    # how often each pair of tracks is seen one after the other, measurable or not (for the check below)
+    adjacent = Counter(zip(track[u].tolist(), track[d].tolist(), strict=True))
     ok = np.isfinite(runs.bottom_mm[u]) & np.isfinite(runs.top_mm[d]) & (track[u] >= 0) & (track[d] >= 0)
     if blind is not None and np.any(blind):  # a gap across a blind stretch may hide a plug: not a bubble
         hidden = np.concatenate([[0], np.cumsum(np.asarray(blind, bool), dtype=np.int64)])
@@ -83,6 +88,13 @@ def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int, blind: np.ndarr
     starts = np.flatnonzero(np.r_[True, (ku[1:] != ku[:-1]) | (kd[1:] != kd[:-1])])
     groups = np.split(gap, starts[1:])
     kept = np.asarray([len(g) >= min_frames for g in groups], bool)
+    # a gap whose two plugs are mostly seen with another between them spans that plug where it was missed (a
+    # shadow, a splash): not a bubble
+    frames_of = {int(k): np.unique(runs.frame[track == k]) for k in np.unique(np.concatenate([ku, kd]))}
+    for i, (a, b) in enumerate(zip(ku[starts], kd[starts], strict=True)):
+        if kept[i]:
+            both = np.intersect1d(frames_of[int(a)], frames_of[int(b)], assume_unique=True).size
+            kept[i] = 2 * adjacent[(int(a), int(b))] >= both
     medians = np.asarray([np.median(g) for g in groups], float).reshape(-1)
     pairs = np.stack([ku[starts], kd[starts]], axis=1).astype(np.int64)
     return medians[kept], pairs[kept]

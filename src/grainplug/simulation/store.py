@@ -40,6 +40,8 @@ def to_xarray(res: SimulationResult) -> xr.Dataset:
         {"c": (("time", "z"), res.c.astype(np.float32), {"long_name": "compactness", "units": "1"}),
          "v": (("time", "z"), res.v.astype(np.float32),
                {"long_name": "grain velocity, positive downward", "units": "v_c"}),
+         "v_m_s": (("time", "z"), (res.v * p.v_c_m_s).astype(np.float32),
+                   {"long_name": "grain velocity, positive downward (downstream)", "units": "m s-1"}),
          "P": (("time", "z"), res.P.astype(np.float32), {"long_name": "absolute air pressure", "units": "P_c"})},
         coords=coords,
         attrs={"grainplug_version": __version__, "boundary": res.params.boundary,
