@@ -25,6 +25,7 @@ The public API, imported on first use so that ``import grainplug`` stays fast:
 - :class:`Corrections`, :func:`apply_corrections`, :func:`remeasure`: a reviewer's edits of the
   detected tracks (exclude, merge, split, time window, spans without plugs), measures recomputed;
 - :func:`run_campaign`: many movies from a manifest, optionally on Dask;
+- :func:`compare`: an analysis and a simulation in the same figures and units (:class:`Comparison`);
 - :mod:`datasets`: the sample movie and the paper's tables.
 """
 
@@ -54,6 +55,8 @@ _EXPORTS = {
     "Corrections": "grainplug.corrections",
     "apply_corrections": "grainplug.corrections",
     "remeasure": "grainplug.workflows",
+    "compare": "grainplug.compare",
+    "Comparison": "grainplug.compare",
     "FigureOptions": "grainplug.plotting.options",
     "PUBLICATION": "grainplug.plotting.options",
     "SimulationParams": "grainplug.simulation",
@@ -74,9 +77,9 @@ _SUBMODULES = ("datasets", "stability", "simulation", "synthetic", "readers", "p
 
 __all__ = [
     "FLOW_DIRECTIONS", "PUBLICATION", "AnalysisParams", "AnalysisResult", "Background", "Calibration",
-    "Corrections", "FigureOptions", "GrainplugError", "ModelParams", "Movie", "MovieError", "MovieInfo",
+    "Comparison", "Corrections", "FigureOptions", "GrainplugError", "ModelParams", "Movie", "MovieError", "MovieInfo",
     "ParameterError", "SimulationParams", "SynthConfig", "__version__", "analyze", "analyze_stability",
-    "apply_corrections", "calibrate_file", "calibrate_image", "datasets", "load_calibration", "load_result",
+    "apply_corrections", "calibrate_file", "calibrate_image", "compare", "datasets", "load_calibration", "load_result",
     "open_movie", "plotting", "read_background", "readers", "remeasure", "run_campaign", "save_calibration",
     "simulate", "simulation", "stability", "sweep", "synthesize", "synthetic"
 ]
