@@ -109,15 +109,20 @@ class Comparison:
             ax.legend(frameon=False)
         else:
             ax.text(0.5, 0.5, "no compactness on either side", ha="center", va="center", transform=ax.transAxes)
-        rows = [r for r in self.table() if r["quantity"] != "regime"]
-        text = [f"{'':30s} {'experiment':>11s} {'model':>11s}"]
-        for r in rows:
-            def fmt(v: object) -> str:
-                return "—" if v is None else f"{v:.4g}"
-            text.append(f"{r['quantity'][:30]:30s} {fmt(r['experiment']):>11s} {fmt(r['model']):>11s}")
-        text.append(f"{'regime':30s} {self.experiment.regime or '—':>11s} {self.model.regime or '—':>11s}")
+        short = {"celerity_m_s": "celerity (m/s)", "plug_length_mm": "plug length (mm)",
+                 "bubble_length_mm": "bubble length (mm)", "compactness_plugs": "compactness, plugs",
+                 "compactness_bubbles": "compactness, bubbles", "grain_velocity_in_plugs_m_s": "grains in plugs (m/s)",
+                 "regime": "regime"}
+
+        def fmt(v: object) -> str:
+            return "—" if v is None else v if isinstance(v, str) else f"{v:.4g}"
+
+        text = [f"{'':22s} {'experiment':>11s} {'model':>11s}"]
+        for key, label in short.items():
+            text.append(f"{label:22s} {fmt(getattr(self.experiment, key)):>11s} {fmt(getattr(self.model, key)):>11s}")
+        text.append("celerity and velocities positive downstream")
         bx.axis("off")
-        bx.text(0.0, 1.0, "\n".join(text), family="monospace", fontsize=7, va="top", transform=bx.transAxes)
+        bx.text(0.0, 0.95, "\n".join(text), family="monospace", fontsize=8, va="top", transform=bx.transAxes)
         return fig
 
 
