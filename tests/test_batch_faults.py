@@ -173,7 +173,7 @@ def test_a_half_written_or_damaged_run_is_analysed_again(campaign, tmp_path):
     (out / "runs" / "r1" / ".grainplug").unlink()  # no completion marker (an older version, a copy)
     for s in specs:
         rec = process_run(s, str(out), figures=False)
-        assert rec["status"] == "ok" and rec["reused"] is False
+        assert rec["status"] == "ok" and rec["reused"] is False, rec.get("error")
     assert all(process_run(s, str(out), figures=False)["reused"] for s in specs)
 
 

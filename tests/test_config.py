@@ -71,7 +71,7 @@ def test_a_lab_keeps_publication_figures_on_in_its_settings(movie, tmp_path, cap
     assert main(["analyze", str(local), "--out", str(tmp_path / "o"), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["figures"]["formats"] == ["png", "svg", "pdf"]
-    assert {p.suffix for p in (tmp_path / "o").glob("diagram.*")} == {".npz", ".png", ".svg", ".pdf"}
+    assert {p.suffix for p in (tmp_path / "o").glob("diagram.*")} == {".npz", ".tif", ".png", ".svg", ".pdf"}
 
 
 def test_a_style_sheet_beside_the_settings_is_found_from_anywhere(movie, tmp_path, capsys, monkeypatch):

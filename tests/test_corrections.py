@@ -262,10 +262,10 @@ def test_batch_redraws_a_reused_runs_figures_when_their_options_change(movie, tm
     out = tmp_path / "camp"
     run_dir = out / "runs" / "a"
     gp.run_campaign(manifest, out, simulate=False)
-    assert {p.name for p in run_dir.glob("diagram.*")} == {"diagram.npz", "diagram.png"}
+    assert {p.name for p in run_dir.glob("diagram.*")} == {"diagram.npz", "diagram.tif", "diagram.png"}
     again = gp.run_campaign(manifest, out, figure_options=PUBLICATION, simulate=False)
     assert again.n_reused == 1 and again.n_remeasured == 0
-    assert {p.name for p in run_dir.glob("diagram.*")} == {"diagram.npz", "diagram.png", "diagram.svg",
+    assert {p.name for p in run_dir.glob("diagram.*")} == {"diagram.npz", "diagram.tif", "diagram.png", "diagram.svg",
                                                             "diagram.pdf"}
     written = (run_dir / "summary.json").stat().st_mtime_ns
     third = gp.run_campaign(manifest, out, figure_options=PUBLICATION, simulate=False)  # the same: nothing rewritten

@@ -21,7 +21,7 @@ from ._atomic import atomic_directory
 from .plotting.files import FIGURE_FILES, draw_figures, figure_files, figures_of, save_figure  # noqa: F401 - re-exported
 from .plotting.options import FIGURE_FORMATS, PUBLICATION, FigureOptions  # noqa: F401 - PUBLICATION re-exported
 from .store import RESULT_FILE, write_result
-from .summary import EDGE_SCHEMA, TRACK_COLUMNS, track_rows
+from .summary import EDGE_LONG_SCHEMA, EDGE_SCHEMA, TRACK_COLUMNS, track_rows
 
 if TYPE_CHECKING:
     from .params import AnalysisParams
@@ -35,6 +35,8 @@ FILES = {
     "edges": "plug_edges.csv",
     "tracks": "tracks.csv",
     "diagram": "diagram.npz",
+    "diagram_tif": "diagram.tif",
+    "edges_long": "edges_long.csv",
     **FIGURE_FILES,
     "result": RESULT_FILE,
 }
@@ -58,6 +60,56 @@ def edges_table(res: AnalysisResult) -> str:
                      col(r.top_mm, "%.4f"), col(r.bottom_mm, "%.4f")], axis=1) if len(r) else np.empty((0, 6), str)
     lines = [",".join(row) for row in rows.tolist()]
     return ",".join(EDGE_SCHEMA) + "\n" + "".join(line + "\n" for line in lines)
+
+
+def edges_long_table(res: AnalysisResult) -> str:
+    """CSV with one row per plug edge per frame, trackpy's long layout (:data:`grainplug.summary.EDGE_LONG_SCHEMA`)."""
+    r, track = res.runs, res.links.run_track
+    t = res.diagram.time_s
+    rows: list[tuple[int, float, int, str, float, float]] = []
+    for name, pos in (("upstream", r.top_mm), ("downstream", r.bottom_mm)):
+        seen = np.isfinite(pos)
+        order = np.lexsort((r.frame, track))
+        for tid in np.unique(track):
+            sel = order[(track[order] == tid) & seen[order]]
+            if not sel.size:
+                continue
+            f, x = r.frame[sel].astype(np.int64), pos[sel]
+            ts = t[f]
+            v = np.full(f.size, np.nan)
+            nxt = np.r_[f[1:] - f[:-1] == 1, False]  # the next frame holds this edge
+            prv = np.r_[False, f[1:] - f[:-1] == 1]
+            both = nxt & prv
+            idx = np.arange(f.size)
+            v[both] = (x[idx[both] + 1] - x[idx[both] - 1]) / (ts[idx[both] + 1] - ts[idx[both] - 1])
+            one = nxt & ~prv
+            v[one] = (x[idx[one] + 1] - x[idx[one]]) / (ts[idx[one] + 1] - ts[idx[one]])
+            last = prv & ~nxt
+            v[last] = (x[idx[last]] - x[idx[last] - 1]) / (ts[idx[last]] - ts[idx[last] - 1])
+            v /= 1000.0  # mm/s -> m/s
+            rows += list(zip(f.tolist(), ts.tolist(), [int(tid)] * f.size, [name] * f.size, x.tolist(), v.tolist(),
+                             strict=True))
+    rows.sort(key=lambda row: (row[0], row[2], row[3] != "upstream"))
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(EDGE_LONG_SCHEMA)
+    for f, ts, tid, name, x, v in rows:
+        w.writerow([f, f"{ts:.6f}", tid, name, f"{x:.4f}", "" if not np.isfinite(v) else f"{v:.6f}"])
+    return buf.getvalue()
+
+
+def write_diagram_tif(res: AnalysisResult, path: Path) -> None:
+    """The diagram as a float32 TIFF that Fiji opens in mm along the tube (x) and seconds (y): rows are frames,
+    columns positions, with ImageJ's calibration (``unit`` mm, ``yunit`` s, the origin at position 0)."""
+    import tifffile
+
+    d = res.diagram
+    dx = float(d.mm_per_px)
+    dt = float(np.median(np.diff(d.time_s))) if d.n_frames > 1 else 1.0 / float(res.info.fps)
+    tifffile.imwrite(path, np.ascontiguousarray(d.values, dtype=np.float32), imagej=True,
+                     resolution=(1.0 / dx, 1.0 / dt),
+                     metadata={"unit": "mm", "yunit": "s", "xorigin": -float(d.position_mm[0]) / dx,
+                               "yorigin": -float(d.time_s[0]) / dt, "axes": "YX"})
 
 
 def tracks_table(res: AnalysisResult) -> str:
@@ -137,6 +189,8 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
         if res.compactness_field is not None:  # the grains' fields, beside the simulation's (fields.nc)
             res.fields().to_netcdf(tmp / FIELDS_FILE, engine="scipy")
             summary["outputs"]["fields"] = FIELDS_FILE
+        write_diagram_tif(res, tmp / FILES["diagram_tif"])
+        (tmp / FILES["edges_long"]).write_text(edges_long_table(res))
         write_result(res, tmp / FILES["result"])
         if res.corrections is not None:
             (tmp / CORRECTIONS_FILE).write_text(jsonio.dumps(res.corrections.as_dict()))

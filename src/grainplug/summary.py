@@ -38,6 +38,19 @@ EDGE_SCHEMA: dict[str, tuple[str, str]] = {
     "bottom_mm": ("float64", "downstream edge, mm; empty where cut by the view"),
 }
 
+#: the columns of ``edges_long.csv``: one row per plug edge per frame, in trackpy's long layout (``frame``,
+#: ``particle``), for tools that read tracks that way
+EDGE_LONG_SCHEMA: dict[str, tuple[str, str]] = {
+    "frame": ("int64", "index among the analysed frames (0 = the first)"),
+    "time_s": ("float64", "time of the frame on the movie's clock, s"),
+    "particle": ("int64", "the plug's track (tracks.csv's plug_id), as trackpy names a track"),
+    "edge": ("str", "upstream or downstream"),
+    "position_mm": ("float64", "the edge, mm from the upstream end of the view"),
+    "velocity_m_s": ("float64", "the edge's velocity, m/s, positive downstream: central difference over the frames "
+                                "before and after (one-sided at a track's ends); empty when the edge is not seen "
+                                "in a neighbouring frame"),
+}
+
 #: ``tracks.csv``: column -> (type as ``pandas.read_csv`` reads it: int64, float64, bool or string; meaning)
 TRACK_SCHEMA: dict[str, tuple[str, str]] = {
     "plug_id": ("int64", "the track's id (plug_edges.csv)"),
