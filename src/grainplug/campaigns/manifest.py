@@ -81,6 +81,9 @@ ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "t
                  "packed_compactness": float}
 KNOWN_META = {"mass_flow_rate_g_s": float, "humidity_pct": float, "surface": str, "group": str}
 #: the columns with a meaning (the others are metadata)
+#: what ``grainplug manifest`` copies from each movie's header beside ``fps``: kept as metadata, never taken for a
+#: misspelt column
+HEADER_META = ("record_fps", "n_frames", "duration_s", "width", "height", "bit_depth", "camera", "trigger_time_utc")
 KNOWN_COLUMNS = (*ANALYSIS_KEYS, *KNOWN_META, "run", "movie", "calibration", "background", "packed")
 
 
@@ -125,7 +128,7 @@ def _misspelt(columns: object) -> list[str]:
 
     out = []
     for column in columns:  # type: ignore[attr-defined]
-        if column is None or column in KNOWN_COLUMNS:
+        if column is None or column in KNOWN_COLUMNS or column in HEADER_META:
             continue
         name = str(column).strip().lower().replace("-", "_").replace(" ", "_")
         if name in ALIASES:
@@ -240,6 +243,8 @@ def read_manifest(path: str | Path) -> list[RunSpec]:
     else:
         import io
 
+        # comment rows ("# ..."; grainplug manifest's for files it could not read) are skipped, lines kept counted
+        text = "\n".join("" if line.lstrip().startswith("#") else line for line in text.split("\n"))
         reader = csv.DictReader(io.StringIO(text, newline=""), strict=True)
         start = 1  # the line where the record being read starts (a quoted field may span lines)
         try:

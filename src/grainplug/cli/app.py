@@ -20,7 +20,8 @@ class LazyGroup(click.Group):
 
     LAZY = {"synth": "grainplug.cli.synth",  # noqa: RUF012 - a constant
             "stability": "grainplug.cli.model", "simulate": "grainplug.cli.model", "resonance": "grainplug.cli.model",
-            "batch": "grainplug.cli.campaigns", "paper": "grainplug.cli.campaigns"}
+            "batch": "grainplug.cli.campaigns", "paper": "grainplug.cli.campaigns",
+            "manifest": "grainplug.cli.campaigns"}
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted([*super().list_commands(ctx), *self.LAZY])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -190,3 +191,44 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         raise PartialCampaignError(
             f"{camp.n_failed} of {len(t)} runs failed, each named above ({others}; see {out / 'campaign.csv'})"
         )
+
+
+@click.command()
+@click.argument("folder", type=click.Path(path_type=Path))
+@click.option("--out", "out", type=click.Path(path_type=Path), default=None,
+              help="The manifest to write [default: FOLDER/manifest.csv].")
+@click.option("--glob", "glob_", default=None, metavar="PATTERN",
+              help="Only the files matching this pattern (e.g. '*.cine') [default: every movie file].")
+@click.option("--force", is_flag=True, help="Replace an existing manifest.")
+def manifest(folder: Path, out: Path | None, glob_: str | None, force: bool) -> None:
+    """Write a campaign manifest for the movies in FOLDER, from their headers.
+
+    One row per movie: the run's name (from the file's), the movie, its saved-frame rate (fps), record rate,
+    frames, duration, size, bit depth, camera and trigger time; empty columns for the lab's metadata (mass flow
+    rate, humidity, surface, group) to fill in. A file that cannot be read gets a comment row saying why.
+    Then: grainplug batch MANIFEST --out DIR.
+    """
+    from .._atomic import atomic_file
+    from ..campaigns.scan import manifest_text, scan_folder
+    from ..errors import ParameterError
+
+    target = out if out is not None else folder / "manifest.csv"
+    if target.exists() and not force:
+        raise ParameterError(f"{target} exists — give --force to replace it, or another --out")
+    scanned = scan_folder(folder, glob=glob_)
+    text = manifest_text(scanned)
+    if target.resolve().parent != folder.resolve():  # the movies' paths relative to the manifest
+        import os
+
+        rel = Path(os.path.relpath(folder.resolve(), target.resolve().parent))
+        text = manifest_text([dataclasses.replace(s, row={**s.row, "movie": (rel / s.path.name).as_posix()})
+                              if not s.error else s for s in scanned])
+    with atomic_file(target, inputs=[s.path for s in scanned]) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    read = [s for s in scanned if not s.error]
+    click.echo(f"{len(read)} movie{'' if len(read) == 1 else 's'} in {target}"
+               + (f"; {len(scanned) - len(read)} not read (comment rows say why)" if len(read) < len(scanned) else ""))
+    for s in scanned:
+        if s.error:
+            say_warning(f"{s.path.name}: not read — {s.error}")
+    click.echo(f"fill in the lab's columns, then: grainplug batch {target} --out DIR")
