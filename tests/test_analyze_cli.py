@@ -275,3 +275,15 @@ def test_plugs_filtered_out_by_min_plug_mm_are_not_called_a_single_phase(tmp_pat
     assert res.motion is None and "single phase" not in res.statement
     assert "at least 500 mm long" in res.statement and "longer than the" in res.statement
     assert "lower min_plug_mm=" in res.statement and "--" not in res.statement  # the library's words
+
+
+def test_no_oscillation_has_no_amplitude(tmp_path):
+    """A propagative run has no oscillation: its frequency and amplitude are absent (null), not 0."""
+    import grainplug as gp
+    from grainplug.synthetic import SynthConfig, synthesize
+
+    made = synthesize(SynthConfig(n_frames=100, seed=2, celerity_m_s=-0.05), tmp_path / "m", fmt="tiff")
+    s = gp.analyze(made.movie).summary
+    assert s["regime"] == "propagative"
+    assert s["oscillation_frequency_hz"] is None and s["oscillation_amplitude_mm"] is None
+    assert made.truth["oscillation_amplitude_mm"] is None

@@ -201,7 +201,9 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
             [_r(x, 4) for x in ln.bubble_length_ci95_mm] if ln and ln.bubble_length_ci95_mm else None
         ),
         "oscillation_frequency_hz": _r(m.oscillation_frequency_hz, 4) if m and m.oscillation_frequency_hz else None,
-        "oscillation_amplitude_mm": _r(m.oscillation_amplitude_mm, 4) if m else None,
+        # absent, not 0, without an oscillation
+        "oscillation_amplitude_mm": (_r(m.oscillation_amplitude_mm, 4) if m and m.oscillation_frequency_hz
+                                     else None),
         "oscillation_explained_fraction": _r(m.explained_fraction, 4) if m else None,
         "regime": m.regime if m else "none",
         "n_plugs": int(ln.n_plugs_measured) if ln else 0,

@@ -96,7 +96,7 @@ def compute_truth(renderer: Renderer) -> tuple[dict, list[tuple]]:
         "plug_lengths_mm": [float(x) for x in lengths[full]] if has_plugs else [],
         "bubble_length_mm": float(np.mean(gaps)) if has_plugs and gaps.size else None,
         "oscillation_frequency_hz": cfg.frequency_hz if has_plugs and oscillating else None,
-        "oscillation_amplitude_mm": float(np.ptp(detrended) / 2) if has_plugs and oscillating else 0.0,
+        "oscillation_amplitude_mm": float(np.ptp(detrended) / 2) if has_plugs and oscillating else None,
         "n_plugs_seen": int(np.count_nonzero(full_count > 0)) if has_plugs else 0,
         "mm_per_px": cfg.mm_per_px,
         "tube_diameter_mm": cfg.tube_diameter_mm,
