@@ -347,3 +347,21 @@ def passing_shadow(shadow: MovingLight | None) -> list[str]:
         f"{100 * shadow.share:.0f} % of the diagram) was read on the plugs and bubbles themselves and divided out "
         "(no lamp beside the tube to read it on) — keep people and things from passing between the lamp and the "
         "tube, or film in back light")]
+
+
+#: the statement of an analysis that saw neither a tube's wall nor a plug followed
+NO_TUBE = ("no tube: no wall was seen beside the moving contents and no plug was followed — nothing is measured "
+           "(a droplet or a jet is not a tube in view)")
+
+
+def walls_unseen(tube: TubeGeometry, *, has_plugs: bool) -> list[str]:
+    """A warning when a back-lit "tube" shows no wall: neither the outer silhouette nor the walls' bright stripes
+    beside the moving contents (a droplet, a jet, a moving object that is not in a tube)."""
+    w = tube.walls
+    if not tube.back_lit or w is None or np.isfinite(w.outer_half_px) or np.isfinite(w.stripe_half_px):
+        return []
+    plugs = ("; no plug was followed either, so this is likely no tube" if not has_plugs else
+             "; the plugs measured may be something else's")
+    return [coded("tube.walls_unseen",
+        f"in back light, no tube wall was seen beside the moving contents ({tube.inner_diameter_px:.0f} px wide){plugs}"
+        " — check that a tube is in view (a droplet or a jet is not one), or give roi= around it")]

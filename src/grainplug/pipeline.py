@@ -35,6 +35,7 @@ from .calibration import find_tube
 from .calibration.background import flat_field
 from .calibration.scale import decide_scale, shaken_scale, uniform_samples
 from .checks import (
+    NO_TUBE,
     check_background,
     check_finite,
     check_movie,
@@ -46,6 +47,7 @@ from .checks import (
     saturated_share,
     train_warnings,
     tube_out_of_view,
+    walls_unseen,
 )
 from .diagram import Diagram, Normalized, normalize
 from .diagram.extract import CORE_FRACTION, probes_along_tube, resample_positions
@@ -223,15 +225,19 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
     timings = dict(laps.timings, stream_fps=round(diagram.n_frames / max(laps.timings["stream_s"], 1e-9), 1))
-    has_plugs = bool(norm.two_phase and len(runs) > 0)
+    # plugs: two materials, runs of grains, and edges followed over frames (a droplet's few frames of a blob are not)
+    has_plugs = bool(norm.two_phase and len(runs) > 0 and motion is not None)
     return AnalysisResult(
         params=params, input=identity, info=info, tube=tube, mm_per_px=mm_per_px, scale_source=scale.source,
         flow_direction=flow.direction, flow_direction_source=flow.source, diagram=diagram, normalized=found.normalized,
         runs=runs, links=links, motion=motion, lengths=lengths, has_plugs=has_plugs,
-        statement=found.statement,
+        # runs of "grains" seen but never followed, and no wall: a droplet, a jet, not a tube
+        statement=(NO_TUBE if len(runs) and not has_plugs and walls_unseen(tube, has_plugs=has_plugs)
+                   else found.statement),
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
-        warnings=[*info.warnings, *cut_by_the_frame(tube, params), *scale.warnings,
+        warnings=[*info.warnings, *walls_unseen(tube, has_plugs=has_plugs), *cut_by_the_frame(tube, params),
+                  *scale.warnings,
                   *given_scale_doubts(tube, params, has_plugs=has_plugs, two_phase=norm.two_phase),
                   *light_warnings,
                   *all_coded("frames.repaired", filter(None, [repair.describe(diagram.n_frames,

@@ -41,6 +41,8 @@ CODES: dict[str, tuple[str, str]] = {
                           "frame the whole tube and its walls, or give roi= around a whole tube"),
     "tube.second_region": ("the frames change as much elsewhere across the tube as in it (a second tube?)",
                            "give roi= around the tube to analyse"),
+    "tube.walls_unseen": ("in back light, no tube wall was seen beside the moving contents (a droplet, a jet?)",
+                          "check that a tube is in view, or give roi= around it"),
     # the scale
     "scale.given_vs_tube": ("the tube seen is far wider or narrower than the given scale makes its bore",
                             "check mm_per_px= and tube_diameter_mm=, and that what was found is the tube"),
