@@ -3,7 +3,7 @@
 It shares no code with :mod:`grainplug.synthetic`, ``tests/lab_nuisances.py`` or ``tests/compactness_render.py``.
 
 A vertical glass tube (flow downwards, image rows increasing) is seen in back light. The grains are drawn
-as discs (each absorbs like a sphere: along a chord ``sqrt(1 - r^2 / a^2)``) scattered at random, about two
+as discs (each absorbs like a sphere: along a chord ``sqrt(1 - r^2 / a^2)``) scattered at random, about three
 layers deep, on a long strip that moves downwards at the grains' speed. The plug *pattern* (where the tube
 is packed) is another set of intervals that climbs at the celerity: a row of the image shows the packed
 strip where the pattern says plug, and a sparse strip of grains falling fast where it says bubble. So grains
@@ -11,7 +11,7 @@ join a plug at its top and rain off its bottom while the texture inside creeps d
 the strip's speed, known exactly.
 
 In the oscillating cases the pattern and the packed strip move together (the grains move with the plugs):
-position ``v t + A sin(2 pi f t)``; the truth is the mean speed ``v``.
+position ``v t + A sin(2 pi f t)``; the truth is the grains' displacement over the record over its duration.
 
 Light through the bore is attenuated along the chord at each column (``exp(-k * chord / bore * density)``);
 the walls are dark lines; a ruler with irregular ticks and specks sits beside the tube (it moves with the
@@ -57,7 +57,8 @@ class CreepScene:
 
 @dataclass(frozen=True)
 class CreepTruth:
-    """The known answer: the packed grains' mean speed (m/s, downstream positive) and per frame."""
+    """The known answer: the packed grains' mean velocity over the record (m/s, downstream positive: their
+    displacement from the first frame to the last over the time between) and at each frame."""
 
     grain_velocity_m_s: float
     grain_velocity_per_frame_m_s: np.ndarray
@@ -109,7 +110,7 @@ def render_frames(scene: CreepScene, rng: np.random.Generator) -> tuple[np.ndarr
     radius = 0.5 * s.grain_mm * px_mm
     bore = s.bore_mm * px_mm
     strip_w = int(math.ceil(bore)) + 4
-    packed = _discs(rng, span(grain_px), strip_w, radius, 2.0)
+    packed = _discs(rng, span(grain_px), strip_w, radius, 3.0)
     packed = 1.0 + s.texture * (packed - 1.0)
     falling = 0.06 * _discs(rng, span(fall_px), strip_w, radius, 0.15)
     plugs = _intervals(rng, span(pattern_px) * 1.0, tuple(px_mm * np.array(s.plug_mm)),
@@ -159,7 +160,9 @@ def render_frames(scene: CreepScene, rng: np.random.Generator) -> tuple[np.ndarr
         light = light + rng.normal(0.0, s.noise, light.shape)
         frames[k] = np.clip(np.round(light), 0, 255).astype(np.uint8)
     v = np.gradient(grain_px, t) / px_mm / 1000.0 if t_n > 1 else np.zeros(t_n)
-    return frames, CreepTruth(grain_velocity_m_s=s.grain_mm_s / 1000.0, grain_velocity_per_frame_m_s=v)
+    # the record's mean: the grains' displacement over the record (with an oscillation, not quite grain_mm_s)
+    mean = float((grain_px[-1] - grain_px[0]) / (t[-1] - t[0]) / px_mm / 1000.0) if t_n > 1 else 0.0
+    return frames, CreepTruth(grain_velocity_m_s=mean, grain_velocity_per_frame_m_s=v)
 
 
 def write_movie(path: str | Path, frames: np.ndarray, *, fps: float, fmt: str = "tif", crf: int = 23) -> None:

@@ -96,9 +96,10 @@ def grain_velocity_table(res: AnalysisResult) -> str:
     if g is None or not len(g.frame):
         return head
     track = res.links.run_track[g.run] if len(res.links.run_track) == len(res.runs) else np.full(len(g.run), -1)
-    lines = [f"{k},{k + res.first_movie_frame},{g.lag_frames},{t:.6f},{z:.4f},{tr},{v:.7f},{c:.4f}\n"
-             for k, t, z, tr, v, c in zip(g.frame.tolist(), g.time_s.tolist(), g.position_mm.tolist(), track.tolist(),
-                                         g.velocity_m_s.tolist(), g.peak.tolist(), strict=True)]
+    lags = (g.lag if g.lag is not None else np.full(len(g.frame), g.lag_frames)).tolist()
+    lines = [f"{k},{k + res.first_movie_frame},{lag},{t:.6f},{z:.4f},{tr},{v:.7f},{c:.4f}\n"
+             for k, lag, t, z, tr, v, c in zip(g.frame.tolist(), lags, g.time_s.tolist(), g.position_mm.tolist(),
+                                              track.tolist(), g.velocity_m_s.tolist(), g.peak.tolist(), strict=True)]
     return head + "".join(lines)
 
 

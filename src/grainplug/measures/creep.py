@@ -16,12 +16,17 @@ the sample spacing over the time between the frames, positive downstream.
 
 The lag is chosen from the movie: it grows (1, 2, 3, 4, 6, 8, ...) until the texture's typical shift
 reaches ``target_shift_px``, while enough windows stay inside the plugs and the texture still correlates
-(grains rearrange; plugs end). The search range follows the shift found at the shorter lag, so grains
-moving with oscillating plugs (several px per frame) are followed as well as a creep of 0.1 px per frame.
+(grains rearrange; plugs end). The pairs' lags are then dithered, from the lag chosen to a few frames more
+(until the typical shift has gone one sample further): the parabola pulls a sub-sample peak towards the
+nearest whole sample (by up to 0.08 sample for a texture 1.5 px fine, measured), and with every
+sub-sample part represented that pull averages out instead of biasing a steady creep. The search range
+follows the shift found at the shorter lag, so grains moving with oscillating plugs (several px per frame)
+are followed as well as a creep of 0.1 px per frame.
 
 The mean is over time (each pair's windows averaged, then the pairs: a time of many plugs counts as
 much as one of few); its 95 % interval comes from batch means over blocks of time (each several lags
-long, so that a window's error is not shared by two blocks) with Student's t. When too few windows
+long, so that a window's error is not shared by two blocks) with Student's t, widened by what the
+dithering may leave of the sub-sample pull (:data:`SUBSAMPLE_BIAS`, type B). When too few windows
 correlate (no texture, too few or too short plugs) the velocity is not given and a coded
 warning (``grains.texture_weak``) says why.
 """
@@ -36,6 +41,10 @@ import numpy as np
 from ..warning_codes import coded
 
 log = logging.getLogger(__name__)
+
+#: what remains of the sub-sample peak's pull towards whole samples once the lags are dithered (samples, a
+#: standard uncertainty): an eighth of the largest pull measured without dithering (0.08 sample)
+SUBSAMPLE_BIAS = 0.01
 
 #: lags tried, in frames (the longest one that meets the conditions is kept)
 LAGS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128)
@@ -60,7 +69,10 @@ class GrainVelocity:
     peak : ndarray of float
         The window's normalised correlation at its peak (0..1).
     lag_frames : int
-        Frames between the two of a pair (0: not measured).
+        Frames between the two of a pair, the shortest (0: not measured); the pairs' lags run from it to a few
+        frames more (dithered: see the module's notes).
+    lag : ndarray of int
+        Each window's lag.
     mean_m_s : float or None
         Mean over time (the windows of each pair averaged, then the pairs); None when the texture is too weak.
     ci95_m_s : tuple of float or None
@@ -79,6 +91,7 @@ class GrainVelocity:
     mean_m_s: float | None
     ci95_m_s: tuple[float, float] | None
     warnings: tuple[str, ...] = ()
+    lag: np.ndarray | None = None
 
     def per_plug(self, track_of_run: np.ndarray | None = None) -> dict[int, tuple[float, int]]:
         """Mean velocity (m/s) and number of windows of each plug.
@@ -119,15 +132,17 @@ def _erode(mask: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def _pairs(values: np.ndarray, owner: np.ndarray, starts: np.ndarray, lag: int, half: int, search: int,
-           margin: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Windows of frames ``starts`` against ``starts + lag``: frame, centre, run, shift (samples), peak."""
+def _pairs(values: np.ndarray, owner: np.ndarray, starts: np.ndarray, lag: int | np.ndarray, half: int, search: int,
+           margin: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Windows of frames ``starts`` against ``starts + lag`` (one lag, or one per start): frame, lag, centre, run,
+    shift (samples), peak."""
     n_pos = values.shape[1]
-    fr, cen = [], []
+    lags = np.broadcast_to(np.asarray(lag, dtype=np.int64), np.shape(starts))
+    fr, lg, cen = [], [], []
     step = 2 * half
-    for k in starts:
+    for k, lag_k in zip(np.asarray(starts).tolist(), lags.tolist(), strict=True):
         a = _erode(owner[k] >= 0, half + margin)
-        b = _erode(owner[k + lag] >= 0, half + search + margin)
+        b = _erode(owner[k + lag_k] >= 0, half + search + margin)
         ok = a & b
         if not ok.any():
             continue
@@ -139,17 +154,18 @@ def _pairs(values: np.ndarray, owner: np.ndarray, starts: np.ndarray, lag: int, 
             off = (len(seg) - 1 - (n - 1) * step) // 2
             cen.extend(seg[off::step][:n])
             fr.extend([k] * n)
+            lg.extend([lag_k] * n)
     if not fr:
         e = np.empty(0)
-        return e.astype(int), e.astype(int), e.astype(int), e, e
-    fr_a, cen_a = np.asarray(fr), np.asarray(cen)
+        return e.astype(int), e.astype(int), e.astype(int), e.astype(int), e, e
+    fr_a, lg_a, cen_a = np.asarray(fr), np.asarray(lg), np.asarray(cen)
     w = np.arange(-half, half)
     a = values[fr_a[:, None], np.clip(cen_a[:, None] + w, 0, n_pos - 1)].astype(np.float64)
     a = _detrend(a)
     shifts = np.arange(-search, search + 1)
     cc = np.empty((len(fr_a), len(shifts)))
     for j, s in enumerate(shifts):
-        b = values[fr_a[:, None] + lag, np.clip(cen_a[:, None] + w + s, 0, n_pos - 1)].astype(np.float64)
+        b = values[(fr_a + lg_a)[:, None], np.clip(cen_a[:, None] + w + s, 0, n_pos - 1)].astype(np.float64)
         b = _detrend(b)
         cc[:, j] = np.sum(a * b, axis=1)
     best = np.argmax(cc, axis=1)
@@ -161,7 +177,7 @@ def _pairs(values: np.ndarray, owner: np.ndarray, starts: np.ndarray, lag: int, 
     shift = shifts[inner] + np.clip(sub, -0.5, 0.5)
     edge = (best == 0) | (best == len(shifts) - 1)  # the peak at the search's end: not found
     peak = np.where(edge, 0.0, peak)
-    return fr_a, cen_a, owner[fr_a, cen_a], shift, peak
+    return fr_a, lg_a, cen_a, owner[fr_a, cen_a], shift, peak
 
 
 def _detrend(x: np.ndarray) -> np.ndarray:
@@ -228,7 +244,7 @@ def grain_velocity(values: np.ndarray, time_s: np.ndarray, spacing_mm: float, po
             break
         search = half if v_px is None else int(np.ceil(1.5 * v_px * lag)) + 3
         probe = np.unique(np.linspace(0, t_n - lag - 1, min(300, t_n - lag)).round().astype(int))
-        _, _, _, shift, peak = _pairs(values, owner, probe, lag, half, search, margin)
+        _, _, _, _, shift, peak = _pairs(values, owner, probe, lag, half, search, margin)
         good = peak >= min_peak
         if good.sum() < max(10, min_windows // 4) or np.median(peak) < min_peak:
             log.debug("lag %d: %d windows, stopped", lag, good.sum())
@@ -236,27 +252,37 @@ def grain_velocity(values: np.ndarray, time_s: np.ndarray, spacing_mm: float, po
         if np.mean(peak == 0.0) > 0.05:  # the shift outran the search range: the last lag is the longest
             break
         v_px = float(np.quantile(np.abs(shift[good]), 0.95)) / lag
-        chosen = (lag, search)
+        chosen = (lag, search, float(np.median(np.abs(shift[good]))) / lag)
         if np.median(np.abs(shift[good])) >= target_shift_px:
             break
     if chosen is None:
         return _weak(empty, "the plugs' texture does not correlate from frame to frame")
-    lag, search = chosen
-    starts = np.unique(np.linspace(0, t_n - lag - 1, min(max_pairs, t_n - lag)).round().astype(int))
-    fr, cen, run, shift, peak = _pairs(values, owner, starts, lag, half, search, margin)
+    lag, search, v_typ = chosen
+    # the lags dithered (lag, lag + 1, ... until the typical shift has gone one sample further): a shift's
+    # sub-sample part then takes every value, and the parabola's pull towards whole samples averages out
+    n_dither = int(min(lag, max(1, np.ceil(1.0 / max(v_typ, 1e-6)))))
+    n_dither = max(1, min(n_dither, t_n - lag - 2))
+    search += int(np.ceil(1.5 * v_typ * (n_dither - 1)))
+    starts = np.unique(np.linspace(0, t_n - lag - n_dither, min(max_pairs, t_n - lag - n_dither + 1))
+                       .round().astype(int))
+    lags = lag + np.arange(len(starts)) % n_dither
+    fr, lg, cen, run, shift, peak = _pairs(values, owner, starts, lags, half, search, margin)
     keep = peak >= min_peak
-    fr, cen, run, shift, peak = fr[keep], cen[keep], run[keep], shift[keep], peak[keep]
-    span = np.asarray(time_s)[fr + lag] - np.asarray(time_s)[fr]
-    span = np.where(span > 0, span, lag * dt)
+    fr, lg, cen, run, shift, peak = fr[keep], lg[keep], cen[keep], run[keep], shift[keep], peak[keep]
+    time_s = np.asarray(time_s)
+    span = time_s[fr + lg] - time_s[fr]
+    span = np.where(span > 0, span, lg * dt)
     vel = shift * spacing_mm / span / 1000.0
-    t_mid = 0.5 * (np.asarray(time_s)[fr] + np.asarray(time_s)[fr + lag])
-    out = GrainVelocity(fr, t_mid, np.asarray(position_mm)[cen], run, vel, peak, lag, None, None)
+    t_mid = 0.5 * (time_s[fr] + time_s[fr + lg])
+    out = GrainVelocity(fr, t_mid, np.asarray(position_mm)[cen], run, vel, peak, lag, None, None, lag=lg)
     if len(vel) < min_windows:
         return _weak(out, f"only {len(vel)} windows of the plugs' texture correlate")
     frames, per_frame = _per_frame(fr, vel)
     mean = float(np.mean(per_frame))
-    ci = _batch_interval(frames, per_frame, t_n, lag, n_blocks)
-    return GrainVelocity(fr, t_mid, out.position_mm, run, vel, peak, lag, mean, ci)
+    # type B: what the dithering leaves of the parabola's pull, in samples over the pairs' mean span
+    floor = SUBSAMPLE_BIAS * spacing_mm / float(np.mean(span)) / 1000.0
+    ci = _batch_interval(frames, per_frame, t_n, lag, n_blocks, floor)
+    return GrainVelocity(fr, t_mid, out.position_mm, run, vel, peak, lag, mean, ci, lag=lg)
 
 
 def _per_frame(fr: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -266,8 +292,10 @@ def _per_frame(fr: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return frames, np.bincount(inv, weights=vel) / np.bincount(inv)
 
 
-def _batch_interval(fr: np.ndarray, vel: np.ndarray, t_n: int, lag: int, n_blocks: int) -> tuple[float, float] | None:
-    """95 % interval of the mean from batch means over blocks of time at least four lags long."""
+def _batch_interval(fr: np.ndarray, vel: np.ndarray, t_n: int, lag: int, n_blocks: int,
+                    floor: float) -> tuple[float, float] | None:
+    """95 % interval of the mean from batch means over blocks of time at least four lags long, with a
+    systematic ``floor`` (a standard uncertainty) added in quadrature."""
     from scipy import stats
 
     n_b = int(min(n_blocks, t_n // max(4 * lag, 1)))
@@ -280,6 +308,7 @@ def _batch_interval(fr: np.ndarray, vel: np.ndarray, t_n: int, lag: int, n_block
         return None
     centre = float(np.mean(vel))
     half = float(stats.t.ppf(0.975, len(means) - 1) * means.std(ddof=1) / np.sqrt(len(means)))
+    half = float(np.hypot(half, 1.96 * floor))
     return centre - half, centre + half
 
 
@@ -288,4 +317,4 @@ def _weak(gv: GrainVelocity, why: str) -> GrainVelocity:
     w = coded("grains.texture_weak", f"the grains' velocity inside the plugs is not given: {why} "
               "(too little texture, or plugs too short or too few); light the grains so that they show")
     return GrainVelocity(gv.frame, gv.time_s, gv.position_mm, gv.run, gv.velocity_m_s, gv.peak, gv.lag_frames,
-                         None, None, (w,))
+                         None, None, (w,), lag=gv.lag)
