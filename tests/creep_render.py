@@ -11,7 +11,8 @@ join a plug at its top and rain off its bottom while the texture inside creeps d
 the strip's speed, known exactly.
 
 In the oscillating cases the pattern and the packed strip move together (the grains move with the plugs):
-position ``v t + A sin(2 pi f t)``; the truth is the grains' displacement over the record over its duration.
+position ``v t + A sin(2 pi f t + phi)`` (``phi`` at random); the truth is the grains' displacement over
+the record over its duration.
 
 Light through the bore is attenuated along the chord at each column (``exp(-k * chord / bore * density)``);
 the walls are dark lines; a ruler with irregular ticks and specks sits beside the tube (it moves with the
@@ -99,7 +100,8 @@ def render_frames(scene: CreepScene, rng: np.random.Generator) -> tuple[np.ndarr
     h, w, t_n = s.height_px, s.width_px, s.n_frames
     px_mm = 1.0 / s.mm_per_px
     t = np.arange(t_n) / s.fps
-    osc = s.oscillation_mm * np.sin(2 * math.pi * s.oscillation_hz * t)
+    phase = rng.uniform(0.0, 2 * math.pi) if s.oscillation_mm > 0 else 0.0  # the camera starts at any phase
+    osc = s.oscillation_mm * np.sin(2 * math.pi * s.oscillation_hz * t + phase)
     grain_px = (s.grain_mm_s * t + osc) * px_mm              # packed strip displacement (down +)
     if s.oscillation_mm > 0:                                  # the plugs move with their grains
         pattern_px = grain_px.copy()

@@ -89,13 +89,16 @@ GRAIN_VELOCITY_COLUMNS = ("frame", "movie_frame", "lag_frames", "time_s", "posit
 def grain_velocity_table(res: AnalysisResult) -> str:
     """CSV of the packed grains' velocity inside the plugs, per window: the pair's first frame (of the
     analysis and of the movie), the lag, the pair's mid-time, the window's centre along the tube, the plug's
-    track, the velocity (downstream positive) and the window's correlation peak
+    track as found (before a reviewer's corrections), the velocity (downstream positive) and the window's
+    correlation peak
     (:mod:`grainplug.measures.creep`); the header alone when not measured."""
     g = res.grain_velocity
     head = ",".join(GRAIN_VELOCITY_COLUMNS) + "\n"
     if g is None or not len(g.frame):
         return head
-    track = res.links.run_track[g.run] if len(res.links.run_track) == len(res.runs) else np.full(len(g.run), -1)
+    # measured on the plugs as found: a reviewer's corrections renumber the runs, not the windows
+    links = res.detected[1] if res.detected is not None else res.links
+    track = links.run_track[g.run] if np.all(g.run < len(links.run_track)) else np.full(len(g.run), -1)
     lags = (g.lag if g.lag is not None else np.full(len(g.frame), g.lag_frames)).tolist()
     lines = [f"{k},{k + res.first_movie_frame},{lag},{t:.6f},{z:.4f},{tr},{v:.7f},{c:.4f}\n"
              for k, lag, t, z, tr, v, c in zip(g.frame.tolist(), lags, g.time_s.tolist(), g.position_mm.tolist(),

@@ -442,7 +442,8 @@ def result_types() -> dict[str, type]:
 
     return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
                                     Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate,
-                                    Background, Corrections, Edit, BlindStretch, Shake, Lamp, PhaseCompactness)}
+                                    Background, Corrections, Edit, BlindStretch, Shake, Lamp, PhaseCompactness,
+                                    GrainVelocity)}
 
 
 def load_result(folder: str | Path) -> AnalysisResult:

@@ -24,7 +24,8 @@ follows the shift found at the shorter lag, so grains moving with oscillating pl
 are followed as well as a creep of 0.1 px per frame.
 
 The mean is over time (each pair's windows averaged, then the pairs: a time of many plugs counts as
-much as one of few); its 95 % interval comes from batch means over blocks of time (each several lags
+much as one of few), over the whole record (the series integrated, held at its ends for the half lag
+that no pair's middle reaches); its 95 % interval comes from batch means over blocks of time (each several lags
 long, so that a window's error is not shared by two blocks) with Student's t, widened by what the
 dithering may leave of the sub-sample pull (:data:`SUBSAMPLE_BIAS`, type B). When too few windows
 correlate (no texture, too few or too short plugs) the velocity is not given and a coded
@@ -45,6 +46,9 @@ log = logging.getLogger(__name__)
 #: what remains of the sub-sample peak's pull towards whole samples once the lags are dithered (samples, a
 #: standard uncertainty): an eighth of the largest pull measured without dithering (0.08 sample)
 SUBSAMPLE_BIAS = 0.01
+
+#: pairs of frames correlated at each lag tried while the lag is chosen
+PROBE_PAIRS = 120
 
 #: lags tried, in frames (the longest one that meets the conditions is kept)
 LAGS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128)
@@ -74,7 +78,8 @@ class GrainVelocity:
     lag : ndarray of int
         Each window's lag.
     mean_m_s : float or None
-        Mean over time (the windows of each pair averaged, then the pairs); None when the texture is too weak.
+        Mean over the record's time (the windows of each pair averaged, then integrated over time); None
+        when the texture is too weak.
     ci95_m_s : tuple of float or None
         Its 95 % interval (batch means over independent blocks of time).
     warnings : tuple of str
@@ -193,7 +198,8 @@ def _detrend(x: np.ndarray) -> np.ndarray:
 def grain_velocity(values: np.ndarray, time_s: np.ndarray, spacing_mm: float, position_mm: np.ndarray,
                    frame: np.ndarray, start: np.ndarray, stop: np.ndarray, *, window_mm: float = 3.0,
                    edge_margin_mm: float = 0.6, target_shift_px: float = 3.0, min_peak: float = 0.6,
-                   min_windows: int = 40, max_pairs: int = 4000, n_blocks: int = 10) -> GrainVelocity:
+                   min_windows: int = 40, max_pairs: int = 4000, max_windows: int = 8000,
+                   n_blocks: int = 10) -> GrainVelocity:
     """The packed grains' velocity inside the plugs (see the module's notes).
 
     Parameters
@@ -220,6 +226,9 @@ def grain_velocity(values: np.ndarray, time_s: np.ndarray, spacing_mm: float, po
         Fewest windows kept for a velocity to be given.
     max_pairs : int, optional
         Most pairs of frames correlated (evenly spread over the record).
+    max_windows : int, optional
+        About the most windows correlated (the pairs thinned, evenly over the record, to keep the cost of a
+        long record bounded).
     n_blocks : int, optional
         Blocks of time for the interval (fewer when the record is short for the lag).
 
@@ -243,7 +252,7 @@ def grain_velocity(values: np.ndarray, time_s: np.ndarray, spacing_mm: float, po
         if lag >= t_n // 3:
             break
         search = half if v_px is None else int(np.ceil(1.5 * v_px * lag)) + 3
-        probe = np.unique(np.linspace(0, t_n - lag - 1, min(300, t_n - lag)).round().astype(int))
+        probe = np.unique(np.linspace(0, t_n - lag - 1, min(PROBE_PAIRS, t_n - lag)).round().astype(int))
         _, _, _, _, shift, peak = _pairs(values, owner, probe, lag, half, search, margin)
         good = peak >= min_peak
         if good.sum() < max(10, min_windows // 4) or np.median(peak) < min_peak:
@@ -252,19 +261,19 @@ def grain_velocity(values: np.ndarray, time_s: np.ndarray, spacing_mm: float, po
         if np.mean(peak == 0.0) > 0.05:  # the shift outran the search range: the last lag is the longest
             break
         v_px = float(np.quantile(np.abs(shift[good]), 0.95)) / lag
-        chosen = (lag, search, float(np.median(np.abs(shift[good]))) / lag)
+        chosen = (lag, search, float(np.median(np.abs(shift[good]))) / lag, len(shift) / len(probe))
         if np.median(np.abs(shift[good])) >= target_shift_px:
             break
     if chosen is None:
         return _weak(empty, "the plugs' texture does not correlate from frame to frame")
-    lag, search, v_typ = chosen
+    lag, search, v_typ, per_pair = chosen
     # the lags dithered (lag, lag + 1, ... until the typical shift has gone one sample further): a shift's
     # sub-sample part then takes every value, and the parabola's pull towards whole samples averages out
     n_dither = int(min(lag, max(1, np.ceil(1.0 / max(v_typ, 1e-6)))))
     n_dither = max(1, min(n_dither, t_n - lag - 2))
     search += int(np.ceil(1.5 * v_typ * (n_dither - 1)))
-    starts = np.unique(np.linspace(0, t_n - lag - n_dither, min(max_pairs, t_n - lag - n_dither + 1))
-                       .round().astype(int))
+    n_pairs = min(max_pairs, t_n - lag - n_dither + 1, max(n_blocks * 8, int(np.ceil(max_windows / per_pair))))
+    starts = np.unique(np.linspace(0, t_n - lag - n_dither, n_pairs).round().astype(int))
     lags = lag + np.arange(len(starts)) % n_dither
     fr, lg, cen, run, shift, peak = _pairs(values, owner, starts, lags, half, search, margin)
     keep = peak >= min_peak
@@ -278,22 +287,36 @@ def grain_velocity(values: np.ndarray, time_s: np.ndarray, spacing_mm: float, po
     if len(vel) < min_windows:
         return _weak(out, f"only {len(vel)} windows of the plugs' texture correlate")
     frames, per_frame = _per_frame(fr, vel)
-    mean = float(np.mean(per_frame))
+    _, t_pair = _per_frame(fr, t_mid)
+    mean = _record_mean(t_pair, per_frame, float(time_s[0]), float(time_s[-1]))
     # type B: what the dithering leaves of the parabola's pull, in samples over the pairs' mean span
     floor = SUBSAMPLE_BIAS * spacing_mm / float(np.mean(span)) / 1000.0
-    ci = _batch_interval(frames, per_frame, t_n, lag, n_blocks, floor)
+    ci = _batch_interval(frames, per_frame, t_n, lag, n_blocks, floor, mean)
     return GrainVelocity(fr, t_mid, out.position_mm, run, vel, peak, lag, mean, ci, lag=lg)
 
 
+def _record_mean(t: np.ndarray, v: np.ndarray, t0: float, t1: float) -> float:
+    """The mean over the record ``[t0, t1]`` of the velocity series ``v(t)``: its integral (trapezoids between
+    the pairs' mid-times, gaps bridged, held at its first and last values over the half lag at each end
+    that no pair's middle reaches) over the record's duration. A plain mean of the series would leave those
+    ends out, which, for grains moving with oscillating plugs, is up to the oscillation's speed times a
+    lag over the record."""
+    if len(v) == 1 or t1 <= t0:
+        return float(np.mean(v))
+    inner = float(np.sum(0.5 * (v[1:] + v[:-1]) * np.diff(t)))
+    ends = float(v[0] * max(t[0] - t0, 0.0) + v[-1] * max(t1 - t[-1], 0.0))
+    return (inner + ends) / (max(t[-1], t1) - min(t[0], t0))
+
+
 def _per_frame(fr: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The mean velocity of each pair's windows: a time series (each time weighted once, whatever the
-    number of plugs then: oscillating plugs carry more of the tube at some phases than at others)."""
+    """The mean of ``vel`` (a velocity, a time) over each pair's windows: a time series, each time weighted
+    once whatever the number of plugs then (oscillating plugs carry more of the tube at some phases)."""
     frames, inv = np.unique(fr, return_inverse=True)
     return frames, np.bincount(inv, weights=vel) / np.bincount(inv)
 
 
 def _batch_interval(fr: np.ndarray, vel: np.ndarray, t_n: int, lag: int, n_blocks: int,
-                    floor: float) -> tuple[float, float] | None:
+                    floor: float, centre: float | None = None) -> tuple[float, float] | None:
     """95 % interval of the mean from batch means over blocks of time at least four lags long, with a
     systematic ``floor`` (a standard uncertainty) added in quadrature."""
     from scipy import stats
@@ -306,7 +329,7 @@ def _batch_interval(fr: np.ndarray, vel: np.ndarray, t_n: int, lag: int, n_block
     means = np.array([vel[blk == b].mean() for b in range(n_b) if np.any(blk == b)])
     if len(means) < 4:
         return None
-    centre = float(np.mean(vel))
+    centre = float(np.mean(vel)) if centre is None else centre
     half = float(stats.t.ppf(0.975, len(means) - 1) * means.std(ddof=1) / np.sqrt(len(means)))
     half = float(np.hypot(half, 1.96 * floor))
     return centre - half, centre + half
