@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._filters import t_quantile_975
 from ..warning_codes import coded
 
 log = logging.getLogger(__name__)
@@ -117,7 +118,7 @@ class GrainVelocity:
 
 def _plug_mask(frame: np.ndarray, start: np.ndarray, stop: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """The runs as a boolean ``frames x positions`` mask, and each sample's run row (-1 outside)."""
-    owner = np.full(shape, -1, np.int64)
+    owner = np.full(shape, -1, np.int32)
     for r, (k, a, b) in enumerate(zip(frame, start, stop, strict=True)):
         owner[int(k), int(a):int(b)] = r
     return owner
@@ -168,11 +169,7 @@ def _pairs(values: np.ndarray, owner: np.ndarray, starts: np.ndarray, lag: int |
     a = values[fr_a[:, None], np.clip(cen_a[:, None] + w, 0, n_pos - 1)].astype(np.float64)
     a = _detrend(a)
     shifts = np.arange(-search, search + 1)
-    cc = np.empty((len(fr_a), len(shifts)))
-    for j, s in enumerate(shifts):
-        b = values[(fr_a + lg_a)[:, None], np.clip(cen_a[:, None] + w + s, 0, n_pos - 1)].astype(np.float64)
-        b = _detrend(b)
-        cc[:, j] = np.sum(a * b, axis=1)
+    cc = _correlations(values, fr_a + lg_a, cen_a, a, half, search)
     best = np.argmax(cc, axis=1)
     peak = cc[np.arange(len(best)), best]
     inner = np.clip(best, 1, len(shifts) - 2)
@@ -183,6 +180,41 @@ def _pairs(values: np.ndarray, owner: np.ndarray, starts: np.ndarray, lag: int |
     edge = (best == 0) | (best == len(shifts) - 1)  # the peak at the search's end: not found
     peak = np.where(edge, 0.0, peak)
     return fr_a, lg_a, cen_a, owner[fr_a, cen_a], shift, peak
+
+
+def _correlations(values: np.ndarray, frames: np.ndarray, centres: np.ndarray, a: np.ndarray, half: int,
+                  search: int, chunk: int = 2048) -> np.ndarray:
+    """Normalised correlation of each window ``a`` (detrended, unit norm) with frame ``frames`` around
+    ``centres`` at every shift ``-search..search``: ``windows x shifts``.
+
+    ``a`` is orthogonal to a constant and to a straight line, so its product with a window of the other
+    frame is the same whether that window is detrended or not; only the detrended window's norm is needed,
+    from running sums of ``b``, ``b^2`` and ``i b`` (one gather of the extended window, no loop over shifts).
+    """
+    n_pos = values.shape[1]
+    width = 2 * half
+    n_s = 2 * search + 1
+    ext_i = np.arange(-half - search, half + search)
+    t = np.arange(width) - (width - 1) / 2.0
+    tt = float(t @ t)
+    out = np.empty((len(frames), n_s))
+    for lo in range(0, len(frames), chunk):
+        sl = slice(lo, lo + chunk)
+        b = values[frames[sl, None], np.clip(centres[sl, None] + ext_i, 0, n_pos - 1)].astype(np.float64)
+        num = np.einsum("nsw,nw->ns", np.lib.stride_tricks.sliding_window_view(b, width, axis=1), a[sl])
+        idx = np.arange(b.shape[1], dtype=np.float64)
+        zero = np.zeros((b.shape[0], 1))
+        c1 = np.concatenate([zero, np.cumsum(b, axis=1)], axis=1)
+        c2 = np.concatenate([zero, np.cumsum(b * b, axis=1)], axis=1)
+        ci = np.concatenate([zero, np.cumsum(b * idx, axis=1)], axis=1)
+        start = np.arange(n_s)
+        s1 = c1[:, start + width] - c1[:, start]
+        s2 = c2[:, start + width] - c2[:, start]
+        sj = ci[:, start + width] - ci[:, start] - start * s1  # sum of j b_(start + j)
+        st = sj - (width - 1) / 2.0 * s1
+        var = s2 - s1 * s1 / width - st * st / tt
+        out[sl] = np.where(var > 1e-12 * np.maximum(s2, 1e-300), num / np.sqrt(np.maximum(var, 1e-300)), 0.0)
+    return out
 
 
 def _detrend(x: np.ndarray) -> np.ndarray:
@@ -319,8 +351,6 @@ def _batch_interval(fr: np.ndarray, vel: np.ndarray, t_n: int, lag: int, n_block
                     floor: float, centre: float | None = None) -> tuple[float, float] | None:
     """95 % interval of the mean from batch means over blocks of time at least four lags long, with a
     systematic ``floor`` (a standard uncertainty) added in quadrature."""
-    from scipy import stats
-
     n_b = int(min(n_blocks, t_n // max(4 * lag, 1)))
     if n_b < 4:
         return None
@@ -330,7 +360,7 @@ def _batch_interval(fr: np.ndarray, vel: np.ndarray, t_n: int, lag: int, n_block
     if len(means) < 4:
         return None
     centre = float(np.mean(vel)) if centre is None else centre
-    half = float(stats.t.ppf(0.975, len(means) - 1) * means.std(ddof=1) / np.sqrt(len(means)))
+    half = float(t_quantile_975(len(means) - 1) * means.std(ddof=1) / np.sqrt(len(means)))
     half = float(np.hypot(half, 1.96 * floor))
     return centre - half, centre + half
 
