@@ -24,10 +24,10 @@ follows the shift found at the shorter lag, so grains moving with oscillating pl
 are followed as well as a creep of 0.1 px per frame.
 
 The mean is over time (each pair's windows averaged, then the pairs: a time of many plugs counts as
-much as one of few), over the whole record (the series integrated, held at its ends for the half lag
-that no pair's middle reaches); its 95 % interval comes from batch means over blocks of time (each several lags
-long, so that a window's error is not shared by two blocks) with Student's t, widened by what the
-dithering may leave of the sub-sample pull (:data:`SUBSAMPLE_BIAS`, type B). When too few windows
+much as one of few), over the whole record (the half lag at each end that no pair's middle reaches
+takes the series' mean over as long again at that end); its 95 % interval comes from batch means over
+blocks of time (each several lags long, so that a window's error is not shared by two blocks) with
+Student's t, widened by what the dithering may leave of the sub-sample pull (:data:`SUBSAMPLE_BIAS`, type B). When too few windows
 correlate (no texture, too few or too short plugs) the velocity is not given and a coded
 warning (``grains.texture_weak``) says why.
 """
@@ -79,8 +79,8 @@ class GrainVelocity:
     lag : ndarray of int
         Each window's lag.
     mean_m_s : float or None
-        Mean over the record's time (the windows of each pair averaged, then integrated over time); None
-        when the texture is too weak.
+        Mean over the record's time (the windows of each pair averaged, then the pairs, the record's ends
+        included); None when the texture is too weak.
     ci95_m_s : tuple of float or None
         Its 95 % interval (batch means over independent blocks of time).
     warnings : tuple of str
@@ -328,16 +328,18 @@ def grain_velocity(values: np.ndarray, time_s: np.ndarray, spacing_mm: float, po
 
 
 def _record_mean(t: np.ndarray, v: np.ndarray, t0: float, t1: float) -> float:
-    """The mean over the record ``[t0, t1]`` of the velocity series ``v(t)``: its integral (trapezoids between
-    the pairs' mid-times, gaps bridged, held at its first and last values over the half lag at each end
-    that no pair's middle reaches) over the record's duration. A plain mean of the series would leave those
-    ends out, which, for grains moving with oscillating plugs, is up to the oscillation's speed times a
-    lag over the record."""
-    if len(v) == 1 or t1 <= t0:
+    """The mean over the record ``[t0, t1]`` of the velocity series ``v(t)`` (one value per pair, at its
+    middle): the series' mean stands for the time its pairs' middles span; the half lag at each end that no
+    pair's middle reaches takes the series' mean over as long again at that end. A plain mean would leave
+    those ends out, which, for grains moving with oscillating plugs, is up to the oscillation's speed times
+    a lag over the record."""
+    lo, hi = float(np.min(t)), float(np.max(t))
+    if len(v) == 1 or t1 <= t0 or hi <= lo:
         return float(np.mean(v))
-    inner = float(np.sum(0.5 * (v[1:] + v[:-1]) * np.diff(t)))
-    ends = float(v[0] * max(t[0] - t0, 0.0) + v[-1] * max(t1 - t[-1], 0.0))
-    return (inner + ends) / (max(t[-1], t1) - min(t[0], t0))
+    head_s, tail_s = max(lo - t0, 0.0), max(t1 - hi, 0.0)
+    head = float(np.mean(v[t <= lo + head_s]))
+    tail = float(np.mean(v[t >= hi - tail_s]))
+    return (float(np.mean(v)) * (hi - lo) + head * head_s + tail * tail_s) / (hi - lo + head_s + tail_s)
 
 
 def _per_frame(fr: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
