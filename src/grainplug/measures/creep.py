@@ -27,9 +27,9 @@ The mean is over time (each pair's windows averaged, then the pairs: a time of m
 much as one of few), over the whole record (the half lag at each end that no pair's middle reaches
 takes the series' mean over as long again at that end); its 95 % interval comes from batch means over
 blocks of time (each several lags long, so that a window's error is not shared by two blocks) with
-Student's t, widened by what the dithering may leave of the sub-sample pull (:data:`SUBSAMPLE_BIAS`, type B). When too few windows
-correlate (no texture, too few or too short plugs) the velocity is not given and a coded
-warning (``grains.texture_weak``) says why.
+Student's t, widened by what the dithering may leave of the sub-sample pull (:data:`SUBSAMPLE_BIAS`,
+type B). When too few windows correlate (no texture, too few or too short plugs) the velocity is not
+given and a coded warning (``grains.texture_weak``) says why.
 """
 
 from __future__ import annotations
