@@ -122,3 +122,26 @@ def test_noise_alone_gives_no_velocity():
     gv = grain_velocity(values, t, 0.1, np.arange(values.shape[1]) * 0.1, frame, start, stop)
     assert gv.mean_m_s is None and gv.ci95_m_s is None
     assert codes(list(gv.warnings)) == {"grains.texture_weak"}
+
+
+def test_a_texture_that_stays_put_is_said_to_look_like_grains_at_rest():
+    """A pattern fixed to the tube (a scratch, dust, a codec's blocks) inside plugs that move: the velocity
+    reads zero, and the warning says a fixed pattern and grains at rest look the same."""
+    rng = np.random.default_rng(9)
+    values, frame, start, stop = _diagram(rng, n_frames=2400, grain_px_per_frame=0.0, edge_px_per_frame=-1.8)
+    t = np.arange(len(values)) / 250.0
+    gv = grain_velocity(values, t, 0.1, np.arange(values.shape[1]) * 0.1, frame, start, stop)
+    assert gv.mean_m_s is not None and abs(gv.mean_m_s) < 0.05e-3
+    assert codes(list(gv.warnings)) == {"grains.texture_still"}
+    values, frame, start, stop = _diagram(rng, n_frames=2400, grain_px_per_frame=0.2, edge_px_per_frame=-1.8)
+    moving = grain_velocity(values, t, 0.1, np.arange(values.shape[1]) * 0.1, frame, start, stop)
+    assert moving.mean_m_s is not None and moving.warnings == ()
+
+
+def test_a_record_too_short_for_an_interval_gives_no_number():
+    rng = np.random.default_rng(10)
+    values, frame, start, stop = _diagram(rng, n_frames=90, grain_px_per_frame=0.1, edge_px_per_frame=-1.8)
+    t = np.arange(len(values)) / 250.0
+    gv = grain_velocity(values, t, 0.1, np.arange(values.shape[1]) * 0.1, frame, start, stop)
+    assert gv.mean_m_s is None and gv.ci95_m_s is None
+    assert codes(list(gv.warnings)) == {"grains.texture_weak"}

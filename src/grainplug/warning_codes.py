@@ -125,6 +125,9 @@ CODES: dict[str, tuple[str, str]] = {
     "grains.texture_weak": ("the grains' velocity inside the plugs is not given: too little of the packed grains' "
                             "texture correlates from frame to frame",
                             "light the grains so that their texture shows (back light, sharp focus), film longer"),
+    "grains.texture_still": ("the plugs' texture did not move by a sample over the longest lag: grains at rest, or a "
+                             "pattern fixed to the tube or the camera (a scratch, dust, a codec's blocks)",
+                             "look at the plugs in the movie; clean the tube, film with less compression"),
     # a reviewer's corrections
     "corrections.not_applied": ("an edit of corrections.json could not be applied to this analysis",
                                 "review the run again"),

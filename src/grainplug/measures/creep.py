@@ -28,8 +28,10 @@ much as one of few), over the whole record (the half lag at each end that no pai
 takes the series' mean over as long again at that end); its 95 % interval comes from batch means over
 blocks of time (each several lags long, so that a window's error is not shared by two blocks) with
 Student's t, widened by what the dithering may leave of the sub-sample pull (:data:`SUBSAMPLE_BIAS`,
-type B). When too few windows correlate (no texture, too few or too short plugs) the velocity is not
-given and a coded warning (``grains.texture_weak``) says why.
+type B). When too few windows correlate (no texture, too few or too short plugs), or the record is too
+short for four blocks, the velocity is not given and a coded warning (``grains.texture_weak``) says why.
+When the texture's typical shift stays under a sample up to the longest lag, the velocity is given with
+``grains.texture_still``: grains at rest and a pattern fixed to the tube or camera look the same.
 """
 
 from __future__ import annotations
@@ -50,6 +52,9 @@ SUBSAMPLE_BIAS = 0.01
 
 #: pairs of frames correlated at each lag tried while the lag is chosen
 PROBE_PAIRS = 120
+
+#: the texture's typical shift (samples) at the lag chosen below which it is said not to have moved
+STILL_SHIFT_PX = 1.0
 
 #: lags tried, in frames (the longest one that meets the conditions is kept)
 LAGS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128)
@@ -84,7 +89,8 @@ class GrainVelocity:
     ci95_m_s : tuple of float or None
         Its 95 % interval (batch means over independent blocks of time).
     warnings : tuple of str
-        Coded warnings (``grains.texture_weak``).
+        Coded warnings (``grains.texture_weak``: no velocity; ``grains.texture_still``: the texture did not
+        move by a sample over the longest lag).
     """
 
     frame: np.ndarray
@@ -324,7 +330,19 @@ def grain_velocity(values: np.ndarray, time_s: np.ndarray, spacing_mm: float, po
     # type B: what the dithering leaves of the parabola's pull, in samples over the pairs' mean span
     floor = SUBSAMPLE_BIAS * spacing_mm / float(np.mean(span)) / 1000.0
     ci = _batch_interval(frames, per_frame, t_n, lag, n_blocks, floor, mean)
-    return GrainVelocity(fr, t_mid, out.position_mm, run, vel, peak, lag, mean, ci, lag=lg)
+    still = v_typ * lag < STILL_SHIFT_PX  # the longest lag came before the texture moved a sample
+    if ci is None:  # a number without its interval is not given
+        return _weak(out, f"the record is too short for an interval at a lag of {lag} frames (fewer than four "
+                          "blocks of four lags)" + ("; the texture did not move by a sample over that lag (grains "
+                                                    "at rest, or a pattern fixed to the tube or camera)"
+                                                    if still else ""))
+    warnings: tuple[str, ...] = ()
+    if still:
+        warnings = (coded("grains.texture_still", "the plugs' texture did not move by a sample over the longest "
+                          f"lag ({lag} frames): the grains are at rest, or what correlates is fixed to the tube or "
+                          "the camera (a scratch, dust, a codec's blocks); the grains' velocity given "
+                          f"({mean * 1000:.3g} mm/s) may be that of the fixed pattern"),)
+    return GrainVelocity(fr, t_mid, out.position_mm, run, vel, peak, lag, mean, ci, warnings, lag=lg)
 
 
 def _record_mean(t: np.ndarray, v: np.ndarray, t0: float, t1: float) -> float:
