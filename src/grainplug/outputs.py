@@ -34,6 +34,7 @@ FILES = {
     "summary": "summary.json",
     "edges": "plug_edges.csv",
     "tracks": "tracks.csv",
+    "grain_velocity": "grain_velocity.csv",
     "diagram": "diagram.npz",
     "diagram_tif": "diagram.tif",
     "edges_long": "edges_long.csv",
@@ -134,6 +135,31 @@ def tracks_table(res: AnalysisResult) -> str:
     return buf.getvalue()
 
 
+#: the columns of ``grain_velocity.csv``: one row per correlation window inside a plug
+GRAIN_VELOCITY_COLUMNS = ("frame", "movie_frame", "lag_frames", "time_s", "position_mm", "track",
+                          "grain_velocity_m_s", "correlation")
+
+
+def grain_velocity_table(res: AnalysisResult) -> str:
+    """CSV of the packed grains' velocity inside the plugs, per window: the pair's first frame (of the
+    analysis and of the movie), the lag, the pair's mid-time, the window's centre along the tube, the plug's
+    track as found (before a reviewer's corrections), the velocity (downstream positive) and the window's
+    correlation peak
+    (:mod:`grainplug.measures.creep`); the header alone when not measured."""
+    g = res.grain_velocity
+    head = ",".join(GRAIN_VELOCITY_COLUMNS) + "\n"
+    if g is None or not len(g.frame):
+        return head
+    # measured on the plugs as found: a reviewer's corrections renumber the runs, not the windows
+    links = res.detected[1] if res.detected is not None else res.links
+    track = links.run_track[g.run] if np.all(g.run < len(links.run_track)) else np.full(len(g.run), -1)
+    lags = (g.lag if g.lag is not None else np.full(len(g.frame), g.lag_frames)).tolist()
+    lines = [f"{k},{k + res.first_movie_frame},{lag},{t:.6f},{z:.4f},{tr},{v:.7f},{c:.4f}\n"
+             for k, lag, t, z, tr, v, c in zip(g.frame.tolist(), lags, g.time_s.tolist(), g.position_mm.tolist(),
+                                              track.tolist(), g.velocity_m_s.tolist(), g.peak.tolist(), strict=True)]
+    return head + "".join(lines)
+
+
 def input_files(movie: str | Path | None, p: AnalysisParams) -> list[str]:
     """The files an analysis reads: the movie, the calibration file and the background of ``p`` (an output
     folder replaced whole must hold none of them)."""
@@ -178,6 +204,7 @@ def write_outputs(res: AnalysisResult, out_dir: str | Path, *, figures: bool = T
             pending = figure_worker.submit(res, tmp, options)
         (tmp / FILES["edges"]).write_text(edges_table(res))
         (tmp / FILES["tracks"]).write_text(tracks_table(res))
+        (tmp / FILES["grain_velocity"]).write_text(grain_velocity_table(res))
         with open(tmp / FILES["diagram"], "wb") as fh:
             np.savez(  # uncompressed: float noise barely compresses, and this is fast
                 fh, values=res.diagram.values, contrast=res.normalized.z, time_s=res.diagram.time_s,

@@ -55,6 +55,7 @@ from .diagram.frames import repair_frames
 from .diagram.light import divide_by_lamp, moving_light
 from .errors import MovieError, ParameterError
 from .measures.compactness import grain_contents, reference_reads
+from .measures.creep import grain_velocity
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
 from .measures.shake import band_margin_px, measure_shake, register_sample, shake_hz, shift_along
@@ -222,11 +223,14 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     contents = grain_contents(diagram, reads, movie_beside, runs, links, given=params.packed is not None,
                               back_lit=tube.back_lit,
                               backwards=runs_backwards(flow.direction), resample_at=at)
+    # plugs: two materials, runs of grains, and edges followed over frames (a droplet's few frames of a blob are not)
+    has_plugs = bool(norm.two_phase and len(runs) > 0 and motion is not None)
+    spacing_mm = float(np.median(np.diff(diagram.position_mm))) if len(diagram.position_mm) > 1 else mm_per_px
+    creep = grain_velocity(diagram.values, diagram.time_s, spacing_mm, diagram.position_mm,
+                           runs.frame, runs.start, runs.stop) if has_plugs else None
     laps("measures_s")
     best = _most_edges(runs, sample_idx)
     timings = dict(laps.timings, stream_fps=round(diagram.n_frames / max(laps.timings["stream_s"], 1e-9), 1))
-    # plugs: two materials, runs of grains, and edges followed over frames (a droplet's few frames of a blob are not)
-    has_plugs = bool(norm.two_phase and len(runs) > 0 and motion is not None)
     return AnalysisResult(
         params=params, input=identity, info=info, tube=tube, mm_per_px=mm_per_px, scale_source=scale.source,
         flow_direction=flow.direction, flow_direction_source=flow.source, diagram=diagram, normalized=found.normalized,
@@ -248,10 +252,11 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                   *train_warnings(runs, links, diagram.time_s, motion, mm_per_px=mm_per_px, params=params,
                                   info=info, blind=found.blind, shake=shake, flow_source=flow.source,
                                   falling_m_s=None if grains is None else grains.speed_m_s),
-                  *implausible(None, None, saturation), *passing_shadow(shadow),
-                  *contents.warnings], scale_rel_sd=scale_rel_sd, bore=scale.bore,
+                  *implausible(None, None, saturation), *passing_shadow(shadow), *contents.warnings,
+                  *(creep.warnings if creep is not None else ())], scale_rel_sd=scale_rel_sd, bore=scale.bore,
         blind=found.blind, shake=shake, lamp=lamp, tube_unseen=tuple(view.stretches),
         compactness=contents.phases, compactness_field=contents.field, compactness_note=contents.note,
+        grain_velocity=creep,
     )
 
 

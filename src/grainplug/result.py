@@ -34,6 +34,7 @@ from .diagram import Diagram, Normalized
 from .diagram.light import Lamp
 from .measures import Lengths, Motion
 from .measures.compactness import PhaseCompactness
+from .measures.creep import GrainVelocity
 from .measures.shake import Shake
 from .measures.still import BlindStretch
 from .params import AnalysisParams
@@ -138,6 +139,9 @@ class AnalysisResult:
         The compactness at every frame and position (the diagram's shape).
     compactness_note : str
         Why the compactness was not measured (empty when it was).
+    grain_velocity : GrainVelocity or None
+        The packed grains' velocity inside the plugs, window by window, and its mean
+        (:mod:`grainplug.measures.creep`); None when not measured (a result read back from a file).
     """
 
     params: AnalysisParams
@@ -172,6 +176,7 @@ class AnalysisResult:
     compactness: PhaseCompactness | None = None
     compactness_field: np.ndarray | None = field(default=None, repr=False)
     compactness_note: str = ""
+    grain_velocity: GrainVelocity | None = field(default=None, repr=False)
 
     # -- figures --------------------------------------------------------------
     @property
@@ -461,7 +466,8 @@ def result_types() -> dict[str, type]:
 
     return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
                                     Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate,
-                                    Background, Corrections, Edit, BlindStretch, Shake, Lamp, PhaseCompactness)}
+                                    Background, Corrections, Edit, BlindStretch, Shake, Lamp, PhaseCompactness,
+                                    GrainVelocity)}
 
 
 def load_result(folder: str | Path) -> AnalysisResult:

@@ -162,6 +162,17 @@ def flow_angle_deg(tube: TubeGeometry, direction: str) -> float:
     return float(np.degrees(np.arctan2(ey, ex)))
 
 
+def _grain_velocity(res: AnalysisResult) -> dict[str, Any]:
+    """The packed grains' mean velocity inside the plugs (downstream positive) with its 95 % interval, and the
+    lag and number of windows it was measured with; null when not measured (:mod:`grainplug.measures.creep`)."""
+    g = res.grain_velocity
+    ci = None if g is None or g.ci95_m_s is None else [_r(g.ci95_m_s[0], 6), _r(g.ci95_m_s[1], 6)]
+    return {"grain_velocity_in_plugs_m_s": None if g is None else _r(g.mean_m_s, 6),
+            "grain_velocity_in_plugs_ci95_m_s": ci if g is not None and g.mean_m_s is not None else None,
+            "grain_velocity_in_plugs_lag_frames": None if g is None or g.mean_m_s is None else int(g.lag_frames),
+            "grain_velocity_in_plugs_windows": 0 if g is None else len(g.velocity_m_s)}
+
+
 def _compactness(res: AnalysisResult) -> dict[str, Any]:
     """The plugs' and the bubbles' compactness with their intervals, or why it was not measured."""
     c = res.compactness
@@ -228,6 +239,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "flow_direction_source": res.flow_direction_source,
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
         "compactness": _compactness(res),
+        **_grain_velocity(res),
         "blind_stretches": [b.as_dict() for b in res.blind],
         "tube_unseen_frames": [[int(a), int(b)] for a, b in res.tube_unseen],
         "shake": res.shake.as_dict() if res.shake is not None else None,

@@ -8,8 +8,8 @@ code with its meaning and fix; ``docs/analysis.md`` shows the same table (a test
 
 The codes are ``area.kind``: ``shake.*``, ``movie.*`` (what a file says of itself), ``window.*``, ``tube.*``,
 ``scale.*``, ``calibration.*``, ``light.*``, ``frames.*``, ``time.*``, ``flow.*``, ``plugs.*``, ``still.*``,
-``compactness.*``, ``corrections.*``, ``manifest.*``. A warning read back from an older ``result.npz`` (saved as
-plain text) has the code ``legacy.uncoded``.
+``compactness.*``, ``grains.*``, ``corrections.*``, ``manifest.*``. A warning read back from an older
+``result.npz`` (saved as plain text) has the code ``legacy.uncoded``.
 """
 
 from __future__ import annotations
@@ -125,6 +125,13 @@ CODES: dict[str, tuple[str, str]] = {
                                "film in back light (a lamp behind the tube)"),
     "compactness.lamp_unknown": ("the lamp could not be compared between the movie and the references",
                                  "keep the lamp and the exposure unchanged between them"),
+    # the grains' velocity inside the plugs
+    "grains.texture_weak": ("the grains' velocity inside the plugs is not given: too little of the packed grains' "
+                            "texture correlates from frame to frame",
+                            "light the grains so that their texture shows (back light, sharp focus), film longer"),
+    "grains.texture_still": ("the plugs' texture did not move by a sample over the longest lag: grains at rest, or a "
+                             "pattern fixed to the tube or the camera (a scratch, dust, a codec's blocks)",
+                             "look at the plugs in the movie; clean the tube, film with less compression"),
     # a reviewer's corrections
     "corrections.not_applied": ("an edit of corrections.json could not be applied to this analysis",
                                 "review the run again"),
