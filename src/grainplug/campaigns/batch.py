@@ -274,14 +274,17 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
             client = _dask_client(scheduler)
             stack.callback(client.close)
         return _run_campaign(specs, Path(manifest), out, client=client, workers=workers, figures=figures,
-                             verify=verify, simulate=simulate, figure_options=figure_options, progress=progress)
+                             verify=verify, simulate=simulate, figure_options=figure_options, progress=progress,
+                             release=stack.close)
     raise AssertionError("unreachable")  # pragma: no cover  (for type checkers: the with returns)
 
 
 def _run_campaign(specs: list[RunSpec], manifest: Path, out: Path, *, client: Any, workers: int, figures: bool,
                   verify: bool, simulate: bool, figure_options: FigureOptions | None,
-                  progress: Callable[[int, int, str], None] | None) -> Campaign:
-    """:func:`run_campaign` once its inputs are checked and its workers are there (``client``, or ``workers``)."""
+                  progress: Callable[[int, int, str], None] | None,
+                  release: Callable[[], object] = lambda: None) -> Campaign:
+    """:func:`run_campaign` once its inputs are checked and its workers are there (``client``, or ``workers``);
+    ``release`` lets the workers go (a cluster's jobs end) once every run is done, before the tables and report."""
     from .._atomic import OutputPlaceError, mark_campaign
 
     try:
@@ -313,6 +316,7 @@ def _run_campaign(specs: list[RunSpec], manifest: Path, out: Path, *, client: An
         raise CampaignInterrupted(
             f"interrupted: {n_done} of {total} runs have a complete result, kept; the others were not started "
             "or were stopped — run the same command again to finish (complete, current runs are reused)") from None
+    release()  # no job holds the queue while the tables, fits and report are written
     for s in specs:  # the manifest's own doubts about a row come first among the run's warnings
         if s.warnings:
             rec = records[s.run]
