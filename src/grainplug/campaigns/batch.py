@@ -408,6 +408,7 @@ def _on_client(client: Any, specs: list[RunSpec], out: str, *, done: Callable[[d
     futures = {client.submit(_remote_run, s, out, pure=False, key=f"grainplug-run-{i}-{s.run}", **kw): s
                for i, s in enumerate(specs)}
     keys = {str(f.key) for f in futures}
+    before = {s.run: _sealed_at(Path(out) / "runs" / run_folder_name(s.run)) for s in specs}
     try:
         for fut in dask_completed(list(futures)):
             spec = futures.pop(fut)
@@ -423,6 +424,8 @@ def _on_client(client: Any, specs: list[RunSpec], out: str, *, done: Callable[[d
                        "error": f"the Dask worker failed: {type(exc).__name__}: {exc}"}
             fut.release()
             del fut
+            if rec.get("reused") and before[spec.run] is None:
+                rec["reused"] = False  # done in this batch by a worker lost before its result was read, then found
             worker = rec.pop("_worker", None)
             if worker:
                 hosts.add(str(worker))
@@ -435,6 +438,17 @@ def _on_client(client: Any, specs: list[RunSpec], out: str, *, done: Callable[[d
     for s in specs:  # what workers killed mid-run left (a retry that started before the dead one was reaped
         recover(Path(out) / "runs" / run_folder_name(s.run))  # keeps it): every run is done, none is writing
     return _workers_lost(client, keys)
+
+
+def _sealed_at(run_dir: Path) -> int | None:
+    """When ``run_dir``'s completion marker was written (ns), or None: tells a run done by this batch from one
+    reused from an earlier batch."""
+    from .._atomic import MARKER
+
+    try:
+        return (run_dir / MARKER).stat().st_mtime_ns
+    except OSError:
+        return None
 
 
 def _workers_lost(client: Any, keys: set[str]) -> int:
