@@ -166,7 +166,8 @@ class Campaign:
     n_reused: int = 0
     #: of the reused runs, those measured again from their saved detection (their corrections changed)
     n_remeasured: int = 0
-    #: worker processes of this machine's pool that died (their runs were started again)
+    #: worker processes that died (of this machine's pool, or a Dask client's workers lost while they held runs,
+    #: such as a cluster's job killed by its queue); their runs were started again
     worker_deaths: int = 0
     #: folders under ``runs/`` of runs the manifest no longer lists (kept, not in the campaign)
     stale_runs: tuple[str, ...] = ()
