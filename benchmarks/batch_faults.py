@@ -1,7 +1,7 @@
 """Issue 17's target for batches: many short runs with a worker killed every so often.
 
     .venv/bin/python benchmarks/batch_faults.py [--runs 200] [--frames 300] [--workers 2]
-        [--kill-every-s 30] [--dir /tmp/grainplug-batch-faults]
+        [--kill-every-s 30] [--dir /tmp/grainplug-batch-faults] [--cluster slurm]
 
 Renders ``--runs`` short synthetic movies (cached in ``--dir``), runs one undisturbed
 batch, then the same batch into another folder while a killer sends SIGKILL to one of
@@ -11,6 +11,13 @@ itself. It reports how many workers were killed, whether every run is in the tab
 with status ok, and whether the campaign table equals the undisturbed one byte for
 byte. Nothing here is a test (it takes minutes); ``tests/test_batch_faults.py`` runs
 the same attack on six runs.
+
+With ``--cluster slurm`` (issue 36), the attacked batch runs ``--cluster slurm --jobs
+WORKERS`` on the stand-in SLURM of ``tests/fake_slurm`` (each job a process group of this
+machine), and the killer ends a whole job with SIGKILL (pre-emption without grace; the job
+writing a run, if any) every ``--kill-every-s``; afterwards it checks that no job's process
+is left. The undisturbed batch is ``--workers WORKERS`` on this machine: the tables must be
+equal. ``tests/test_cluster.py`` runs one such kill on five runs.
 """
 
 from __future__ import annotations
@@ -60,11 +67,55 @@ def make_campaign(folder: Path, n: int, n_frames: int) -> Path:
     return manifest
 
 
-def batch(manifest: Path, out: Path, workers: int) -> subprocess.Popen:
+#: the stand-in SLURM commands (sbatch, squeue, scancel) of the tests
+FAKE_SLURM = Path(__file__).resolve().parent.parent / "tests" / "fake_slurm"
+
+
+def slurm_env(queue: Path) -> dict[str, str]:
+    """The environment of a batch on the stand-in SLURM: its commands on PATH, its jobs' state in ``queue``."""
+    return {"PATH": f"{FAKE_SLURM}{os.pathsep}{os.environ['PATH']}", "FAKE_SLURM_DIR": str(queue),
+            "DASK_JOBQUEUE__SLURM__CORES": "1", "DASK_JOBQUEUE__SLURM__MEMORY": "2GB",
+            "DASK_JOBQUEUE__SLURM__SCHEDULER_OPTIONS": "{'dashboard_address': None}"}
+
+
+def job_groups(queue: Path) -> list[int]:
+    """The process groups of the stand-in SLURM's jobs still running."""
+    alive = []
+    for f in queue.glob("*.pid"):
+        try:
+            os.killpg(int(f.read_text()), 0)
+            alive.append(int(f.read_text()))
+        except (ProcessLookupError, ValueError):
+            pass
+    return alive
+
+
+def batch(manifest: Path, out: Path, workers: int, *, queue: Path | None = None) -> subprocess.Popen:
+    where = ["--cluster", "slurm", "--jobs", str(workers)] if queue else ["--workers", str(workers)]
     return subprocess.Popen([sys.executable, "-m", "grainplug", "batch", str(manifest), "--out", str(out),
-                             "--workers", str(workers), "--no-figures"],
+                             *where, "--no-figures"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "MPLBACKEND": "Agg"})
+                            env={**os.environ, "MPLBACKEND": "Agg", **(slurm_env(queue) if queue else {})})
+
+
+def kill_a_job(queue: Path, out: Path, kills: list[float], t0: float) -> None:
+    """SIGKILL of one stand-in job's whole process group: the one writing a run, if any."""
+    groups = job_groups(queue)
+    if not groups:
+        return
+    runs = out / "runs"
+    writing = []
+    for q in runs.glob(".*.grainplug-new-*") if runs.is_dir() else []:
+        try:
+            writing.append(os.getpgid(int(q.name.rsplit("-", 2)[-2])))
+        except (ProcessLookupError, ValueError):
+            pass
+    victim = next((g for g in writing if g in groups), groups[0])
+    try:
+        os.killpg(victim, signal.SIGKILL)
+        kills.append(time.monotonic() - t0)
+    except ProcessLookupError:
+        pass
 
 
 def main() -> None:
@@ -74,23 +125,29 @@ def main() -> None:
     ap.add_argument("--kill-every-s", type=float, default=30.0)
     ap.add_argument("--frames", type=int, default=300, help="frames per movie (the runs' length)")
     ap.add_argument("--dir", type=Path, default=Path("/tmp/grainplug-batch-faults"))
+    ap.add_argument("--cluster", choices=["slurm"], default=None,
+                    help="attack a batch on the stand-in SLURM (jobs killed) instead of the local pool")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     manifest = make_campaign(args.dir / "campaign", args.runs, args.frames)
     quiet, noisy = args.dir / "undisturbed", args.dir / "attacked"
-    for d in (quiet, noisy):
+    queue = args.dir / "slurm-queue" if args.cluster else None
+    for d in (quiet, noisy, *([queue] if queue else [])):
         subprocess.run(["rm", "-rf", str(d)], check=True)
     t0 = time.monotonic()
     p = batch(manifest, quiet, args.workers)
     out, err = p.communicate()
     log.info("undisturbed: exit %d in %.1f s: %s", p.returncode, time.monotonic() - t0, out.splitlines()[:1])
     t0 = time.monotonic()
-    p = batch(manifest, noisy, args.workers)
+    p = batch(manifest, noisy, args.workers, queue=queue)
     kills: list[float] = []
     stop = threading.Event()
 
     def killer() -> None:
         while not stop.wait(args.kill_every_s):
+            if queue is not None:
+                kill_a_job(queue, noisy, kills, t0)
+                continue
             workers = children(p.pid)
             if not workers:
                 continue
@@ -116,8 +173,12 @@ def main() -> None:
     table = pd.read_csv(noisy / "campaign.csv") if (noisy / "campaign.csv").exists() else None
     once = table is not None and table.run.is_unique and len(table) == args.runs
     all_ok = table is not None and set(table.status) == {"ok"}
-    log.info("attacked: exit %d in %.1f s, %d workers killed (at %s s)", p.returncode, elapsed, len(kills),
-             ", ".join(f"{k:.0f}" for k in kills))
+    log.info("attacked: exit %d in %.1f s, %d %s killed (at %s s)", p.returncode, elapsed, len(kills),
+             "jobs" if queue else "workers", ", ".join(f"{k:.0f}" for k in kills))
+    if queue is not None:
+        time.sleep(2)
+        log.info("jobs submitted: %d; jobs left running after the batch: %d", len(list(queue.glob("*.sh"))),
+                 len(job_groups(queue)))
     log.info("stderr: %s", err.strip() or "(nothing)")
     log.info("every run once: %s; all ok: %s; table equal to the undisturbed one byte for byte: %s", once, all_ok,
              same)

@@ -376,13 +376,17 @@ def is_complete(folder: str | Path) -> bool:
 
 
 def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs on this machine (a killed one not yet reaped, a zombie, does not)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
         return True
-    return True
+    try:  # Linux: the state follows the command's closing parenthesis
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
 
 
 def recover(out: Path) -> None:

@@ -14,14 +14,17 @@ on where it ran.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import logging
 import os
+import socket
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -39,6 +42,7 @@ from ..provenance import fingerprint
 from ..result import load_result
 from ..store import read_corrections
 from ..warning_codes import codes_of
+from .cluster import CLUSTER_TIMEOUT_S, job_cluster
 from .fits import campaign_fits, fit_line, fit_selection, wide_and_still
 from .manifest import RunSpec, read_manifest, run_folder_name
 from .model_panel import ModelPanel, measured_from, model_panel
@@ -162,10 +166,13 @@ class Campaign:
     n_reused: int = 0
     #: of the reused runs, those measured again from their saved detection (their corrections changed)
     n_remeasured: int = 0
-    #: worker processes of this machine's pool that died (their runs were started again)
+    #: worker processes that died (of this machine's pool, or a Dask client's workers lost while they held runs,
+    #: such as a cluster's job killed by its queue); their runs were started again
     worker_deaths: int = 0
     #: folders under ``runs/`` of runs the manifest no longer lists (kept, not in the campaign)
     stale_runs: tuple[str, ...] = ()
+    #: with a Dask client: the workers (``host:pid``) that analysed the runs, across every job
+    workers_used: tuple[str, ...] = ()
 
     @property
     def run_warnings(self) -> list[tuple[str, str]]:
@@ -194,6 +201,8 @@ class Campaign:
 
 
 def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1, scheduler: str | None = None,
+                 client: Any = None, cluster: str | None = None, jobs: int = 1,
+                 cluster_timeout_s: float = CLUSTER_TIMEOUT_S,
                  figures: bool = True, verify: bool = False, simulate: bool = True,
                  figure_options: FigureOptions | None = None,
                  progress: Callable[[int, int, str], None] | None = None) -> Campaign:
@@ -209,6 +218,17 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         Processes on this machine (1: in this process).
     scheduler : str, optional
         Address of a Dask distributed scheduler (``tcp://host:8786``); overrides ``workers``.
+    client : dask.distributed.Client, optional
+        Any Dask client (a ``LocalCluster``'s, Kubernetes, a cloud cluster, dask-jobqueue's): the runs
+        go to its workers. It is left open: whoever made it closes it. Overrides ``workers``.
+    cluster : {'slurm', 'pbs', 'sge', 'lsf', 'htcondor'}, optional
+        Start the workers as ``jobs`` jobs of this queue through dask-jobqueue, with the settings of
+        Dask's ``jobqueue.<cluster>`` configuration (:func:`grainplug.campaigns.cluster.job_cluster`);
+        every job is cancelled when the campaign ends, fails or is interrupted.
+    jobs : int
+        With ``cluster``, the jobs kept running (one that the queue ends is replaced).
+    cluster_timeout_s : float
+        With ``cluster``, how long to wait for the first job to start.
     figures : bool
         Figures and HTML reports, per run and for the campaign.
     verify : bool
@@ -237,7 +257,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     never interrupted. Worker processes ignore Ctrl-C (the batch stops them) and end when
     the batch's process ends, even if it was killed.
     """
-    from .._atomic import OutputPlaceError, check_output_place, mark_campaign
+    from .._atomic import check_output_place
 
     specs = read_manifest(manifest)
     inputs = [Path(manifest), *(f for s in specs for f in _spec_inputs(s))]
@@ -245,13 +265,33 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
     _refuse_inputs_in_campaign(out, inputs)
     if workers < 1:
         raise ParameterError("must be at least 1", param="workers")
-    client = _dask_client(scheduler) if scheduler else None  # refuse an unreachable scheduler before writing
+    if sum(x is not None for x in (scheduler, client, cluster)) > 1:
+        raise ParameterError("give one of scheduler, client and cluster", param="cluster" if cluster else "client")
+    with contextlib.ExitStack() as stack:
+        # refuse an unreachable scheduler, or a queue that starts no job, before writing
+        if cluster is not None:
+            client = stack.enter_context(job_cluster(cluster, jobs=jobs, timeout_s=cluster_timeout_s))
+        elif scheduler:
+            client = _dask_client(scheduler)
+            stack.callback(client.close)
+        return _run_campaign(specs, Path(manifest), out, client=client, workers=workers, figures=figures,
+                             verify=verify, simulate=simulate, figure_options=figure_options, progress=progress,
+                             release=stack.close)
+    raise AssertionError("unreachable")  # pragma: no cover  (for type checkers: the with returns)
+
+
+def _run_campaign(specs: list[RunSpec], manifest: Path, out: Path, *, client: Any, workers: int, figures: bool,
+                  verify: bool, simulate: bool, figure_options: FigureOptions | None,
+                  progress: Callable[[int, int, str], None] | None,
+                  release: Callable[[], object] = lambda: None) -> Campaign:
+    """:func:`run_campaign` once its inputs are checked and its workers are there (``client``, or ``workers``);
+    ``release`` lets the workers go (a cluster's jobs end) once every run is done, before the tables and report."""
+    from .._atomic import OutputPlaceError, mark_campaign
+
     try:
         out.mkdir(parents=True, exist_ok=True)
         mark_campaign(out)
     except OSError as exc:
-        if client is not None:
-            client.close()
         raise OutputPlaceError(f"cannot create {out}: {exc.strerror or exc} — choose another output folder") from None
     records: dict[str, dict] = {}
     total = len(specs)
@@ -263,16 +303,10 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
 
     kw = {"figures": figures, "verify": verify, "figure_options": figure_options}
     deaths = 0
+    hosts: set[str] = set()
     try:
         if client is not None:
-            from dask.distributed import as_completed as dask_completed
-
-            try:
-                futures = [client.submit(process_run, s, str(out), threads=1, pure=False, **kw) for s in specs]
-                for fut in dask_completed(futures):
-                    done(fut.result())
-            finally:
-                client.close()
+            deaths = _on_client(client, specs, str(out), done=done, hosts=hosts, **kw)
         elif workers > 1:
             deaths = _in_pool(specs, str(out), workers=workers, done=done, **kw)
         else:
@@ -283,6 +317,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
         raise CampaignInterrupted(
             f"interrupted: {n_done} of {total} runs have a complete result, kept; the others were not started "
             "or were stopped — run the same command again to finish (complete, current runs are reused)") from None
+    release()  # no job holds the queue while the tables, fits and report are written
     for s in specs:  # the manifest's own doubts about a row come first among the run's warnings
         if s.warnings:
             rec = records[s.run]
@@ -294,7 +329,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
                                 for s in specs]))
     try:
         fits = campaign_fits(table)
-        _write_campaign(table, fits, out, manifest=Path(manifest), figures=figures, simulate=simulate,
+        _write_campaign(table, fits, out, manifest=manifest, figures=figures, simulate=simulate,
                         figure_options=figure_options)
     except KeyboardInterrupt:  # the campaign's files are renamed into place one by one: some may be new
         n_done = sum(is_complete(out / "runs" / run_folder_name(s.run)) for s in specs)
@@ -308,7 +343,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
                          if q.is_dir() and not q.name.startswith(".") and q.name not in listed)
                   if runs_dir.is_dir() else ())
     return Campaign(table, fits, out, int((table.status == "failed").sum()), n_reused, n_remeasured, deaths,
-                    stale)
+                    stale, tuple(sorted(hosts)))
 
 
 #: how long to wait for a Dask scheduler before saying it cannot be reached
@@ -339,6 +374,97 @@ def _dask_client(address: str):
     except Exception as exc:  # something answers there, but not a Dask scheduler (a web page, another service)
         raise GrainplugError(f"no Dask scheduler answered at {address} ({type(exc).__name__}) — check the "
                              "address and port (the scheduler's, usually 8786, not its dashboard's)") from None
+
+
+def _remote_run(spec: RunSpec, out_dir: str, **kw: object) -> dict[str, object]:
+    """:func:`process_run` on a Dask worker: the record, with which worker ran it (``_worker``, not a column);
+    a movie or output folder this worker's machine cannot see fails the run with its host named."""
+    import os.path
+
+    host = socket.gethostname()
+    if not Path(out_dir).is_dir():
+        return {"run": spec.run, "movie": str(spec.movie), **spec.meta, "status": "failed",
+                "_worker": f"{host}:{os.getpid()}",
+                "error": f"the campaign's folder {out_dir} cannot be seen on host {host} — the output folder must be "
+                         "on a filesystem every worker's machine mounts, at the same path"}
+    record = process_run(spec, out_dir, threads=1, **kw)
+    if record.get("status") == "failed" and not os.path.exists(spec.movie):
+        record["error"] = (f"cannot see {spec.movie} on host {host} — the movies must be on a filesystem every "
+                           "worker's machine mounts, at the same path as in the manifest")
+    return {**record, "_worker": f"{host}:{os.getpid()}"}
+
+
+def _on_client(client: Any, specs: list[RunSpec], out: str, *, done: Callable[[dict], None], hosts: set[str],
+               **kw: object) -> int:
+    """The runs on a Dask client's workers; returns how many workers died while they held runs.
+
+    A worker lost during a run (its job killed by the queue, its machine gone) has its runs
+    started again on another worker by Dask itself (``distributed.scheduler.allowed-failures``
+    times); a run whose workers keep dying is failed with the reason, and the others go on. A
+    result is let go of as soon as it is read, so a worker lost later costs no finished run.
+    """
+    from dask.distributed import as_completed as dask_completed
+    from distributed import KilledWorker
+
+    futures = {client.submit(_remote_run, s, out, pure=False, key=f"grainplug-run-{i}-{s.run}", **kw): s
+               for i, s in enumerate(specs)}
+    keys = {str(f.key) for f in futures}
+    before = {s.run: _sealed_at(Path(out) / "runs" / run_folder_name(s.run)) for s in specs}
+    try:
+        for fut in dask_completed(list(futures)):
+            spec = futures.pop(fut)
+            try:
+                rec = fut.result()
+            except KilledWorker:
+                rec = {"run": spec.run, "movie": str(spec.movie), **spec.meta, "status": "failed",
+                       "error": "every worker that analysed this run died during it (its jobs killed, out of "
+                                "memory, or a crash in a reader) — try this movie alone with grainplug analyze "
+                                "--debug, or ask for more memory per job"}
+            except Exception as exc:  # the worker's side failed outside the run (cannot unpickle, ...)
+                rec = {"run": spec.run, "movie": str(spec.movie), **spec.meta, "status": "failed",
+                       "error": f"the Dask worker failed: {type(exc).__name__}: {exc}"}
+            fut.release()
+            del fut
+            if rec.get("reused") and before[spec.run] is None:
+                rec["reused"] = False  # done in this batch by a worker lost before its result was read, then found
+            worker = rec.pop("_worker", None)
+            if worker:
+                hosts.add(str(worker))
+            done(rec)
+    except BaseException:
+        client.cancel(list(futures), force=True)
+        raise
+    from .._atomic import recover
+
+    for s in specs:  # what workers killed mid-run left (a retry that started before the dead one was reaped
+        recover(Path(out) / "runs" / run_folder_name(s.run))  # keeps it): every run is done, none is writing
+    return _workers_lost(client, keys)
+
+
+def _sealed_at(run_dir: Path) -> int | None:
+    """When ``run_dir``'s completion marker was written (ns), or None: tells a run done by this batch from one
+    reused from an earlier batch."""
+    from .._atomic import MARKER
+
+    try:
+        return (run_dir / MARKER).stat().st_mtime_ns
+    except OSError:
+        return None
+
+
+def _workers_lost(client: Any, keys: set[str]) -> int:
+    """How many workers the scheduler lost, unexpectedly, while they held some of ``keys`` (0 if it cannot say)."""
+    try:
+        events = client.get_events("all")
+    except Exception:  # a scheduler that keeps no such log
+        return 0
+    lost = set()
+    for _, ev in events:
+        if isinstance(ev, dict) and ev.get("action") == "remove-worker" and not ev.get("expected"):
+            held = {str(k) for k in ev.get("processing-tasks") or ()}
+            if held & keys:
+                lost.add(ev.get("worker"))
+    return len(lost)
 
 
 class _Stop(SystemExit):

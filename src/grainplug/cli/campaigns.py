@@ -108,6 +108,13 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publ
 @click.option("--workers", type=Number(1, 1024, integer=True), default=1, show_default=True,
               help="Runs analysed in parallel on this machine.")
 @click.option("--scheduler", default=None, help="Address of a Dask distributed scheduler (tcp://host:8786).")
+@click.option("--cluster", default=None, metavar="slurm|pbs|sge|lsf|htcondor",
+              help="Run the workers as jobs of this queue through dask-jobqueue (settings: Dask's jobqueue.yaml; "
+                   "see docs/cluster.md). Every job ends with the batch.")
+@click.option("--jobs", type=Number(1, 4096, integer=True), default=1, show_default=True,
+              help="With --cluster: jobs kept running (one the queue ends is replaced).")
+@click.option("--cluster-timeout", type=Number(0.1, 1e6, unit="s"), default=None,
+              help="With --cluster: seconds to wait for the first job to start [default: 600].")
 @click.option("--no-figures", is_flag=True, help="Skip figures and HTML reports.")
 @click.option("--verify", is_flag=True,
               help="Reuse a finished run only if every byte of its movie is unchanged (reads every movie whole).")
@@ -115,8 +122,9 @@ def paper(out: Path, no_figures: bool, as_json: bool, no_simulations: bool, publ
 @click.option("--no-simulations", is_flag=True,
               help="In the report, compare with the model's linear theory only (skip ~4 s of simulations).")
 @click.option("--publication", is_flag=True, help=PUBLICATION_HELP)
-def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_figures: bool, verify: bool,
-          as_json: bool, no_simulations: bool, publication: bool) -> None:
+def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, cluster: str | None, jobs: int,
+          cluster_timeout: float | None, no_figures: bool, verify: bool, as_json: bool, no_simulations: bool,
+          publication: bool) -> None:
     """Analyse every run of MANIFEST (CSV or TOML), then tabulate, fit and report.
 
     One row per run: movie (relative to the manifest), fps, mm_per_px or tube_diameter_mm,
@@ -128,7 +136,15 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
     from rich.progress import BarColumn, Progress, TextColumn
 
     from ..campaigns import run_campaign
-    from ..errors import CampaignInterrupted, Interrupted
+    from ..campaigns.cluster import CLUSTER_TIMEOUT_S, check_cluster_kind
+    from ..errors import CampaignInterrupted, Interrupted, ParameterError
+
+    if cluster is not None:
+        check_cluster_kind(cluster)  # before the manifest is read: the first thing wrong is said
+        if scheduler:
+            raise ParameterError("give --cluster or --scheduler, not both", param="cluster")
+    elif jobs != 1 or cluster_timeout is not None:
+        raise ParameterError("--jobs and --cluster-timeout go with --cluster", param="jobs")
 
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} runs"),
                   console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
@@ -141,7 +157,8 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
                        else f"run {escape(run)}")
 
         try:
-            camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, figures=not no_figures,
+            camp = run_campaign(manifest, out, workers=workers, scheduler=scheduler, cluster=cluster, jobs=jobs,
+                                cluster_timeout_s=cluster_timeout or CLUSTER_TIMEOUT_S, figures=not no_figures,
                                 verify=verify, simulate=not no_simulations, progress=progress,
                                 figure_options=figure_options_of(None, None, publication, None))
         except CampaignInterrupted as exc:  # before click's own handler, which prints a blank line
@@ -153,9 +170,10 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
                           f"are no longer in the manifest ({escape(names)}): kept, but left out of the campaign — "
                           "delete them if they are not needed", highlight=False, soft_wrap=True)
     if camp.worker_deaths:
+        fix = "ask for more memory or walltime per job" if cluster else "use fewer --workers"
         err_console.print(f"[yellow]warning:[/] {camp.worker_deaths} worker process(es) died during the batch "
-                          "(killed, or out of memory); their runs were started again — if it repeats, use fewer "
-                          "--workers", highlight=False, soft_wrap=True)
+                          f"(killed, or out of memory); their runs were started again — if it repeats, {fix}",
+                          highlight=False, soft_wrap=True)
     if as_json:
         from ..campaigns.fits import fit_selection
 
@@ -167,7 +185,9 @@ def batch(manifest: Path, out: Path, workers: int, scheduler: str | None, no_fig
         counts = t.status.value_counts().to_dict()
         again = f", {camp.n_remeasured} of them measured again with their new corrections" if camp.n_remeasured else ""
         reused = f" ({camp.n_reused} reused from an earlier batch{again})" if camp.n_reused else ""
-        click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused)
+        n_hosts = len({w.rsplit(":", 1)[0] for w in camp.workers_used})
+        spread = (f", on {len(camp.workers_used)} Dask worker(s) on {n_hosts} host(s)" if camp.workers_used else "")
+        click.echo(f"{len(t)} runs: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + reused + spread)
         from ..campaigns.fits import ALL_RUNS, fit_selection
 
         _print_run_warnings(camp, out)
