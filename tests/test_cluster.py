@@ -223,3 +223,36 @@ def test_a_worker_that_cannot_see_the_movie_names_its_host(campaign, tmp_path):
     assert f"on host {socket.gethostname()}" in rec["error"] and "filesystem" in rec["error"]
     rec = _remote_run(spec, str(tmp_path / "not-mounted-out"), figures=False)
     assert rec["status"] == "failed" and f"on host {socket.gethostname()}" in rec["error"]
+
+
+def test_the_scheduler_answers_its_own_user_only(slurm, monkeypatch):
+    """The campaign's scheduler listens for the cluster's nodes: it speaks TLS with a certificate made for the
+    campaign (a client without it is refused), and its dashboard is on this machine's loopback only."""
+    import dask
+    import distributed
+
+    from grainplug.campaigns.cluster import job_cluster
+
+    _, env = slurm
+    for key in ("PATH", "FAKE_SLURM_DIR"):
+        monkeypatch.setenv(key, env[key])
+    with dask.config.set({"jobqueue.slurm.cores": 1, "jobqueue.slurm.memory": "1GB",
+                          "jobqueue.slurm.death-timeout": 20}), job_cluster("slurm", jobs=1, timeout_s=120) as client:
+        address = client.scheduler.address
+        assert address.startswith("tls://")
+        import socket
+        from urllib.parse import urlsplit
+
+        link = urlsplit(client.dashboard_link)
+        socket.create_connection(("127.0.0.1", link.port), timeout=5).close()  # on the loopback
+        if link.hostname not in ("127.0.0.1", "localhost"):
+            with pytest.raises(OSError):  # not on the network
+                socket.create_connection((link.hostname, link.port), timeout=5).close()
+        assert client.submit(sum, [1, 2]).result(timeout=60) == 3  # its own workers hold the certificate
+        with pytest.raises((OSError, TimeoutError, TypeError)):  # without the certificate: not even a TLS client
+            distributed.Client(address, timeout="3s")
+        with pytest.raises((OSError, TimeoutError)):  # with a certificate of its own: refused
+            distributed.Client(address, security=distributed.security.Security.temporary(), timeout="3s")
+        plain = address.replace("tls://", "tcp://")
+        with pytest.raises((OSError, TimeoutError)):  # nor in plain TCP
+            distributed.Client(plain, timeout="3s")

@@ -16,6 +16,7 @@ import shutil
 import signal
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 from ..errors import GrainplugError, ParameterError
@@ -88,7 +89,7 @@ def job_cluster(kind: str, *, jobs: int = 1, timeout_s: float = CLUSTER_TIMEOUT_
         raise GrainplugError(f"cannot find {submit}, the command that submits {kind} jobs, on PATH — run the "
                              f"batch on the cluster's login node (or load the module that provides {submit})")
     try:
-        cluster = getattr(dask_jobqueue, cls_name)()
+        cluster = getattr(dask_jobqueue, cls_name)(**_private(kind))
     except ValueError as exc:  # cores/memory not configured, or a setting it does not take
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise GrainplugError(f"dask-jobqueue cannot set up {kind} jobs ({first}) — set jobqueue.{kind}.cores "
@@ -116,6 +117,25 @@ def job_cluster(kind: str, *, jobs: int = 1, timeout_s: float = CLUSTER_TIMEOUT_
             cluster.close()
         finally:
             restore()
+
+
+def _private(kind: str) -> dict[str, object]:
+    """The scheduler answers its own user only: TLS with a certificate made for this campaign
+    (``Security.temporary``; a worker proves it holds it, given in files only the user can read, in Dask's
+    ``jobqueue.<kind>.shared-temp-directory`` or else ``~/.grainplug-dask``, which the jobs must see), and the
+    dashboard on this machine's loopback only (``127.0.0.1``, a free port), unless Dask's configuration says
+    otherwise for either."""
+    import dask
+
+    opts = dict(dask.config.get(f"jobqueue.{kind}.scheduler-options", {}) or {})
+    opts.setdefault("dashboard_address", "127.0.0.1:0")
+    shared = dask.config.get(f"jobqueue.{kind}.shared-temp-directory", None)
+    if not shared:
+        folder = Path.home() / ".grainplug-dask"
+        folder.mkdir(mode=0o700, exist_ok=True)
+        folder.chmod(0o700)
+        shared = str(folder)
+    return {"security": True, "shared_temp_directory": shared, "scheduler_options": opts}
 
 
 def _sigterm_interrupts() -> Any:
