@@ -56,7 +56,7 @@ _IDENTITY = (("campaign", "campaign.csv"), ("paper", "paper.json"), ("simulation
 #: what each kind writes, for folders whose marker lists nothing (older versions): anything else there is a user's
 _KNOWN = {
     "analysis": {"summary.json", "plug_edges.csv", "tracks.csv", "diagram.npz", "result.npz", "report.html",
-                 "diagram.tif", "edges_long.csv", "fields.nc",
+                 "diagram.tif", "edges_long.csv", "fields.nc", "grain_velocity.csv",
                  *(f"{stem}.{ext}" for stem in ("diagram", "spectrum", "frame") for ext in ("png", "svg", "pdf"))},
     "simulation": {"fields.nc", "summary.json", *(f"diagram.{ext}" for ext in ("png", "svg", "pdf"))},
     "paper": {"paper.json", "reproduction.md", "report.html"},

@@ -64,14 +64,11 @@ MAX_TILT_DEG = 6.0
 #: the narrowest bore measured without a wall seen beside it (an outer silhouette): below it a strip of background or
 #: a line of texture is not told from a tube
 MIN_BORE_PX = 6.0
-#: when nothing moves, a wall is a step in the mean image this many times its typical gradient ...
-WALL_STEP_OVER_TEXTURE = 5.0
-#: ... changing the image's level by at least this share over 2 px either side ...
-WALL_STEP = 0.03
-#: ... at least this far inside the frame's sides (px along the profile across the tube); asked only when nothing
-#: moves: the contents' change over the frames peaks at no more than this many times its stillest (5th percentile)
+#: when nothing moves, a mean image whose level varies across the frame by less than this share holds no wall ...
+FLAT_SHARE = 0.05
+#: ... asked only when nothing moves: the contents' change over the frames peaks at no more than this many times its
+#: stillest (5th percentile)
 MOVING_OVER_STILL = 4.0
-WALL_MARGIN_PX = 2.0
 
 @dataclass(frozen=True)
 class TubeGeometry:
@@ -557,23 +554,16 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
         lpk = int(np.argmax(gm[:centre])) if centre > 2 else 0
         rpk = centre + int(np.argmax(gm[centre:]))
         left, right = float(fine[lpk]), float(fine[rpk])
-        # walls are steps in the mean image well above its texture, inside the frame: a plain background's
-        # steepest points are its noise, or the frame's own sides
+        # when nothing moves, the tube is its walls: a mean image flat across the frame holds none (plain background)
         seen = np.isfinite(prof_m)  # the profile's positions inside the frame
-        texture = float(np.median(gm[seen])) + 1e-9 * float(np.max(np.abs(pm)) or 1.0)
         # the positions whose tilted line stays in the frame over its whole height
         lo_seen, hi_seen = max(0.0, -h * tan_b), min(w - 1.0, w - 1.0 - h * tan_b)
-        inside = fine[lpk] - lo_seen >= WALL_MARGIN_PX and hi_seen - fine[rpk] >= WALL_MARGIN_PX
         level = float(np.median(np.abs(pm[seen]))) or 1.0
-
-        def step(k: int) -> float:  # the mean image's change across the wall, over 2 px either side
-            a, b = np.searchsorted(fine, fine[k] - 2.0), np.searchsorted(fine, fine[k] + 2.0)
-            return abs(float(pm[min(b, len(pm) - 1)] - pm[max(a, 0)])) / level
-
-        standing = min(gm[lpk], gm[rpk]) >= WALL_STEP_OVER_TEXTURE * texture and min(step(lpk), step(rpk)) >= WALL_STEP
+        region = (fine >= lo_seen) & (fine <= hi_seen) & seen
+        flat = region.any() and float(np.ptp(pm[region])) < FLAT_SHARE * level
         pv = prof_v[np.isfinite(prof_v)]
         moving = pv.size > 0 and float(np.max(pv)) > MOVING_OVER_STILL * max(float(np.percentile(pv, 5)), 1e-12)
-        if not moving and not (inside and standing):
+        if not moving and flat:
             raise MovieError("no tube found: nothing moves in the frames and no two walls stand out in them — is "
                              "the tube in view (the region of interest around it) and lit?")
     width_px = (right - left) * np.cos(np.radians(tilt))
@@ -592,7 +582,9 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
         wide = np.arange(max(-pad, axis_x0 - reach), min(w + pad, axis_x0 + reach), 0.05)
         walls = measure_walls(wide, sheared_profile(m, tan_b, wide), axis_px=axis_x0,
                               visible_half_px=0.5 * (right - left)).scaled(np.cos(np.radians(tilt)))
-    if not coarse and width_px < MIN_BORE_PX and (walls is None or not np.isfinite(walls.outer_half_px)):
+    # narrow, no wall to tell a tube by, and not a tube the frame cuts (that is said: tube.cut_by_frame)
+    if (not coarse and width_px < MIN_BORE_PX and side < 0.5
+            and (walls is None or not np.isfinite(walls.outer_half_px))):
         raise MovieError(_too_narrow(width_px))  # narrow, and no wall to tell a tube by: a strip, a line of texture
     log.info("tube: %s, tilt %.3f deg, axis x0 %.2f px, inner diameter %.3f px (%s)",
              orient, tilt, axis_x0, width_px, method)
