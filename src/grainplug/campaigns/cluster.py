@@ -115,6 +115,10 @@ def job_cluster(kind: str, *, jobs: int = 1, timeout_s: float = CLUSTER_TIMEOUT_
             if client is not None:
                 client.close()
             cluster.close()
+            # the certificate's worker half, written for the jobs: closed, so deleted (dask-jobqueue keeps them open)
+            for name, held in list(vars(cluster).items()):
+                if name.startswith("_job_") and hasattr(held, "close"):
+                    held.close()
         finally:
             restore()
 
