@@ -229,6 +229,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
     creep = grain_velocity(diagram.values, diagram.time_s, spacing_mm, diagram.position_mm,
                            runs.frame, runs.start, runs.stop) if has_plugs else None
     laps("measures_s")
+    no_walls = walls_unseen(tube, has_plugs=has_plugs)
     best = _most_edges(runs, sample_idx)
     timings = dict(laps.timings, stream_fps=round(diagram.n_frames / max(laps.timings["stream_s"], 1e-9), 1))
     return AnalysisResult(
@@ -236,11 +237,10 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         flow_direction=flow.direction, flow_direction_source=flow.source, diagram=diagram, normalized=found.normalized,
         runs=runs, links=links, motion=motion, lengths=lengths, has_plugs=has_plugs,
         # runs of "grains" seen but never followed, and no wall: a droplet, a jet, not a tube
-        statement=(NO_TUBE if len(runs) and not has_plugs and walls_unseen(tube, has_plugs=has_plugs)
-                   else found.statement),
+        statement=NO_TUBE if len(runs) and not has_plugs and no_walls else found.statement,
         sample_frame=sample[best], sample_frame_index=int(sample_idx[best]), timings=timings,
         falling_grain_speed_m_s=None if grains is None else grains.speed_m_s,
-        warnings=[*info.warnings, *walls_unseen(tube, has_plugs=has_plugs), *cut_by_the_frame(tube, params),
+        warnings=[*info.warnings, *no_walls, *cut_by_the_frame(tube, params),
                   *scale.warnings,
                   *given_scale_doubts(tube, params, has_plugs=has_plugs, two_phase=norm.two_phase),
                   *light_warnings,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -236,13 +237,11 @@ def manifest(folder: Path, out: Path | None, glob_: str | None, force: bool) -> 
     if target.exists() and not force:
         raise ParameterError(f"{target} exists — give --force to replace it, or another --out")
     scanned = scan_folder(folder, glob=glob_)
-    text = manifest_text(scanned)
     if target.resolve().parent != folder.resolve():  # the movies' paths relative to the manifest
-        import os
-
         rel = Path(os.path.relpath(folder.resolve(), target.resolve().parent))
-        text = manifest_text([dataclasses.replace(s, row={**s.row, "movie": (rel / s.path.name).as_posix()})
-                              if not s.error else s for s in scanned])
+        scanned = [dataclasses.replace(s, row={**s.row, "movie": (rel / s.path.name).as_posix()})
+                   if not s.error else s for s in scanned]
+    text = manifest_text(scanned)
     with atomic_file(target, inputs=[s.path for s in scanned]) as tmp:
         tmp.write_text(text, encoding="utf-8")
     read = [s for s in scanned if not s.error]
