@@ -96,7 +96,8 @@ CODES: dict[str, tuple[str, str]] = {
     # the flow's direction
     "flow.against_given": ("the grains falling through the bubbles move against the flow direction given",
                            "check flow_direction="),
-    "flow.assumed": ("no grains were seen falling: the flow direction is assumed", "give flow_direction="),
+    "flow.assumed": ("the grains falling through the bubbles give no direction: the flow direction is assumed",
+                     "give flow_direction="),
     "flow.sign_assumed": ("the celerity's sign rests on a flow direction only assumed (gravity down)",
                           "give flow_direction= if the camera was not upright"),
     # plugs and their measures
