@@ -133,6 +133,9 @@ CODES: dict[str, tuple[str, str]] = {
     "grains.texture_still": ("the plugs' texture did not move by a sample over the longest lag: grains at rest, or a "
                              "pattern fixed to the tube or the camera (a scratch, dust, a codec's blocks)",
                              "look at the plugs in the movie; clean the tube, film with less compression"),
+    # the grains' mass flow rate
+    "mass_flow.disagrees": ("a run's weighed mass flow rate is outside the interval of the one measured from its movie",
+                            "check the frame rate, scale, bore, packed compactness and grain density given"),
     # a reviewer's corrections
     "corrections.not_applied": ("an edit of corrections.json could not be applied to this analysis",
                                 "review the run again"),

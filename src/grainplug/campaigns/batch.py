@@ -141,10 +141,35 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
         return {**record, "status": "failed", "error": f"unexpected {type(exc).__name__}: {exc}"}
 
 
+def weighed_disagrees(rec: dict) -> list[str]:
+    """A warning when a run's weighed mass flow rate (the manifest's ``mass_flow_rate_g_s``) lies outside the 95 %
+    interval of the one measured from its movie: the frame rate, the scale, the bore, the references' compactness
+    or the grains' density given may be wrong, or the flow was not steady while it was weighed."""
+    weighed, lo, hi = (rec.get(k) for k in ("mass_flow_rate_g_s", "mass_flow_rate_images_ci95_low_g_s",
+                                            "mass_flow_rate_images_ci95_high_g_s"))
+    try:
+        weighed, lo, hi = float(weighed), float(lo), float(hi)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return []
+    if not all(np.isfinite([weighed, lo, hi])) or lo <= weighed <= hi:
+        return []
+    from ..warning_codes import coded
+
+    mid = 0.5 * (lo + hi)
+    return [coded("mass_flow.disagrees",
+                  f"the weighed mass flow rate ({weighed:.3g} g/s) is outside the 95 % interval of the one measured "
+                  f"from the movie ({lo:.3g} to {hi:.3g} g/s, {100.0 * (mid / weighed - 1.0):+.0f} %): check the "
+                  "frame rate, the scale, the bore, the packed reference's compactness and the grains' density "
+                  "given, and that the flow was steady while it was weighed")]
+
+
 def _flat(summary: dict) -> dict[str, object]:
     out = {k: summary.get(k) for k in SUMMARY_COLUMNS}
     ci = summary.get("celerity_ci95_m_s") or [None, None]
     lci = summary.get("plug_length_ci95_mm") or [None, None]
+    qci = summary.get("mass_flow_rate_ci95_g_s") or [None, None]
+    out.update(mass_flow_rate_images_g_s=summary.get("mass_flow_rate_g_s"),
+               mass_flow_rate_images_ci95_low_g_s=qci[0], mass_flow_rate_images_ci95_high_g_s=qci[1])
     out.update(celerity_ci95_low_m_s=ci[0], celerity_ci95_high_m_s=ci[1],
                plug_length_ci95_low_mm=lci[0], plug_length_ci95_high_mm=lci[1],
                input_sha256_sampled=(summary.get("input") or {}).get("sha256_sampled"),
@@ -327,10 +352,11 @@ def _run_campaign(specs: list[RunSpec], manifest: Path, out: Path, *, client: An
             "or were stopped — run the same command again to finish (complete, current runs are reused)") from None
     release()  # no job holds the queue while the tables, fits and report are written
     for s in specs:  # the manifest's own doubts about a row come first among the run's warnings
-        if s.warnings:
-            rec = records[s.run]
-            rec["warnings"] = " | ".join([*s.warnings, *filter(None, [rec.get("warnings")])])
-            rec["warning_codes"] = " | ".join([*codes_of(s.warnings), *filter(None, [rec.get("warning_codes")])])
+        rec = records[s.run]
+        more = [*s.warnings, *weighed_disagrees(rec)]
+        if more:
+            rec["warnings"] = " | ".join([*more, *filter(None, [rec.get("warnings")])])
+            rec["warning_codes"] = " | ".join([*codes_of(more), *filter(None, [rec.get("warning_codes")])])
     n_reused = sum(bool(records[s.run].get("reused")) for s in specs)
     n_remeasured = sum(bool(records[s.run].get("remeasured")) for s in specs)
     table = typed(pd.DataFrame([{k: v for k, v in records[s.run].items() if k not in ("reused", "remeasured")}

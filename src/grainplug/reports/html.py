@@ -183,6 +183,10 @@ def _cards(res: AnalysisResult) -> str:
                    f"bubbles {with_uncertainty(comp.bubble, *(comp.bubble_ci95 or (None, None)))}, ")
         cards.append(("compactness in plugs", with_uncertainty(comp.plug, *ci),
                       f"{bubbles}packed reference {res.params.packed_compactness:g}"))
+    q = res.mass_flow
+    if q.rate_g_s is not None:
+        cards.append(("grains' mass flow rate (g/s)", with_uncertainty(q.rate_g_s, *(q.ci95_g_s or (None, None))),
+                      f"from the movie, grains at {res.params.grain_density_kg_m3:g} kg/m³"))
     return '<div class="headline">' + "".join(
         f'<div class="card"><div class="k">{html.escape(k)}</div><div class="v">{html.escape(v)}</div>'
         f'<div class="k">{html.escape(n)}</div></div>' for k, v, n in cards) + "</div>"
