@@ -25,6 +25,10 @@ RUN_COLUMNS = (
 )
 
 
+#: characters of a text cell shown in the runs table; longer texts are cut, whole in their tooltip
+SHORT_TEXT = 24
+
+
 def _cell(value: object, decimals: int | None) -> str:
     if decimals is not None:
         return number(value, decimals)  # "—" when missing
@@ -67,6 +71,9 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
                 text = f"{text} to {html.escape(_cell(r['celerity_ci95_high_m_s'], d))}"
             if c == "scale_source" and ":" in text:  # the kind in the table, the whole sentence on hover
                 text = f'<span title="{text}">{text.split(":")[0]}</span>'
+            elif d is None and len(_cell(r[c], d)) > SHORT_TEXT:  # a row reads on one line: long texts cut
+                whole = _cell(r[c], d)
+                text = f'<span title="{html.escape(whole)}">{html.escape(whole[:SHORT_TEXT - 1].rstrip())}…</span>'
             if c == "run" and r.get("status") == "ok":
                 text = f'<a href="runs/{html.escape(str(r[c]))}/report.html">{text}</a>'
             v = r[c]
@@ -74,8 +81,8 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
             klass = ' class="n"' if d is not None else ""
             cells.append(f"<td{klass}{sort}>{text}</td>")
         body_rows.append("<tr>" + "".join(cells) + "</tr>")
-    runs_table = (f'<table class="sortable"><thead><tr>{head}</tr></thead>'
-                  f'<tbody>{"".join(body_rows)}</tbody></table>')
+    runs_table = (f'<div class="wide"><table class="sortable"><thead><tr>{head}</tr></thead>'
+                  f'<tbody>{"".join(body_rows)}</tbody></table></div>')  # scrolls sideways, rows on one line
     fit_rows = []
     for g, f in fits.items():
         c = f.get("celerity") or {}

@@ -28,7 +28,8 @@ code,pre{background:#f6f6f6}pre{padding:.6em;overflow:auto;font-size:12px;white-
 .warnbox{border:2px solid #d9a400;background:#fff8e1;border-radius:6px;padding:.3em 1em;margin:1em 0}
 .fixbox{border:2px solid #3b7dd8;background:#eef4fd;border-radius:6px;padding:.3em 1em;margin:1em 0}
 figure{margin:1.2em 0}figcaption{color:#444;font-size:.9em}
-td.n,th.n{text-align:right;font-variant-numeric:tabular-nums}th.sort{cursor:pointer}td:not(.n){overflow-wrap:anywhere}
+td.n,th.n{text-align:right;font-variant-numeric:tabular-nums}td.n{white-space:nowrap}th.sort{cursor:pointer}
+td:not(.n){overflow-wrap:anywhere}.wide{overflow-x:auto;max-width:100%}.wide td{white-space:nowrap;overflow-wrap:normal}
 .sentence{font-size:1.1em}
 """
 
