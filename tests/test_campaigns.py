@@ -468,11 +468,16 @@ def test_a_misspelt_column_is_said_once_for_all_runs(campaign_dir, tmp_path, cap
     """A misspelt column in a manifest of several runs was said once per run (7 lines for 7 runs)."""
     (campaign_dir / "typo3.csv").write_text("run,movie,mm_per_pix\na,a/movie.avi,0.185\nb,b/movie.avi,0.185\n"
                                             "c,c/movie.avi,0.185\n")
-    code, _, err = run(capsys, "batch", campaign_dir / "typo3.csv", "--out", tmp_path / "o", "--no-figures",
-                       "--no-simulations")
+    code, _, err = run(capsys, "batch", campaign_dir / "typo3.csv", "--out", tmp_path / "o", "--no-simulations")
     assert code == 0, err
     said = [line for line in err.splitlines() if "mm_per_pix" in line]
     assert len(said) == 1 and said[0].startswith("warning: runs a, b, c: column 'mm_per_pix'"), err
+    # the campaign's report too: once for the three runs, and with the command line's option beside the
+    # library's keyword (the tube model's warning named tube_outer_diameter_mm= alone, once per run)
+    page = (tmp_path / "o" / "report.html").read_text()
+    assert page.count("column &#x27;mm_per_pix&#x27;") == 1
+    assert page.count("tube_outer_diameter_mm=") == page.count("tube_outer_diameter_mm= (--tube-outer-diameter-mm)")
+    assert page.count("(--tube-outer-diameter-mm)") == 1
 
 
 def test_the_paper_s_celerity_figure_keeps_the_sign_of_its_table(tmp_path):

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..params import with_options
 from ..reports import images, page, provenance, table
 from ..reports.html import _SORT_JS as SORT_JS
 from ..reports.html import number
@@ -95,12 +96,15 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
                          number(ln.get("mean_over_diameter"), 2)])
     notes = [f"<li><b>{html.escape(run) or 'fits'}</b>: {html.escape(why)}</li>"
              for run, why in fit_selection(tab)[1].items() if run == ALL_RUNS or not why.endswith("no plugs measured")]
+    said: dict[tuple[str, str], list[str]] = {}  # a warning several runs share (a misspelt column) said once
     for _, r in tab.iterrows():
         for what, key in (("error", "error"), ("warning", "warnings")):
             text = r.get(key)
             if isinstance(text, str) and text:
-                for line in text.split(" | "):
-                    notes.append(f"<li><b>{html.escape(str(r['run']))}</b> ({what}): {html.escape(line)}</li>")
+                for line in dict.fromkeys(text.split(" | ")):
+                    said.setdefault((what, line), []).append(str(r["run"]))
+    notes += [f"<li><b>{html.escape(', '.join(runs))}</b> ({what}): {html.escape(with_options(line))}</li>"
+              for (what, line), runs in said.items()]
     inputs = {r: {"movie": m, "sha256_sampled": h} for r, m, h in
               zip(tab.run, tab.movie, tab.get("input_sha256_sampled", [None] * len(tab)), strict=True)}
     n_ok = int((tab.status == "ok").sum())
