@@ -84,6 +84,8 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
         body_rows.append("<tr>" + "".join(cells) + "</tr>")
     runs_table = (f'<div class="wide"><table class="sortable"><thead><tr>{head}</tr></thead>'
                   f'<tbody>{"".join(body_rows)}</tbody></table></div>')  # scrolls sideways, rows on one line
+    notes = [f"<li><b>{html.escape(run) or 'fits'}</b>: {html.escape(why)}</li>"
+             for run, why in fit_selection(tab)[1].items() if run == ALL_RUNS or not why.endswith("no plugs measured")]
     fit_rows = []
     for g, f in fits.items():
         c = f.get("celerity") or {}
@@ -91,11 +93,14 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
         slope, slope_se = _to_uncertainty(c.get("slope_m_s_per_g_s"), c.get("slope_stderr"))
         icpt, icpt_se = _to_uncertainty(c.get("intercept_m_s"), c.get("intercept_stderr"))
         one = (ln.get("n") or c.get("n") or 0) < 2  # one run: no spread
-        fit_rows.append([g, slope, slope_se, icpt, icpt_se, number(c.get("r2"), 3), number(c.get("n")),
+        through = c.get("n") == 2  # a line through two runs fits them exactly: its R² says nothing
+        if through:
+            notes.append(f"<li><b>{html.escape(g)}</b>: a line through 2 runs fits them exactly: no R² and no "
+                         "standard error can be given; more runs are needed to judge the line</li>")
+        fit_rows.append([g, slope, slope_se, icpt, icpt_se, "—" if through else number(c.get("r2"), 3),
+                         number(c.get("n")),
                          number(ln.get("mean_mm"), 2), "—" if one else number(ln.get("sd_mm"), 2),
                          number(ln.get("mean_over_diameter"), 2)])
-    notes = [f"<li><b>{html.escape(run) or 'fits'}</b>: {html.escape(why)}</li>"
-             for run, why in fit_selection(tab)[1].items() if run == ALL_RUNS or not why.endswith("no plugs measured")]
     said: dict[tuple[str, str], list[str]] = {}  # a warning several runs share (a misspelt column) said once
     for _, r in tab.iterrows():
         for what, key in (("error", "error"), ("warning", "warnings")):
