@@ -91,17 +91,19 @@ def test_campaign_report(tmp_path):
         w.writeheader()
         w.writerows(rows)
     run_campaign(tmp_path / "manifest.csv", tmp_path / "out")
-    lines, titles = [], []
+    lines, titles, options = [], [], []
 
     def lines_per_cell(page):  # the line boxes each cell of the runs table takes, and the titles of its texts
         titles.extend(page.evaluate("Array.from(document.querySelectorAll('table.sortable [title]'))"
                                     ".map(e => e.title)"))
-        lines.extend(page.evaluate("""Array.from(document.querySelectorAll('table.sortable tbody td')).map(td => {
-            const r = document.createRange(); r.selectNodeContents(td);
-            return new Set(Array.from(r.getClientRects()).map(b => Math.round(b.top))).size; })"""))
+        for selector, into in (("table.sortable tbody td", lines), (".warnbox li code", options)):
+            into.extend(page.evaluate("""s => Array.from(document.querySelectorAll(s)).map(e => {
+                const r = document.createRange(); r.selectNodeContents(e);
+                return new Set(Array.from(r.getClientRects()).map(b => Math.round(b.top))).size; })""", selector))
 
     text = _check(tmp_path / "out" / "report.html", shot=lines_per_cell)
     assert "group" in text and "oscillation (Hz)" in text and " to " in text
     assert len(lines) >= 3 * 10  # 3 runs, 10 columns at least
     assert max(lines) == 1, f"cells of the runs table wrap over {max(lines)} lines: a row reads across"
+    assert options and max(options) == 1, "an option in a warning is cut across lines"
     assert SURFACE not in text and SURFACE in titles  # a long text shortened, whole in its tooltip

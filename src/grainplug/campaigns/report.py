@@ -7,10 +7,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..params import with_options
 from ..reports import images, page, provenance, table
 from ..reports.html import _SORT_JS as SORT_JS
-from ..reports.html import number
+from ..reports.html import number, warning_html
 from .fits import ALL_RUNS, fit_selection
 from .model_panel import ModelPanel, panel_html
 
@@ -108,7 +107,7 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
             if isinstance(text, str) and text:
                 for line in dict.fromkeys(text.split(" | ")):
                     said.setdefault((what, line), []).append(str(r["run"]))
-    notes += [f"<li><b>{html.escape(', '.join(runs))}</b> ({what}): {html.escape(with_options(line))}</li>"
+    notes += [f"<li><b>{html.escape(', '.join(runs))}</b> ({what}): {warning_html(line)}</li>"
               for (what, line), runs in said.items()]
     inputs = {r: {"movie": m, "sha256_sampled": h} for r, m, h in
               zip(tab.run, tab.movie, tab.get("input_sha256_sampled", [None] * len(tab)), strict=True)}
