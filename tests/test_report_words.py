@@ -18,6 +18,18 @@ def test_the_report_gives_the_option_beside_the_keyword(tmp_path):
     assert "tube_outer_diameter_mm= (--tube-outer-diameter-mm)" in page
 
 
+
+def test_the_command_line_s_report_names_the_option(tmp_path, capsys):
+    """What `grainplug analyze` writes: the report's advice gives the flag the user types."""
+    from test_cli_basics import run
+
+    code, _, err = run(capsys, "analyze", gp.datasets.sample_movie(), "--out", tmp_path / "o")
+    assert code == 0, err
+    assert "--tube-outer-diameter-mm" in err  # the terminal's advice, as flags
+    page = re.sub(r"<[^>]+>", "", (tmp_path / "o" / "report.html").read_text())
+    assert "(--tube-outer-diameter-mm)" in page
+
+
 def test_only_the_analysis_keywords_get_an_option():
     assert with_options("give start_s= or mm_per_px=") == "give start_s= (--start) or mm_per_px= (--mm-per-px)"
     # a function's argument, a dotted name and a comparison are left as they are
