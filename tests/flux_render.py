@@ -31,6 +31,11 @@ Gaussian noise, rounding to 8 bits; TIFF stack (ImageJ metadata with the frame i
 
 Truth is counted
 ----------------
+Two counts are given: at one section (below), and at every row boundary of the view, averaged over them
+(``view_mass_flow_rate_g_s``: the flux through the view during the record, what a measurement over the
+whole view and record can know; over a short record the flux through one section differs from the next,
+as the view's content changes).
+
 The section is the boundary between the middle two rows (``z_s = height_px / 2 * mm_per_px``, in the lab
 frame; camera shake does not move it). For every grain, between consecutive frames, a change of side of
 ``z_s`` counts +1 (downwards) or -1 (upwards); the mass flow rate is (down - up) * grain mass / record
@@ -93,6 +98,7 @@ class FluxTruth:
     """The known answer (speeds in m/s, downstream positive; the mass flow rate counted, in g/s)."""
 
     mass_flow_rate_g_s: float
+    view_mass_flow_rate_g_s: float     # counted at every row boundary of the view, averaged over them
     crossings_down: int
     crossings_up: int
     duration_s: float
@@ -283,6 +289,8 @@ def render_frames(scene: FluxScene, seed: int = 0) -> tuple[np.ndarray, FluxTrut
     frames = np.empty((s.n_frames, h, w), np.uint8)
     down = up = 0
     prev_below = None
+    net_boundaries = 0              # crossings of every row boundary (rows 1 .. h-1 of the view), net downwards
+    prev_idx = None
     near = []                       # grains within +-1 mm of the section, each frame
     plug_mask = np.zeros((s.n_frames, h), bool)
     row_mid = (rows + 0.5) * s.mm_per_px
@@ -294,6 +302,10 @@ def render_frames(scene: FluxScene, seed: int = 0) -> tuple[np.ndarray, FluxTrut
             down += int(np.count_nonzero(below & ~prev_below))
             up += int(np.count_nonzero(~below & prev_below))
         prev_below = below
+        idx = np.clip(np.floor(z / s.mm_per_px), 0, h - 1).astype(np.int64)  # boundaries above the grain
+        if prev_idx is not None:
+            net_boundaries += int((idx - prev_idx).sum())
+        prev_idx = idx
         near.append(int(np.count_nonzero(np.abs(z - z_s) < 1.0)))
         i = np.clip(np.searchsorted(f.edges, row_mid - f.shift[k], "right") - 1, 0, len(f.comp) - 1)
         plug_mask[k] = is_plug[i]
@@ -305,6 +317,7 @@ def render_frames(scene: FluxScene, seed: int = 0) -> tuple[np.ndarray, FluxTrut
     duration = (s.n_frames - 1) / s.fps
     m_grain = RHO_S * _grain_volume(s) * 1e-9 * 1e3            # g
     rate = (down - up) * m_grain / duration if duration > 0 else 0.0
+    view_rate = net_boundaries / (h - 1) * m_grain / duration if duration > 0 else 0.0
     # the pattern's time fraction of plug at the section, finely sampled in time
     tt = np.linspace(0.0, duration, 40 * max(s.n_frames, 2))
     sh = _shift(s, f.phase, tt)
@@ -322,7 +335,7 @@ def render_frames(scene: FluxScene, seed: int = 0) -> tuple[np.ndarray, FluxTrut
     seen = (f.edges[1:] > seen_lo) & (f.edges[:-1] < seen_hi)
     lengths = np.diff(f.edges)
     truth = FluxTruth(
-        mass_flow_rate_g_s=float(rate), crossings_down=down, crossings_up=up, duration_s=float(duration),
+        mass_flow_rate_g_s=float(rate), view_mass_flow_rate_g_s=float(view_rate), crossings_down=down, crossings_up=up, duration_s=float(duration),
         grain_mass_g=float(m_grain), section_row=h // 2, section_mm=float(z_s),
         c_plug=s.c_plug, c_bubble=s.c_bubble, creep_m_s=s.creep_mm_s / 1e3, celerity_m_s=s.celerity_mm_s / 1e3,
         fall_m_s=s.fall_mm_s / 1e3, mean_compactness_at_section=c_mean,
