@@ -32,16 +32,16 @@ BCS = {"periodic": 0, "open": 1, "outflow": 2}
 
 # indices into the constants array
 (K_C0, K_P0, K_GAMMA, K_KAPPA, K_COS, K_LAW, K_F0, K_ALPHA, K_K0, K_BAL, K_JAM, K_FR, K_CMIN, K_CMAX, K_BC,
- K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX, K_STAGES, K_JTERM, K_WALL, K_VEPS, K_STOKES) = range(25)
+ K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX, K_STAGES, K_JTERM, K_WALL, K_VEPS, K_STOKES, K_DTMIN) = range(26)
 
 
-def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float) -> np.ndarray:
+def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float, dt_floor: float = 0.0) -> np.ndarray:
     """The constants of one integration as a float array (the scheme's constants too: a compiled
     function keeps the value of a module global it read, even from its on-disk cache)."""
     return np.array([cl.c0, cl.P0, cl.gamma, cl.kappa, cl.cos_theta, LAWS[cl.law], cl.F0, cl.alpha, cl.K0,
                      cl.balance_force, 1.0 if cl.jamming else 0.0, cl.jam_fr, cl.jam_c_min, cl.jam_c_max,
                      BCS[bc_kind], inlet[0], inlet[1], inlet[2], P_end, dx, SSP_STAGES, cl.jterm, cl.wall, cl.v_eps,
-                     1.0 if cl.stokes else 0.0], dtype=np.float64)
+                     1.0 if cl.stokes else 0.0, dt_floor], dtype=np.float64)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -150,8 +150,11 @@ def _rate(U, k, Upad, W, out, acc, w):
         H[0, f] = (ap * fl0 - am * fr0 + ap * am * (ur0 - ul0)) / span
         H[1, f] = (ap * fl1 - am * fr1 + ap * am * (ur1 - ul1)) / span
         H[2, f] = (ap * fl2 - am * fr2 + ap * am * (ur2 - ul2)) / span
-    if int(k[K_BC]) == 1:  # the feed: exactly the fed grains enter
-        H[0, 0] = k[K_IN_Q]
+    if int(k[K_BC]) == 1:  # the feed, no faster than a denser top cell's grains (scheme.inlet_flux)
+        if U[0, 0] < k[K_IN_C]:
+            H[0, 0] = k[K_IN_Q]
+        else:
+            H[0, 0] = k[K_IN_C] * min(max(U[1, 0] / U[0, 0], 0.0), k[K_IN_Q] / k[K_IN_C])
     if int(k[K_BC]) != 0:
         acc[0] += w * H[0, 0]
         acc[1] += w * H[0, n]
@@ -189,10 +192,12 @@ def _hyperbolic(U, dt, k, Upad, W, acc):
 def _solve_tanh(c, aF, R, ve):
     """The root of ``c u + aF tanh(u / ve) = R``, as :func:`grainplug.simulation.scheme._solve_tanh`."""
     lo, hi = (R - aF) / c, (R + aF) / c
-    u = min(max(R / (c + aF / ve), lo), hi)
+    u = (R - math.copysign(aF, R)) / c if abs(R) > aF else R / (c + aF / ve)  # sliding, or stuck (linear)
     for _ in range(200):
         t = math.tanh(u / ve)
         g = c * u + aF * t - R
+        if g == 0:
+            return u
         if g > 0:
             hi = u
         else:
@@ -441,9 +446,9 @@ def step(U, dt, k):
 @njit(cache=True, error_model="numpy")
 def advance(U, t, t_end, cfl, k, acc):
     """Steps of CFL-limited length from ``t`` to exactly ``t_end``, consecutive diffusion half-steps merged, as
-    :meth:`Integrator.advance`; returns the state, the time reached and the number of steps (stops early, with
-    a non-finite speed, if the state blows up). The grain that enters and leaves an open pipe meanwhile is
-    added to ``acc[0]`` and ``acc[1]``."""
+    :meth:`Integrator.advance`; returns the state, the time reached and the number of steps (stops early, the
+    count negative, if the state blows up or the time step falls below ``k[K_DTMIN]``). The grain that enters
+    and leaves an open pipe meanwhile is added to ``acc[0]`` and ``acc[1]``."""
     n = U.shape[1]
     Upad = np.empty((3, n + 4))
     W = np.empty((4, n + 4))
@@ -457,7 +462,10 @@ def advance(U, t, t_end, cfl, k, acc):
         s = _max_speed(U, P, k)
         if not math.isfinite(s) or s <= 0:
             return U, t, -1 - steps
-        dt = min((k[K_STAGES] - 1) * cfl * dx / s, t_end - t)
+        dt = (k[K_STAGES] - 1) * cfl * dx / s
+        if dt < k[K_DTMIN]:  # the model left its validity (the caller says where): stop, state finite
+            return U, t, -1 - steps
+        dt = min(dt, t_end - t)
         _diffusion(U, owed + 0.5 * dt, k, P)
         U = _core(U, dt, k, Upad, W, acc)
         owed = 0.5 * dt
