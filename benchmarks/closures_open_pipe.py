@@ -6,7 +6,8 @@ A 100 D pipe (300 mm, 400 cells) of 3 mm bore, 0.2 mm grains, atmospheric air, c
 (v_eps = 0.01 v_c), no (v/kappa) v_z term, Stokes + Carman-Kozeny drag, fed from the top at Table 1's rates
 and started full of the fed state; 60 t_c (1.05 s) each, 1-21 s of computing each. Every run is measured as
 a movie (:func:`grainplug.simulation.measure.measure`, its second half) and as fields; one JSON line per
-run is logged (and written with --json). Writes model_closures_open_pipe.png (about 3 minutes in all).
+run is logged (and written with --json); then a plug held at the bottom with rain landing on it, at 0.37-1.05 g/s.
+Writes model_closures_open_pipe.png (about 4 minutes in all).
 """
 
 from __future__ import annotations
@@ -83,6 +84,33 @@ def run(feed_c: float, rate: float, c_min: float, length: float, cells: int,
     return out, res
 
 
+def held_plug(rate: float, *, cells: int = 400) -> dict[str, object]:
+    """A plug held by the walls at the bottom (the last 30 D at c = 0.60, above c*), rain fed at ``rate`` above
+    it: the top of the plug climbs as the rain lands on it. Returns its movie measures, the climb of its top
+    (fitted after 0.3 s) and the kinematic speed ``-q / (c_plug - c_rain)`` that mass conservation gives."""
+    m = model(0.56, 0.01)
+    length = 100.0
+    sim = SimulationParams(boundary="open", length_D=length, n_cells=cells, duration_tc=60.0,
+                           output_interval_tc=0.25, feed_c=0.58, feed_rate_g_s=rate, noise=0.0)
+    cl = Closure.from_params(m, balance=False)
+    z = (np.arange(cells) + 0.5) * sim.dx
+    c = np.where(z > 70.0, 0.60, 0.02)
+    res = simulate(m, sim, initial=cl.conserved(c, np.where(z > 70.0, 0.0, 2.0), np.full(cells, cl.P0)),
+                   max_seconds=120)
+    below = z > 5.0  # the fed cells at the inlet are dense too
+    top = np.array([z[below][np.argmax(row[below] > 0.5)] for row in res.c])
+    t_s = res.time * m.t_c_s
+    sel = t_s > 0.3
+    climb = float(np.polyfit(t_s[sel], top[sel] * m.D_m, 1)[0])
+    i = int(np.searchsorted(z, top[-1]))
+    c_rain = float(np.median(res.c[-1][(z > top[-1] - 10.0) & (z < top[-1] - 4.0)]))  # above the front's smear
+    c_plug = float(np.median(res.c[-1][i + 4:]))
+    q = rate * 1e-3 / (m.grain_density_kg_m3 * np.pi * m.D_m**2 / 4)
+    ms = measure(res).as_dict()
+    return dict(rate_g_s=rate, top_climb_m_s=climb, kinematic_m_s=-q / (c_plug - c_rain), c_rain=c_rain,
+                c_plug=c_plug, movie={k: ms[k] for k in ("regime", "celerity_m_s", "frequency_hz", "n_tracks")})
+
+
 def figure(rain: SimulationResult, jam: SimulationResult, cs: float, path: Path) -> None:
     p = rain.model
     fig, axs = plt.subplots(1, 3, figsize=(12, 4.2), gridspec_kw=dict(width_ratios=[1, 1, 0.8]))
@@ -119,6 +147,10 @@ def main() -> None:
     lines = []
     for spec in RUNS:
         out, _ = run(*spec)
+        log.info("%s", json.dumps(out))
+        lines.append(json.dumps(out))
+    for rate in (0.37, 0.5, 0.52, 0.67, 0.84, 1.05):
+        out = held_plug(rate)
         log.info("%s", json.dumps(out))
         lines.append(json.dumps(out))
     if args.json is not None:

@@ -200,3 +200,26 @@ def test_a_feed_at_close_packing_is_refused():
     with pytest.raises(ParameterError, match="close packing"):
         simulate(ModelParams(**JANSSEN), SimulationParams(boundary="open", length_D=30.0, n_cells=60,
                                                           duration_tc=1.0, feed_c=0.65, feed_rate_g_s=0.5))
+
+
+def test_a_held_plug_climbs_as_the_rain_lands_on_it():
+    """A plug the walls hold (c = 0.60 > c*) at the bottom, rain fed at 0.5 g/s above it: its top climbs at the
+    speed mass conservation gives, -q / (c_plug - c_rain), within 15 % (q the fed volume flux per area)."""
+    p = ModelParams(**{**JANSSEN, "friction_v_eps": 0.01, "base_pressure_pa": P_ATM_PA, "grain_diameter_um": 200})
+    n, length = 200, 100.0
+    sim = SimulationParams(boundary="open", length_D=length, n_cells=n, duration_tc=60.0, output_interval_tc=0.5,
+                           feed_c=0.58, feed_rate_g_s=0.5, noise=0.0)
+    cl = Closure.from_params(p, balance=False)
+    z = (np.arange(n) + 0.5) * sim.dx
+    U0 = cl.conserved(np.where(z > 70.0, 0.60, 0.02), np.where(z > 70.0, 0.0, 2.0), np.full(n, cl.P0))
+    res = simulate(p, sim, initial=U0)
+    below = z > 5.0
+    top = np.array([z[below][np.argmax(row[below] > 0.5)] for row in res.c])
+    sel = res.time > 0.3 / p.t_c_s
+    climb = np.polyfit(res.time[sel], top[sel], 1)[0]  # D per t_c
+    i = int(np.searchsorted(z, top[-1]))
+    c_rain = np.median(res.c[-1][(z > top[-1] - 10.0) & (z < top[-1] - 4.0)])  # above the front's smear
+    c_plug = np.median(res.c[-1][i + 2:])
+    q = 0.5e-3 / (p.grain_density_kg_m3 * math.pi * p.D_m**2 / 4) / p.v_c_m_s
+    assert 0.01 < c_rain < 0.1 and c_plug > 0.59
+    assert climb == pytest.approx(-q / (c_plug - c_rain), rel=0.15)
