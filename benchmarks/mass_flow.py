@@ -46,7 +46,8 @@ def measure(name: str, scene: fr.FluxScene, seed: int, folder: Path) -> dict[str
     holds = q.ci95_g_s is not None and q.ci95_g_s[0] <= want <= q.ci95_g_s[1]
     comp = res.compactness
     g = res.grain_velocity
-    return {"case": name, "truth_g_s": want, "section_g_s": truth.mass_flow_rate_g_s, "rate_g_s": q.rate_g_s, "error": err,
+    return {"case": name, "truth_g_s": want, "section_g_s": truth.mass_flow_rate_g_s, "rate_g_s": q.rate_g_s,
+            "error": err,
             "ci95_g_s": q.ci95_g_s, "holds": holds,
             "c_p": (None if comp is None else comp.plug, truth.c_plug),
             "v_p_mm_s": (None if g is None or g.mean_m_s is None else 1000 * g.mean_m_s, 1000 * truth.creep_m_s),

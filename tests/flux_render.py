@@ -335,7 +335,8 @@ def render_frames(scene: FluxScene, seed: int = 0) -> tuple[np.ndarray, FluxTrut
     seen = (f.edges[1:] > seen_lo) & (f.edges[:-1] < seen_hi)
     lengths = np.diff(f.edges)
     truth = FluxTruth(
-        mass_flow_rate_g_s=float(rate), view_mass_flow_rate_g_s=float(view_rate), crossings_down=down, crossings_up=up, duration_s=float(duration),
+        mass_flow_rate_g_s=float(rate), view_mass_flow_rate_g_s=float(view_rate), crossings_down=down,
+        crossings_up=up, duration_s=float(duration),
         grain_mass_g=float(m_grain), section_row=h // 2, section_mm=float(z_s),
         c_plug=s.c_plug, c_bubble=s.c_bubble, creep_m_s=s.creep_mm_s / 1e3, celerity_m_s=s.celerity_mm_s / 1e3,
         fall_m_s=s.fall_mm_s / 1e3, mean_compactness_at_section=c_mean,
