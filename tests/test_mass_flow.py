@@ -116,6 +116,12 @@ def test_the_rate_from_the_movie_is_the_counted_one(tmp_path, name):
     assert q.ci95_g_s[0] <= truth.view_mass_flow_rate_g_s <= q.ci95_g_s[1]
     s = res.summary
     assert s["mass_flow_rate_g_s"] == pytest.approx(q.rate_g_s, rel=1e-3)
+    # the fields beside the simulation's: the compactness, and the grains' velocity where it was measured
+    f = res.fields()
+    assert float(f["c"].mean()) == pytest.approx(q.mean_compactness, abs=1e-4)
+    v = f["v_m_s"].values
+    assert 0.01 < np.isfinite(v).mean() < 0.5
+    assert float(np.nanmean(v)) == pytest.approx(truth.creep_m_s, rel=0.1)
     assert s["mass_flow_rate_terms_g_s"]["creep"] > 0 and s["mass_flow_rate_terms_g_s"]["pattern"] > 0
 
 

@@ -309,8 +309,8 @@ class AnalysisResult:
     def fields(self) -> xr.Dataset:
         """The fields over ``(time, z)``, with ``time_s`` and ``position_mm`` coordinates, as
         ``grainplug simulate`` writes its own (``fields.nc``): ``grey_level`` (the diagram), ``contrast``
-        (0 bubble, 1 plug) and, when measured, ``c`` (the grains' compactness, the same name and unit as the
-        simulation's)."""
+        (0 bubble, 1 plug) and, when measured, ``c`` (the grains' compactness) and ``v_m_s`` (the grains'
+        velocity in the plugs, where measured, NaN elsewhere), the same names and units as the simulation's."""
         import xarray as xr
 
         d = self.diagram
@@ -322,6 +322,16 @@ class AnalysisResult:
             data["c"] = (dims, self.compactness_field.astype(np.float32),
                          {"long_name": "compactness", "units": "1",
                           "packed_reference": float(self.params.packed_compactness)})
+        g = self.grain_velocity
+        if g is not None and g.mean_m_s is not None and len(g.velocity_m_s):
+            # each window's velocity at its centre and at the middle of its pair of frames; NaN where none was
+            v = np.full(d.values.shape, np.nan, np.float32)
+            k = np.clip(np.asarray(g.frame) + np.asarray(g.lag) // 2, 0, d.n_frames - 1)
+            at = np.clip(np.searchsorted(d.position_mm, np.asarray(g.position_mm)), 0, len(d.position_mm) - 1)
+            v[k, at] = np.asarray(g.velocity_m_s, np.float32)
+            data["v_m_s"] = (dims, v, {"long_name": "grain velocity in the plugs (positive downstream), where a "
+                                                    "window of the plugs' texture was correlated; NaN elsewhere",
+                                       "units": "m s-1"})
         return xr.Dataset(
             data, coords={"time_s": ("time", d.time_s, {"units": "s"}),
                           "position_mm": ("z", d.position_mm, {"units": "mm",
