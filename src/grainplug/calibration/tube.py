@@ -430,6 +430,29 @@ def _too_short(shape: tuple[int, ...], orient: str) -> bool:
     return (orient == "horizontal" and h >= STRIP_ASPECT * w) or (orient == "vertical" and w >= STRIP_ASPECT * h)
 
 
+#: the sharpest edges of the mean image (this top share of its gradients) tell how far the camera shook
+SHAKE_EDGE_SHARE = 0.01
+#: ... by the low quantile of their variance over their squared gradient (%): edges that only shake, not contents
+SHAKE_QUANTILE = 20.0
+
+
+def _shaken_variance(mean: np.ndarray, var: np.ndarray) -> np.ndarray:
+    """The variance over the frames that the camera's shake alone puts at each pixel: a still edge of the mean
+    image moved by ``s`` px varies by about ``s |grad|``, so its variance is ``s^2 |grad|^2``. ``s^2`` is the low
+    quantile (:data:`SHAKE_QUANTILE`) of ``var / |grad|^2`` over the sharpest edges (:data:`SHAKE_EDGE_SHARE`):
+    among them the walls' and the lamp's, which vary by the shake only (the contents' edges vary more). Without
+    shake it is about 0; with it, the sharp outer edges of the walls no longer outshine the bore's contents."""
+    gy, gx = np.gradient(mean.astype(np.float64))
+    g2 = gx * gx + gy * gy
+    cut = float(np.quantile(g2, 1.0 - SHAKE_EDGE_SHARE))
+    edges = g2 >= cut
+    if not cut > 0 or edges.sum() < 16:
+        return np.zeros_like(var)
+    noise = float(np.median(var))
+    s2 = float(np.percentile(np.clip(var[edges] - noise, 0, None) / g2[edges], SHAKE_QUANTILE))
+    return s2 * g2
+
+
 def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coarse: bool = False,
             tilt_hint: float | None = None) -> TubeGeometry:
     """The tube in temporal mean and standard-deviation images (one resolution).
@@ -441,6 +464,7 @@ def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coars
     # variance), divided by the local mean so that any local loss of light (the
     # dark bands of refraction at the walls, vignetting) cancels out
     var = std.astype(np.float64) ** 2
+    var = var - _shaken_variance(mean, var)
     excess = np.sqrt(np.clip(var - np.median(var), 0, None))
     floor = max(1e-3 * float(np.max(mean)), 1e-6)
     relative = (excess / np.maximum(mean, floor)).astype(np.float32)

@@ -119,9 +119,16 @@ def falling_grains(z: np.ndarray, *, mm_per_sample: float, fps: float, min_speed
     c, d = cross[sel], shifts[sel]
     med = float(np.median(c))
     spread = 1.4826 * float(np.median(np.abs(c - med))) + 1e-12
-    pos, neg = d > 0, d < 0
+    # only peaks count: a maximum at the range's end with the correlation still rising beyond it is the flank
+    # of the slow things' peak (plug edges, still texture, a codec's blocks), not grains moving that fast
+    peak = (cross > np.roll(cross, 1)) & (cross >= np.roll(cross, -1))
+    pos, neg = (d > 0) & peak[sel], (d < 0) & peak[sel]
     best_pos = float(c[pos].max()) if pos.any() else -np.inf
     best_neg = float(c[neg].max()) if neg.any() else -np.inf
+    if not (np.isfinite(best_pos) or np.isfinite(best_neg)):
+        return GrainMotion(None, 0.0, 0.0, lag, f"the specks in the bubbles ({100.0 * n_bubble / n_seen:.0f} % of the "
+                                                f"tube) show no motion at {min_speed_m_s:g}-{max_speed_m_s:g} m/s "
+                                                f"between {apart} (no peak in their correlation there)")
     sign_pos = best_pos >= best_neg
     best, other = (best_pos, best_neg) if sign_pos else (best_neg, best_pos)
     score = (best - med) / spread
