@@ -83,6 +83,9 @@ def test_a_weighed_rate_outside_the_movies_interval_is_warned_about(weighed, war
     assert codes_of(out) == (["mass_flow.disagrees"] if warned else [])
     # no measured rate (no references given): nothing to compare
     assert weighed_disagrees({**rec, "mass_flow_rate_images_ci95_low_g_s": None}) == []
+    # the weighing's own interval, when the manifest gives it: disagreeing is beyond both
+    if weighed is not None:
+        assert codes_of(weighed_disagrees({**rec, "mass_flow_rate_uncertainty_g_s": 0.09})) == []
 
 
 def _measured(tmp_path, name: str):

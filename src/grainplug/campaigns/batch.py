@@ -142,25 +142,32 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
 
 
 def weighed_disagrees(rec: dict) -> list[str]:
-    """A warning when a run's weighed mass flow rate (the manifest's ``mass_flow_rate_g_s``) lies outside the 95 %
-    interval of the one measured from its movie: the frame rate, the scale, the bore, the references' compactness
-    or the grains' density given may be wrong, or the flow was not steady while it was weighed."""
+    """A warning when a run's weighed mass flow rate (the manifest's ``mass_flow_rate_g_s``, with its 95 % half-width
+    ``mass_flow_rate_uncertainty_g_s`` when given) and the one measured from its movie disagree beyond both intervals:
+    the frame rate, the scale, the bore, the references' compactness or the grains' density given may be wrong, or
+    the flow was not steady while it was weighed."""
     weighed, lo, hi = (rec.get(k) for k in ("mass_flow_rate_g_s", "mass_flow_rate_images_ci95_low_g_s",
                                             "mass_flow_rate_images_ci95_high_g_s"))
     try:
         weighed, lo, hi = float(weighed), float(lo), float(hi)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         return []
-    if not all(np.isfinite([weighed, lo, hi])) or lo <= weighed <= hi:
+    try:
+        u = abs(float(rec.get("mass_flow_rate_uncertainty_g_s")))  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        u = 0.0
+    u = u if np.isfinite(u) else 0.0
+    if not all(np.isfinite([weighed, lo, hi])) or (weighed + u >= lo and weighed - u <= hi):
         return []
     from ..warning_codes import coded
 
-    mid = 0.5 * (lo + hi)
+    off = 100.0 * (0.5 * (lo + hi) / weighed - 1.0)
+    given = f"{weighed:.3g} ± {u:.2g}" if u else f"{weighed:.3g}"
     return [coded("mass_flow.disagrees",
-                  f"the weighed mass flow rate ({weighed:.3g} g/s) is outside the 95 % interval of the one measured "
-                  f"from the movie ({lo:.3g} to {hi:.3g} g/s, {100.0 * (mid / weighed - 1.0):+.0f} %): check the "
-                  "frame rate, the scale, the bore, the packed reference's compactness and the grains' density "
-                  "given, and that the flow was steady while it was weighed")]
+                  f"the weighed mass flow rate ({given} g/s) is outside the 95 % interval of the one measured from "
+                  f"the movie ({lo:.3g} to {hi:.3g} g/s, {off:+.0f} %): check the frame rate, the scale, the bore, the "
+                  "packed reference's compactness and the grains' density given, and that the flow was steady while "
+                  "it was weighed")]
 
 
 def _flat(summary: dict) -> dict[str, object]:

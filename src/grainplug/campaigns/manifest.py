@@ -24,6 +24,7 @@ Columns (CSV header, or keys of each ``[[run]]`` table in TOML; a TOML
 ``sample_frames``              frames sampled to find the tube (32)
 ``allow_truncated``            true: analyse a camera file that ends early
 ``mass_flow_rate_g_s``         mass flow rate
+``mass_flow_rate_uncertainty_g_s`` its 95 % half-width (the weighing's), if known
 ``humidity_pct``               relative humidity
 ``surface``                    grain surface state (e.g. rough, smooth)
 ``group``                      grouping for the fits (default: regime/surface)
@@ -79,7 +80,8 @@ ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "t
                  "min_gap_mm": float, "sample_frames": int, "allow_truncated": yes_or_no, "roi": pixel_box,
                  "start_frame": int, "end_frame": int, "start_s": float, "end_s": float,
                  "packed_compactness": float, "grain_density_kg_m3": float}
-KNOWN_META = {"mass_flow_rate_g_s": float, "humidity_pct": float, "surface": str, "group": str}
+KNOWN_META = {"mass_flow_rate_g_s": float, "mass_flow_rate_uncertainty_g_s": float, "humidity_pct": float,
+              "surface": str, "group": str}
 #: the columns with a meaning (the others are metadata)
 #: what ``grainplug manifest`` copies from each movie's header beside ``fps``: kept as metadata, never taken for a
 #: misspelt column

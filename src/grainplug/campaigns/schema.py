@@ -27,6 +27,7 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "error": ("string", "why the run failed (one line)"),
     "run_key": ("string", "identity of the movie and parameters; a finished run with the same key is reused"),
     "mass_flow_rate_g_s": ("Float64", "grains' mass flow rate, g/s (manifest)"),
+    "mass_flow_rate_uncertainty_g_s": ("Float64", "its 95 % half-width, g/s (manifest)"),
     "humidity_pct": ("Float64", "relative humidity, % (manifest)"),
     "surface": ("string", "grains' surface state, rough or smooth (manifest)"),
     "group": ("string", "fit group (manifest)"),
