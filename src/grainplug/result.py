@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._format import with_interval
+from ._format import oscillation_phrase, with_interval
 from ._version import __version__
 from .calibration.tube import TubeGeometry
 from .calibration.tube_model import BoreEstimate
@@ -369,8 +369,10 @@ class AnalysisResult:
             ("plug length", f"{num(s['plug_length_mm'], 2)} mm{ci(s['plug_length_ci95_mm'], 2)}, "
                             f"{num(s['plug_length_over_diameter'], 2)} D, {s['n_plugs']} plugs"),
             ("bubble length", f"{num(s['bubble_length_mm'], 2)} mm{ci(s['bubble_length_ci95_mm'], 2)}"),
-            ("oscillation", "none" if not s["oscillation_frequency_hz"] else
-             f"{num(s['oscillation_frequency_hz'], 2)} Hz, amplitude {num(s['oscillation_amplitude_mm'], 2)} mm"),
+            ("oscillation", "none" if not s["oscillation_frequency_hz"] else oscillation_phrase(
+                s["oscillation_frequency_hz"], s.get("oscillation_frequency_ci95_hz"), s["oscillation_amplitude_mm"],
+                s.get("oscillation_amplitude_ci95_mm"), s.get("oscillation_kind"),
+                s.get("oscillation_stick_fraction"))),
             ("compactness", s["compactness"]["note"] or
              f"plugs {num(s['compactness']['plugs'], 3)}{ci(s['compactness']['plugs_ci95'], 3)}, "
              f"bubbles {num(s['compactness']['bubbles'], 3)}{ci(s['compactness'].get('bubbles_ci95'), 3)}"),
