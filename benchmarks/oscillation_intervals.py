@@ -10,10 +10,12 @@ and half the peak-to-peak of its ``X - c t``), the kind and stick fraction again
 overall, by kind and by record length (2-4 periods, 4-10), and the intervals' median widths.
 
     PYTHONPATH=src .venv/bin/python benchmarks/oscillation_intervals.py [--n 120] [--start 0] [--jobs 1]
-        [--json FILE]
+        [--synth N] [--json FILE]
 
 Draw ``i`` uses the seed ``1000 + i`` (the tests hold out the bench's named cases, seed 1, which no draw is).
-Exit status 1 when the frequency interval's coverage is below 90 %.
+``--synth N`` adds ``N`` movies of grainplug's own generator (``grainplug.synthetic``: its sinusoid and
+stick-slip, 2-10 Hz, either direction, 2-10 periods, seed ``5000 + i``), the truth's amplitude from its
+kinematics on a fine grid. Exit status 1 when the frequency interval's coverage is below 90 %.
 """
 
 from __future__ import annotations
@@ -61,7 +63,7 @@ def draw(i: int) -> tuple[ln.Case, dict[str, object], np.random.Generator]:
         scene = ln._combined(motion=motion, n_frames=n)
     scale = "tube" if rng.random() < 0.2 else "given"
     case = ln.Case(f"draw {i}", scene, scale, seed=1000 + i)
-    info = {"draw": i, "kind": "stick-slip" if motion.regime == "stick-slip" else "sinusoidal",
+    info = {"draw": f"draw {i}", "kind": "stick-slip" if motion.regime == "stick-slip" else "sinusoidal",
             "stick_fraction": stick, "periods": periods, "nuisance": nuisance, "scale": scale}
     return case, info, rng
 
@@ -86,6 +88,44 @@ def run(i: int) -> dict[str, object]:
     return row
 
 
+def run_synth(i: int) -> dict[str, object]:
+    """Render with ``grainplug.synthetic`` and analyse synthetic draw ``i``; its figures."""
+    import tempfile
+
+    import grainplug as gp
+    from grainplug.synthetic import SynthConfig, synthesize
+    from grainplug.synthetic.kinematics import displacement_mm
+
+    rng = np.random.default_rng(5000 + i)
+    stick_slip = rng.random() < 0.5
+    f = float(rng.uniform(2.0, 10.0))
+    c = float(rng.choice([-1.0, 1.0]) * rng.uniform(0.01, 0.05))
+    periods = float(rng.uniform(2.0, 10.0))
+    stick = float(rng.uniform(0.3, 0.7)) if stick_slip else 0.0
+    cfg = SynthConfig(regime="stick-slip" if stick_slip else "oscillating", frequency_hz=f, celerity_m_s=c,
+                      amplitude_mm=float(rng.uniform(0.8, 3.0)), stick_fraction=stick if stick_slip else 0.5,
+                      n_frames=int(round(periods * 250.0 / f)), seed=5000 + i)
+    tt = np.linspace(0.0, 1.0 / f, 4001)
+    x = displacement_mm(tt, regime=cfg.regime, celerity_m_s=c, frequency_hz=f, amplitude_mm=cfg.amplitude_mm,
+                        stick_fraction=cfg.stick_fraction) - c * 1000.0 * tt
+    a_true = float(np.ptp(x) / 2)
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as d:
+        made = synthesize(cfg, d, fmt="tiff")
+        t1 = time.perf_counter()
+        s = gp.analyze(made.movie).summary
+    t2 = time.perf_counter()
+    f_ci, a_ci = s.get("oscillation_frequency_ci95_hz"), s.get("oscillation_amplitude_ci95_mm")
+    row = {"draw": f"synth {i}", "kind": "stick-slip" if stick_slip else "sinusoidal", "stick_fraction": stick,
+           "periods": periods, "nuisance": "synthetic", "scale": "tube", "f_true": f, "a_true": a_true,
+           "regime": s.get("regime"), "f": s.get("oscillation_frequency_hz"), "f_ci": f_ci,
+           "a": s.get("oscillation_amplitude_mm"), "a_ci": a_ci, "kind_found": s.get("oscillation_kind"),
+           "stick_found": s.get("oscillation_stick_fraction"), "render_s": t1 - t0, "analyze_s": t2 - t1}
+    row["f_holds"] = bool(f_ci) and f_ci[0] <= f <= f_ci[1]
+    row["a_holds"] = bool(a_ci) and a_ci[0] <= a_true <= a_ci[1]
+    return row
+
+
 def _share(rows: list[dict[str, object]], key: str) -> str:
     n = sum(1 for r in rows if r[key])
     return f"{n}/{len(rows)}" if rows else "—"
@@ -101,6 +141,7 @@ def report(rows: list[dict[str, object]]) -> str:
               "4-10 periods": [r for r in osc if r["periods"] >= 4],
               "scale from the tube": [r for r in osc if r["scale"] == "tube"]}
     groups.update({f"nuisance: {k}": [r for r in osc if r["nuisance"] == k] for k in NUISANCES})
+    groups["grainplug.synthetic"] = [r for r in osc if r["nuisance"] == "synthetic"]
     lines = ["| group | frequency CI holds | amplitude CI holds | kind right | median f CI width (Hz) | "
              "median A CI width (% of A) |", "| --- | --- | --- | --- | --- | --- |"]
     for name, g in groups.items():
@@ -127,17 +168,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n", type=int, default=120, help="how many random movies")
     ap.add_argument("--start", type=int, default=0, help="first draw")
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--synth", type=int, default=0, help="how many movies of grainplug's own generator")
     ap.add_argument("--json", type=Path, help="write every row there")
     args = ap.parse_args(argv)
     draws = list(range(args.start, args.start + args.n))
+    synth = list(range(args.synth))
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs) as pool:
-            rows = list(pool.map(run, draws))
+            rows = list(pool.map(run, draws)) + list(pool.map(run_synth, synth))
     else:
-        rows = [run(i) for i in draws]
+        rows = [run(i) for i in draws] + [run_synth(i) for i in synth]
     for r in rows:
         if not (r["f_holds"] and r["a_holds"]):
-            print(f"draw {r['draw']}: {r['kind']} {r['nuisance']} {r['periods']:.1f} periods, f {r['f_true']:.4f} in "
+            print(f"{r['draw']}: {r['kind']} {r['nuisance']} {r['periods']:.1f} periods, f {r['f_true']:.4f} in "
                   f"{r['f_ci']}, A {r['a_true']:.4f} in {r['a_ci']}, found {r['regime']} {r['kind_found']}",
                   file=sys.stderr)
     if args.json:

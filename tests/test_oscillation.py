@@ -118,3 +118,13 @@ def test_the_cli_line_the_report_and_the_jupyter_table_give_the_intervals_and_th
     assert "stick-slip" in page and "half peak-to-peak" in page
     res, _ = analysed["stick-slip 4 Hz"]
     assert "stick-slip" in res._repr_html_()
+
+
+def test_a_saved_oscillating_result_reads_back_with_its_intervals(tmp_path, analysed):
+    res, _ = analysed["stick-slip 4 Hz"]
+    res.save(tmp_path / "run", figures=False, report=False)
+    back = gp.load_result(tmp_path / "run")
+    assert back.motion.oscillation == res.motion.oscillation
+    np.testing.assert_array_equal(back.motion.oscillation.shape_mm, res.motion.oscillation.shape_mm)
+    assert back.summary["oscillation_kind"] == "stick-slip"
+    np.testing.assert_allclose(back.tracks["celerity_m_s"], res.tracks["celerity_m_s"])

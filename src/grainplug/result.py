@@ -35,6 +35,7 @@ from .diagram.light import Lamp
 from .measures import Lengths, Motion
 from .measures.compactness import PhaseCompactness
 from .measures.creep import GrainVelocity
+from .measures.motion import Oscillation
 from .measures.shake import Shake
 from .measures.still import BlindStretch
 from .params import AnalysisParams
@@ -469,7 +470,7 @@ def result_types() -> dict[str, type]:
     return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
                                     Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate,
                                     Background, Corrections, Edit, BlindStretch, Shake, Lamp, PhaseCompactness,
-                                    GrainVelocity)}
+                                    GrainVelocity, Oscillation)}
 
 
 def load_result(folder: str | Path) -> AnalysisResult:

@@ -514,8 +514,8 @@ class Oscillation:
     kind: str
     stick_fraction: float
     n_periods: float
-    phase: np.ndarray = field(repr=False)
-    shape_mm: np.ndarray = field(repr=False)
+    phase: np.ndarray = field(repr=False, compare=False)
+    shape_mm: np.ndarray = field(repr=False, compare=False)
 
 
 def _fixed_b_quantile(b: float) -> float:
@@ -539,7 +539,7 @@ def _sinusoid_fit(tc: np.ndarray, x: np.ndarray, f: float, n_harm: int, extra: n
 
     def linear(freq: float) -> tuple[np.ndarray, np.ndarray]:
         design = np.column_stack([np.ones_like(tc), tc, _harmonic_columns(tc, freq, n_harm), extra])
-        return design, np.linalg.lstsq(design, x, rcond=None)[0]
+        return design, _least_squares(design, x)
 
     def jacobian(freq: float, design: np.ndarray, beta: np.ndarray) -> np.ndarray:
         ph = 2 * np.pi * freq * tc
@@ -552,7 +552,7 @@ def _sinusoid_fit(tc: np.ndarray, x: np.ndarray, f: float, n_harm: int, extra: n
     design, beta = linear(f)
     for _ in range(n_iter):
         jac = jacobian(f, design, beta)
-        step = np.linalg.lstsq(jac, x - design @ beta, rcond=None)[0][-1]
+        step = _least_squares(jac, x - design @ beta)[-1]
         step = float(np.clip(step, -0.25 / span, 0.25 / span))  # a quarter of a period over the record at most
         f_new = f + step
         d_new, b_new = linear(f_new)
