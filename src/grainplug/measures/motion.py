@@ -39,6 +39,17 @@ it stands above the oscillation's amplitude threshold it is reported apart (``fr
 inflated for the residuals' lag-one autocorrelation ``rho`` by
 ``sqrt((1 + rho) / (1 - rho))``, and the scale's relative uncertainty added in
 quadrature.
+
+*The oscillation's figures* (:func:`oscillation_detail`). ``X(t)`` again, each track's offset now from the full
+fit with up to :data:`SHAPE_HARMONICS` harmonics; a Gauss-Newton fit of drift and harmonics with the frequency
+free refines the frequency. The amplitude is half the peak-to-peak of the period-averaged motion (the fitted
+shape over one period), not the spectrum's peak (the fundamental's alone). Their 95 % intervals: the fit's
+sandwich covariance with a Newey-West long-run variance of the scores (Bartlett kernel, Andrews' AR(1)
+bandwidth) and Kiefer and Vogelsang's fixed-b quantile; plus what holds over whole periods (an edge's error
+that depends on where it stands times each period, and each extreme, once), the shape's truncation, the scale,
+and, on the amplitude's upper end, what an exposure of up to a frame takes from the swing. Calibrated on
+``benchmarks/oscillation_intervals.py`` (docs/accuracy.md). The kind is stick-slip when the train's speed is
+below :data:`STILL_SPEED_SHARE` of its peak over at least :data:`STICK_SLIP_SHARE` of the period.
 """
 
 from __future__ import annotations
@@ -78,7 +89,8 @@ class Motion:
     oscillation_frequency_hz : float or None
         Fundamental frequency of the oscillation (None when propagative).
     oscillation_amplitude_mm : float
-        Half peak-to-peak of the periodic part (0 when propagative).
+        Half the peak-to-peak of the period-averaged motion about the drift (:class:`Oscillation`; when its
+        frequency could not be refined, of the celerity fit's periodic part); 0 when not oscillating.
     explained_fraction : float
         Share of the variance of ``X(t)`` about the drift that the periodic part explains.
     spectrum_hz, spectrum_mm : ndarray
