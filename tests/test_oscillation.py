@@ -128,3 +128,24 @@ def test_a_saved_oscillating_result_reads_back_with_its_intervals(tmp_path, anal
     np.testing.assert_array_equal(back.motion.oscillation.shape_mm, res.motion.oscillation.shape_mm)
     assert back.summary["oscillation_kind"] == "stick-slip"
     np.testing.assert_allclose(back.tracks["celerity_m_s"], res.tracks["celerity_m_s"])
+
+
+def test_the_review_page_shows_the_intervals_the_kind_and_the_tracks_celerities(tmp_path, analysed):
+    sync_api = pytest.importorskip("playwright.sync_api")
+    from test_review import chromium_page, get_json
+
+    from grainplug.review import ReviewServer
+
+    res, truth = analysed["stick-slip 4 Hz"]
+    res.save(tmp_path / "stick", figures=False, report=False)
+    with ReviewServer(tmp_path / "stick") as srv, sync_api.sync_playwright() as p, chromium_page(p) as page:
+        page.goto(srv.url)
+        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+        st = get_json(srv, "api/run/stick/state")
+        lo, hi = st["measures"]["oscillation_frequency_ci95_hz"]
+        assert lo <= truth.frequency_hz <= hi
+        text = page.inner_text("#measures")
+        assert f"95% CI {lo:.3f} to {hi:.3f}" in text and "half peak-to-peak" in text
+        assert page.inner_text("#oscillation-kind") == "stick-slip"
+        long = [t["celerity_m_s"] for t in st["tracks"] if t["n_frames"] >= 20]
+        np.testing.assert_allclose(long, truth.celerity_m_s, rtol=0.005)
