@@ -440,7 +440,7 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
                     osc = None
                 n_harm_osc = nh
                 if any(abs(f_best - f_l) <= tol for f_l in frame_locked_hz(fps, 0.45 * fps)):
-                    locked_f, locked_mm = f_best, amp_fit  # reported, and said to repeat every few frames
+                    locked_f, locked_mm = f_osc, amp  # reported, and said to repeat every few frames
     celerity = float(coef[0]) / 1000.0  # mm/s -> m/s
     # interval from the drift fit of X(t) + drift, inflated for autocorrelation
     tt = time_s[first: last + 1]
