@@ -90,8 +90,11 @@ def job_groups(queue: Path) -> list[int]:
     return alive
 
 
-def batch(manifest: Path, out: Path, workers: int, *, queue: Path | None = None) -> subprocess.Popen:
+def batch(manifest: Path, out: Path, workers: int, *, queue: Path | None = None,
+          cluster_timeout_s: float | None = None) -> subprocess.Popen:
     where = ["--cluster", "slurm", "--jobs", str(workers)] if queue else ["--workers", str(workers)]
+    if queue and cluster_timeout_s:
+        where += ["--cluster-timeout", f"{cluster_timeout_s:g}"]
     return subprocess.Popen([sys.executable, "-m", "grainplug", "batch", str(manifest), "--out", str(out),
                              *where, "--no-figures"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -127,6 +130,8 @@ def main() -> None:
     ap.add_argument("--dir", type=Path, default=Path("/tmp/grainplug-batch-faults"))
     ap.add_argument("--cluster", choices=["slurm"], default=None,
                     help="attack a batch on the stand-in SLURM (jobs killed) instead of the local pool")
+    ap.add_argument("--cluster-timeout", type=float, default=None,
+                    help="with --cluster: the batch's --cluster-timeout (how long it may go without a worker)")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     manifest = make_campaign(args.dir / "campaign", args.runs, args.frames)
@@ -139,7 +144,7 @@ def main() -> None:
     out, err = p.communicate()
     log.info("undisturbed: exit %d in %.1f s: %s", p.returncode, time.monotonic() - t0, out.splitlines()[:1])
     t0 = time.monotonic()
-    p = batch(manifest, noisy, args.workers, queue=queue)
+    p = batch(manifest, noisy, args.workers, queue=queue, cluster_timeout_s=args.cluster_timeout)
     kills: list[float] = []
     stop = threading.Event()
 
@@ -166,6 +171,14 @@ def main() -> None:
     stop.set()
     th.join()
     elapsed = time.monotonic() - t0
+    if p.returncode != 0 and "no worker left" in err:  # the batch gave up without a worker: the same command again
+        log.info("attacked: exit %d after %.1f s, %d jobs killed: %s", p.returncode, elapsed, len(kills), err.strip())
+        t1 = time.monotonic()
+        again = batch(manifest, noisy, args.workers, queue=queue, cluster_timeout_s=args.cluster_timeout)
+        out, err2 = again.communicate()
+        log.info("run again, undisturbed: exit %d in %.1f s: %s", again.returncode, time.monotonic() - t1,
+                 out.splitlines()[:1])
+        err = err + err2
     same = (quiet / "campaign.csv").exists() and (noisy / "campaign.csv").exists() and (
         (quiet / "campaign.csv").read_bytes() == (noisy / "campaign.csv").read_bytes())
     import pandas as pd

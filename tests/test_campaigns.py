@@ -404,6 +404,22 @@ def test_a_line_through_two_runs_claims_no_fit_quality():
     assert not any("R²" in s or ("band" in s and "no band" not in s) for s in labels)
 
 
+def test_the_report_gives_no_r2_for_a_line_through_two_runs(tmp_path):
+    """The campaign report's fits table read "R² 1.000, n 2" with no caveat, as the terminal did."""
+    from grainplug.campaigns.fits import fit_line
+    from grainplug.campaigns.report import campaign_report
+
+    tab = pd.DataFrame({"run": ["a", "b", "c", "d", "e"], "movie": ["m"] * 5, "status": ["ok"] * 5})
+    two, three = fit_line(np.array([0.4, 0.6]), np.array([-0.04, -0.06])), fit_line(
+        np.array([0.4, 0.5, 0.6]), np.array([-0.04, -0.051, -0.06]))
+    fits = {g: {"celerity": f.as_dict(), "length": None} for g, f in (("two", two), ("three", three))}
+    page = campaign_report(tab, fits, tmp_path, [], {})
+    cells = {g: re.findall(r"<td[^>]*>(.*?)</td>", re.search(rf"<tr><td>{g}</td>(.*?)</tr>", page).group(1))
+             for g in fits}
+    assert cells["two"][4:6] == ["—", "2"] and cells["three"][4:6] == [f"{three.r2:.3f}", "3"]
+    assert "<b>two</b>: a line through 2 runs fits them exactly" in page and "<b>three</b>:" not in page
+
+
 def test_one_run_has_no_spread_to_state():
     """A group of one run states its length, not a spread: sd and interval are null (they read 0 and
     [L, L], an exactness no single run has); two runs give finite ones."""
@@ -468,11 +484,16 @@ def test_a_misspelt_column_is_said_once_for_all_runs(campaign_dir, tmp_path, cap
     """A misspelt column in a manifest of several runs was said once per run (7 lines for 7 runs)."""
     (campaign_dir / "typo3.csv").write_text("run,movie,mm_per_pix\na,a/movie.avi,0.185\nb,b/movie.avi,0.185\n"
                                             "c,c/movie.avi,0.185\n")
-    code, _, err = run(capsys, "batch", campaign_dir / "typo3.csv", "--out", tmp_path / "o", "--no-figures",
-                       "--no-simulations")
+    code, _, err = run(capsys, "batch", campaign_dir / "typo3.csv", "--out", tmp_path / "o", "--no-simulations")
     assert code == 0, err
     said = [line for line in err.splitlines() if "mm_per_pix" in line]
     assert len(said) == 1 and said[0].startswith("warning: runs a, b, c: column 'mm_per_pix'"), err
+    # the campaign's report too: once for the three runs, and with the command line's option beside the
+    # library's keyword (the tube model's warning named tube_outer_diameter_mm= alone, once per run)
+    page = re.sub(r"<[^>]+>", "", (tmp_path / "o" / "report.html").read_text())  # the text read
+    assert page.count("column &#x27;mm_per_pix&#x27;") == 1
+    assert page.count("tube_outer_diameter_mm=") == page.count("tube_outer_diameter_mm= (--tube-outer-diameter-mm)")
+    assert page.count("(--tube-outer-diameter-mm)") == 1
 
 
 def test_the_paper_s_celerity_figure_keeps_the_sign_of_its_table(tmp_path):

@@ -90,6 +90,16 @@ def batch(campaign: Path, out: Path, env: dict, *args: str) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
 
 
+def finish(proc: subprocess.Popen, timeout: float) -> tuple[str, str]:
+    """The batch's stdout and stderr once it ends; killed (and the test failed) if it outlives ``timeout``."""
+    try:
+        return proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        raise
+
+
 def ended_within(groups: list[int], seconds: float) -> bool:
     end = time.monotonic() + seconds
     while time.monotonic() < end:
@@ -103,7 +113,7 @@ def test_two_jobs_give_the_one_worker_table_and_end(campaign, one_worker_table, 
     queue, env = slurm
     out = tmp_path / "out"
     proc = batch(campaign, out, env, "--jobs", "2")
-    stdout, stderr = proc.communicate(timeout=300)
+    stdout, stderr = finish(proc, 300)
     assert proc.returncode == 0, stderr
     assert f"{N_RUNS} runs: {N_RUNS} ok" in stdout and "on 2 Dask worker(s)" in stdout, stdout
     assert (out / "campaign.csv").read_bytes() == one_worker_table
@@ -134,7 +144,7 @@ def test_a_job_killed_mid_run_costs_only_that_runs_retry(campaign, one_worker_ta
                 killed = group
                 break
         time.sleep(0.005)
-    stdout, stderr = proc.communicate(timeout=300)
+    stdout, stderr = finish(proc, 300)
     assert killed is not None, "no job was killed mid-run: the test did not test anything"
     assert proc.returncode == 0, stderr
     assert f"{N_RUNS} runs: {N_RUNS} ok," in stdout and "reused" not in stdout, stdout  # none was there before
@@ -145,16 +155,17 @@ def test_a_job_killed_mid_run_costs_only_that_runs_retry(campaign, one_worker_ta
     assert ended_within(job_groups(queue), 10), "a job outlived the batch"
 
 
-def test_sigterm_of_the_batch_cancels_its_jobs(campaign, slurm, tmp_path):
-    """A kill of the batch (as a login node's session end sends) ends its jobs: none holds the queue."""
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["kill", "ctrl-c"])
+def test_a_kill_or_ctrl_c_of_the_batch_cancels_its_jobs(campaign, slurm, tmp_path, sig):
+    """A kill of the batch (as a login node's session end sends), or Ctrl-C, ends its jobs: none holds the queue."""
     queue, env = slurm
     proc = batch(campaign, tmp_path / "out", env, "--jobs", "2")
     end = time.monotonic() + 60
     while len(job_groups(queue)) < 2 and time.monotonic() < end:
         time.sleep(0.05)
     assert len(job_groups(queue)) == 2, "the jobs did not start"
-    proc.send_signal(signal.SIGTERM)
-    _, stderr = proc.communicate(timeout=60)
+    proc.send_signal(sig)
+    _, stderr = finish(proc, 60)
     assert proc.returncode != 0 and "Traceback" not in stderr, stderr
     assert ended_within(job_groups(queue), 10), "a job outlived the batch"
 
@@ -163,10 +174,40 @@ def test_a_job_that_never_starts_is_one_line_and_nothing_written(campaign, slurm
     queue, env = slurm
     out = tmp_path / "out"
     proc = batch(campaign, out, {**env, "FAKE_SLURM_HOLD": "1"}, "--cluster-timeout", "2")
-    _, stderr = proc.communicate(timeout=120)
+    _, stderr = finish(proc, 120)
     assert_one_line_error(proc.returncode, stderr, "no slurm job started within 2 s", "--cluster-timeout")
     assert not out.exists()
     assert list(queue.glob("*.sh")) and not list(queue.glob("*.pending")), "the pending job was not cancelled"
+
+
+def test_no_worker_left_ends_the_batch_in_one_line_keeping_the_runs_done(campaign, slurm, tmp_path):
+    """Every job killed and the queue full (the replacement stays pending): after --cluster-timeout with no
+    worker the batch stops in one line, the runs done are complete and kept, no campaign table is written,
+    the pending job is cancelled; the same command then finishes the campaign, reusing them."""
+    queue, env = slurm
+    out = tmp_path / "out"
+    proc = batch(campaign, out, env, "--jobs", "1", "--cluster-timeout", "4")
+    end = time.monotonic() + 120
+    done: list[Path] = []
+    while not done and time.monotonic() < end and proc.poll() is None:
+        runs = out / "runs"
+        done = [p for p in runs.iterdir() if not p.name.startswith(".") and is_complete(p)] if runs.is_dir() else []
+        time.sleep(0.01)
+    assert done, "no run was done before the job was to be killed"
+    (queue / "HOLD").touch()
+    for g in job_groups(queue):
+        os.killpg(g, signal.SIGKILL)
+    _, stderr = finish(proc, 120)
+    assert_one_line_error(proc.returncode, stderr, "no worker left for 4 s", "run the same command again")
+    complete = [p.name for p in (out / "runs").iterdir() if not p.name.startswith(".") and is_complete(p)]
+    assert 1 <= len(complete) < N_RUNS, complete
+    assert not (out / "campaign.csv").exists()
+    assert not list(queue.glob("*.pending")), "the pending job was not cancelled"
+    (queue / "HOLD").unlink()
+    again = batch(campaign, out, env, "--jobs", "1")
+    stdout, stderr = finish(again, 300)
+    assert again.returncode == 0, stderr
+    assert f"{len(complete)} reused" in stdout, stdout
 
 
 def test_unknown_cluster_kind(campaign, tmp_path, capsys):

@@ -169,3 +169,28 @@ def test_plugs_that_do_not_move_by_a_pixel_are_static(rng, speed_px_per_record, 
     expected = speed_px_per_record * mm_per_px / ((n - 1) / fps) / 1000.0
     lo, hi = m.celerity_ci95_m_s
     assert lo <= expected <= hi
+
+
+@pytest.mark.parametrize("fps", [5000.0, 2000.0, 250.0])
+def test_falling_grains_found_at_any_frame_rate(rng, fps):
+    """At thousands of frames per second the grains move under two samples between frames, as slowly as
+    plug edges do between consecutive frames: they are followed over the frames they need."""
+    n_t, n_s = 600, 400
+    shift_per_frame = 0.8 * 1000.0 / (0.1 * fps)  # 0.8 m/s at 0.1 mm per sample
+    z = np.full((n_t, n_s), 0.1, np.float32)
+    track = n_s + shift_per_frame * n_t
+    specks = rng.uniform(0, track, int(0.3 * track))  # as dense at every frame rate
+    for k in range(n_t):
+        s = np.round(specks - shift_per_frame * (n_t - k)).astype(int)
+        s = s[(s >= 0) & (s < n_s)]
+        z[k, s] += 0.25
+    z += rng.normal(0, 0.01, z.shape).astype(np.float32)
+    expected = shift_per_frame * 0.1 * fps / 1000.0
+    down = falling_grains(z, mm_per_sample=0.1, fps=fps)
+    up = falling_grains(z[::-1], mm_per_sample=0.1, fps=fps)
+    assert down.speed_m_s == pytest.approx(expected, rel=0.05)
+    assert up.speed_m_s == pytest.approx(-expected, rel=0.05)
+    # nothing falling through the bubbles: no speed, and the words say the bubbles were there
+    still = falling_grains(z[:1].repeat(n_t, axis=0), mm_per_sample=0.1, fps=fps)
+    assert still.speed_m_s is None and still.seen and still.seen != falling_grains(
+        np.full((n_t, n_s), 0.9, np.float32), mm_per_sample=0.1, fps=fps).seen

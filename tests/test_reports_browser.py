@@ -71,6 +71,9 @@ def test_paper_report(tmp_path):
     _check(tmp_path / "p" / "report.html")
 
 
+SURFACE = "glass coated with silane (batch 2025-03), dried 24 h at 60 °C"
+
+
 def test_campaign_report(tmp_path):
     import csv
 
@@ -81,12 +84,26 @@ def test_campaign_report(tmp_path):
                                         (0.8, -0.075, "oscillating")]):
         synthesize(SynthConfig(n_frames=100, celerity_m_s=c, seed=i, regime=regime), tmp_path / f"m{i}", fmt="avi")
         rows.append({"run": f"coated-{m:.1f}-g-s-{i}", "movie": f"m{i}/movie.avi", "mass_flow_rate_g_s": m,
-                     "surface": "coated glass",
+                     "surface": SURFACE,
                      "group": "A" if i < 2 else "B"})
     with open(tmp_path / "manifest.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
     run_campaign(tmp_path / "manifest.csv", tmp_path / "out")
-    text = _check(tmp_path / "out" / "report.html")
+    lines, titles, options = [], [], []
+
+    def lines_per_cell(page):  # the line boxes each cell of the runs table takes, and the titles of its texts
+        titles.extend(page.evaluate("Array.from(document.querySelectorAll('table.sortable [title]'))"
+                                    ".map(e => e.title)"))
+        for selector, into in (("table.sortable tbody td", lines), (".warnbox li code", options)):
+            into.extend(page.evaluate("""s => Array.from(document.querySelectorAll(s)).map(e => {
+                const r = document.createRange(); r.selectNodeContents(e);
+                return new Set(Array.from(r.getClientRects()).map(b => Math.round(b.top))).size; })""", selector))
+
+    text = _check(tmp_path / "out" / "report.html", shot=lines_per_cell)
     assert "group" in text and "oscillation (Hz)" in text and " to " in text
+    assert len(lines) >= 3 * 10  # 3 runs, 10 columns at least
+    assert max(lines) == 1, f"cells of the runs table wrap over {max(lines)} lines: a row reads across"
+    assert options and max(options) == 1, "an option in a warning is cut across lines"
+    assert SURFACE not in text and SURFACE in titles  # a long text shortened, whole in its tooltip

@@ -684,3 +684,40 @@ def test_an_open_pipes_start_up_still_passing_is_said():
     assert any("has not left the pipe" in w for w in summary["warnings"])
     _, summary = simulate_and_measure(p, dataclasses.replace(short, duration_tc=400))
     assert not any("has not left the pipe" in w for w in summary["warnings"])
+
+
+def test_the_coarsening_warning_gives_the_counts_its_panel_shows():
+    """``simulate`` said "dense segments changed from 1 to 0" while its own panel showed 0 -> 1: the counts the
+    warning gives are the panel's, first and last of the run's last fifth, with their range."""
+    import re
+
+    import matplotlib.pyplot as plt
+
+    from grainplug.simulation import run_study
+
+    sim = SimulationParams(length_D=251.0, n_cells=256, duration_tc=100.0, output_interval_tc=1.0, noise=1e-6)
+    study = run_study(FROZEN, sim, rng=np.random.default_rng(3), seed=3)  # the segments still multiply
+    [said] = [w for w in study.warnings if w.startswith("still coarsening")]
+    first, last, low, high = map(int, re.search(r"from (\d+) to (\d+) \(between (\d+) and (\d+)\)", said).groups())
+    fig = study.plot()
+    [waves] = [ax for ax in fig.axes if ax.get_title(loc="left") == "(b) waves"]
+    [counts] = waves.get_lines()
+    shown = np.asarray(counts.get_ydata())
+    plt.close(fig)
+    tail = shown[-(len(shown) // 5):]
+    assert (first, last) == (tail[0], tail[-1]) and (low, high) == (tail.min(), tail.max())
+    assert first < last  # the case the warning turned round
+
+
+def test_a_simulation_is_not_advised_to_change_its_lighting_or_file():
+    """A simulated compactness too flat to part into plugs and bubbles was advised to "raise the contrast ...
+    (lighting, exposure, a less compressed file)": a simulation has neither; it is told it is the model's answer."""
+    from grainplug.simulation import run_study
+
+    jam = ModelParams(variant="frozen-friction", jamming=True)
+    study = run_study(jam, SimulationParams(length_D=251.0, n_cells=256, duration_tc=300.0),
+                      rng=np.random.default_rng(3), seed=3)
+    statement = study.summary["measured_as_movie"]["statement"]
+    assert "too close to tell apart" in statement  # the case in question
+    assert not any(w in statement for w in ("lighting", "exposure", "compressed file"))
+    assert "the model's answer" in statement

@@ -15,7 +15,7 @@ from .calibration.tube import TubeGeometry
 from .diagram.light import MovingLight
 from .errors import ParameterError, non_finite_frames
 from .measures import Motion
-from .measures.flow import GRAVITY_DOWN
+from .measures.flow import assumed_down
 from .measures.grains import GrainMotion
 from .measures.shake import Shake
 from .measures.still import STILL_CONTENTS, BlindStretch
@@ -270,12 +270,13 @@ def frame_cadence(motion: Motion | None, info: MovieInfo) -> list[str]:
 def guessed_sign(flow_source: str, motion: Motion | None) -> list[str]:
     """A warning when a celerity was measured along a flow direction only assumed (``flow_source`` is
     gravity's: down a vertical tube): its sign rests on the camera having been upright."""
-    if flow_source != GRAVITY_DOWN or motion is None or motion.celerity_m_s is None:
+    why = assumed_down(flow_source)
+    if why is None or motion is None or motion.celerity_m_s is None:
         return []
     return [coded("flow.sign_assumed",
-        "no grains were seen falling through the bubbles, so the flow is assumed to run down the image "
-        "(gravity down) and the celerity's sign rests on that: if the camera was not upright, give the flow "
-        "direction (flow_direction=)")]
+        f"the grains falling through the bubbles give no direction ({why or 'none seen'}), so the flow is "
+        "assumed to run down the image (gravity down) and the celerity's sign rests on that: if the camera was "
+        "not upright, give the flow direction (flow_direction=)")]
 
 
 def shaken(shake: Shake | None, motion: Motion | None) -> list[str]:

@@ -81,6 +81,7 @@ RANGES: dict[str, Range] = {
     "min_gap_mm": Range(0, 1e4, "mm"),
     "sample_frames": Range(4, 10_000, "frames", integer=True),
     "packed_compactness": Range(0.05, 0.95, "(a packing's volume fraction)"),
+    "grain_density_kg_m3": Range(100, 25000, "kg/m^3 (the grains' material, e.g. glass 2500)"),
 }
 
 
@@ -157,6 +158,9 @@ class AnalysisParams:
         (:mod:`grainplug.measures.compactness`).
     packed_compactness : float
         The packed reference's compactness (0.60: glass beads poured and settled).
+    grain_density_kg_m3 : float
+        The grains' material density (2500: glass beads, as the paper's), for their mass flow rate
+        (:mod:`grainplug.measures.mass_flow`).
     start_frame, end_frame : int, optional
         Analyse frames ``start_frame`` (included) to ``end_frame`` (excluded) only, e.g. to
         leave out the start-up transient; counted from 0.
@@ -194,6 +198,7 @@ class AnalysisParams:
     background: Background | None = None
     packed: Background | None = None
     packed_compactness: float = 0.60
+    grain_density_kg_m3: float = 2500.0
     start_frame: int | None = None
     end_frame: int | None = None
     start_s: float | None = None

@@ -35,6 +35,7 @@ from .diagram.light import Lamp
 from .measures import Lengths, Motion
 from .measures.compactness import PhaseCompactness
 from .measures.creep import GrainVelocity
+from .measures.mass_flow import MassFlow, mass_flow_rate, mean_compactness
 from .measures.motion import Oscillation
 from .measures.shake import Shake
 from .measures.still import BlindStretch
@@ -190,6 +191,25 @@ class AnalysisResult:
         """
         return build_summary(self)
 
+    @cached_property
+    def mass_flow(self) -> MassFlow:
+        """The grains' mass flow rate from the movie (:mod:`grainplug.measures.mass_flow`), or why it is not
+        given: it needs the compactness (``background=`` and ``packed=``), the grains' velocity in the plugs
+        and the celerity."""
+        from .measures.compactness import LIGHT_MODEL_HALF_WIDTH
+
+        comp, g, m = self.compactness, self.grain_velocity, self.motion
+        c_mean, c_mean_ci = (None, None) if self.compactness_field is None else mean_compactness(
+            self.compactness_field, half_width_floor=LIGHT_MODEL_HALF_WIDTH)
+        missing = "" if comp is not None else (self.compactness_note or "no references given")
+        return mass_flow_rate(
+            c_plug=None if comp is None else comp.plug, c_plug_ci95=None if comp is None else comp.plug_ci95,
+            v_plug_m_s=None if g is None else g.mean_m_s, v_plug_ci95_m_s=None if g is None else g.ci95_m_s,
+            celerity_m_s=None if m is None else m.celerity_m_s,
+            celerity_ci95_m_s=None if m is None else m.celerity_ci95_m_s, c_mean=c_mean, c_mean_ci95=c_mean_ci,
+            bore_mm=self.params.tube_diameter_mm, grain_density_kg_m3=self.params.grain_density_kg_m3,
+            oscillating=m is not None and m.oscillation_frequency_hz is not None, missing=missing)
+
     @property
     def celerity_m_s(self) -> float | None:
         """Mean celerity of the plugs, positive downstream (None without plugs)."""
@@ -290,8 +310,8 @@ class AnalysisResult:
     def fields(self) -> xr.Dataset:
         """The fields over ``(time, z)``, with ``time_s`` and ``position_mm`` coordinates, as
         ``grainplug simulate`` writes its own (``fields.nc``): ``grey_level`` (the diagram), ``contrast``
-        (0 bubble, 1 plug) and, when measured, ``c`` (the grains' compactness, the same name and unit as the
-        simulation's)."""
+        (0 bubble, 1 plug) and, when measured, ``c`` (the grains' compactness) and ``v_m_s`` (the grains'
+        velocity in the plugs, where measured, NaN elsewhere), the same names and units as the simulation's."""
         import xarray as xr
 
         d = self.diagram
@@ -303,6 +323,16 @@ class AnalysisResult:
             data["c"] = (dims, self.compactness_field.astype(np.float32),
                          {"long_name": "compactness", "units": "1",
                           "packed_reference": float(self.params.packed_compactness)})
+        g = self.grain_velocity
+        if g is not None and g.mean_m_s is not None and len(g.velocity_m_s):
+            # each window's velocity at its centre and at the middle of its pair of frames; NaN where none was
+            v = np.full(d.values.shape, np.nan, np.float32)
+            k = np.clip(np.asarray(g.frame) + np.asarray(g.lag) // 2, 0, d.n_frames - 1)
+            at = np.clip(np.searchsorted(d.position_mm, np.asarray(g.position_mm)), 0, len(d.position_mm) - 1)
+            v[k, at] = np.asarray(g.velocity_m_s, np.float32)
+            data["v_m_s"] = (dims, v, {"long_name": "grain velocity in the plugs (positive downstream), where a "
+                                                    "window of the plugs' texture was correlated; NaN elsewhere",
+                                       "units": "m s-1"})
         return xr.Dataset(
             data, coords={"time_s": ("time", d.time_s, {"units": "s"}),
                           "position_mm": ("z", d.position_mm, {"units": "mm",
@@ -377,6 +407,8 @@ class AnalysisResult:
             ("compactness", s["compactness"]["note"] or
              f"plugs {num(s['compactness']['plugs'], 3)}{ci(s['compactness']['plugs_ci95'], 3)}, "
              f"bubbles {num(s['compactness']['bubbles'], 3)}{ci(s['compactness'].get('bubbles_ci95'), 3)}"),
+            ("mass flow rate", s["mass_flow_rate_note"] if s["mass_flow_rate_g_s"] is None else
+             f"{num(s['mass_flow_rate_g_s'], 3)} g/s{ci(s['mass_flow_rate_ci95_g_s'], 3)}"),
             ("frames", f"{s['n_frames']} at {s['fps']:g} fps ({s['duration_s']:.3f} s)"),
             ("scale", f"{s['mm_per_px']:.5g} mm/px — {s['scale_source']}"),
             ("flow", f"{s['flow_direction']} — {s['flow_direction_source']}"),

@@ -192,6 +192,23 @@ def _compactness(res: AnalysisResult) -> dict[str, Any]:
             "packed_reference": res.params.packed_compactness, "note": None}
 
 
+def _mass_flow(res: AnalysisResult) -> dict[str, Any]:
+    """The grains' mass flow rate from the movie with its interval, formula and terms, or why it is not given
+    (:mod:`grainplug.measures.mass_flow`)."""
+    from .measures.mass_flow import FORMULA
+
+    q = res.mass_flow
+    ci = None if q.ci95_g_s is None else [_r(q.ci95_g_s[0], 5), _r(q.ci95_g_s[1], 5)]
+    return {"mass_flow_rate_g_s": _r(q.rate_g_s, 5), "mass_flow_rate_ci95_g_s": ci,
+            "mass_flow_rate_formula": FORMULA,
+            "mass_flow_rate_terms_g_s": None if q.rate_g_s is None else {"creep": _r(q.creep_g_s, 5),
+                                                                         "pattern": _r(q.pattern_g_s, 5)},
+            "mean_compactness": _r(q.mean_compactness, 4),
+            "mean_compactness_ci95": None if q.mean_compactness_ci95 is None else [
+                _r(x, 4) for x in q.mean_compactness_ci95],
+            "mass_flow_rate_note": q.note or None}
+
+
 def build_summary(res: AnalysisResult) -> dict[str, Any]:
     """JSON-ready summary with provenance (see ``summary.json`` in the docs)."""
     m, ln, tube = res.motion, res.lengths, res.tube
@@ -252,6 +269,7 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         "falling_grain_speed_m_s": _r(res.falling_grain_speed_m_s, 4),
         "compactness": _compactness(res),
         **_grain_velocity(res),
+        **_mass_flow(res),
         "blind_stretches": [b.as_dict() for b in res.blind],
         "tube_unseen_frames": [[int(a), int(b)] for a, b in res.tube_unseen],
         "shake": res.shake.as_dict() if res.shake is not None else None,

@@ -96,7 +96,8 @@ CODES: dict[str, tuple[str, str]] = {
     # the flow's direction
     "flow.against_given": ("the grains falling through the bubbles move against the flow direction given",
                            "check flow_direction="),
-    "flow.assumed": ("no grains were seen falling: the flow direction is assumed", "give flow_direction="),
+    "flow.assumed": ("the grains falling through the bubbles give no direction: the flow direction is assumed",
+                     "give flow_direction="),
     "flow.sign_assumed": ("the celerity's sign rests on a flow direction only assumed (gravity down)",
                           "give flow_direction= if the camera was not upright"),
     # plugs and their measures
@@ -132,6 +133,9 @@ CODES: dict[str, tuple[str, str]] = {
     "grains.texture_still": ("the plugs' texture did not move by a sample over the longest lag: grains at rest, or a "
                              "pattern fixed to the tube or the camera (a scratch, dust, a codec's blocks)",
                              "look at the plugs in the movie; clean the tube, film with less compression"),
+    # the grains' mass flow rate
+    "mass_flow.disagrees": ("a run's weighed mass flow rate is outside the interval of the one measured from its movie",
+                            "check the frame rate, scale, bore, packed compactness and grain density given"),
     # a reviewer's corrections
     "corrections.not_applied": ("an edit of corrections.json could not be applied to this analysis",
                                 "review the run again"),

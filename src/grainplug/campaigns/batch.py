@@ -20,7 +20,8 @@ import json
 import logging
 import os
 import socket
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
@@ -140,10 +141,35 @@ def process_run(spec: RunSpec, out_dir: str, *, figures: bool = True, threads: i
         return {**record, "status": "failed", "error": f"unexpected {type(exc).__name__}: {exc}"}
 
 
+def weighed_disagrees(rec: dict) -> list[str]:
+    """A warning when a run's weighed mass flow rate (the manifest's ``mass_flow_rate_g_s``) lies outside the 95 %
+    interval of the one measured from its movie: the frame rate, the scale, the bore, the references' compactness
+    or the grains' density given may be wrong, or the flow was not steady while it was weighed."""
+    weighed, lo, hi = (rec.get(k) for k in ("mass_flow_rate_g_s", "mass_flow_rate_images_ci95_low_g_s",
+                                            "mass_flow_rate_images_ci95_high_g_s"))
+    try:
+        weighed, lo, hi = float(weighed), float(lo), float(hi)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return []
+    if not all(np.isfinite([weighed, lo, hi])) or lo <= weighed <= hi:
+        return []
+    from ..warning_codes import coded
+
+    mid = 0.5 * (lo + hi)
+    return [coded("mass_flow.disagrees",
+                  f"the weighed mass flow rate ({weighed:.3g} g/s) is outside the 95 % interval of the one measured "
+                  f"from the movie ({lo:.3g} to {hi:.3g} g/s, {100.0 * (mid / weighed - 1.0):+.0f} %): check the "
+                  "frame rate, the scale, the bore, the packed reference's compactness and the grains' density "
+                  "given, and that the flow was steady while it was weighed")]
+
+
 def _flat(summary: dict) -> dict[str, object]:
     out = {k: summary.get(k) for k in SUMMARY_COLUMNS}
     ci = summary.get("celerity_ci95_m_s") or [None, None]
     lci = summary.get("plug_length_ci95_mm") or [None, None]
+    qci = summary.get("mass_flow_rate_ci95_g_s") or [None, None]
+    out.update(mass_flow_rate_images_g_s=summary.get("mass_flow_rate_g_s"),
+               mass_flow_rate_images_ci95_low_g_s=qci[0], mass_flow_rate_images_ci95_high_g_s=qci[1])
     out.update(celerity_ci95_low_m_s=ci[0], celerity_ci95_high_m_s=ci[1],
                plug_length_ci95_low_mm=lci[0], plug_length_ci95_high_mm=lci[1],
                input_sha256_sampled=(summary.get("input") or {}).get("sha256_sampled"),
@@ -275,6 +301,7 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
             client = _dask_client(scheduler)
             stack.callback(client.close)
         return _run_campaign(specs, Path(manifest), out, client=client, workers=workers, figures=figures,
+                             idle_limit_s=cluster_timeout_s if cluster else None,
                              verify=verify, simulate=simulate, figure_options=figure_options, progress=progress,
                              release=stack.close)
     raise AssertionError("unreachable")  # pragma: no cover  (for type checkers: the with returns)
@@ -283,9 +310,11 @@ def run_campaign(manifest: str | Path, out_dir: str | Path, *, workers: int = 1,
 def _run_campaign(specs: list[RunSpec], manifest: Path, out: Path, *, client: Any, workers: int, figures: bool,
                   verify: bool, simulate: bool, figure_options: FigureOptions | None,
                   progress: Callable[[int, int, str], None] | None,
-                  release: Callable[[], object] = lambda: None) -> Campaign:
+                  release: Callable[[], object] = lambda: None, idle_limit_s: float | None = None) -> Campaign:
     """:func:`run_campaign` once its inputs are checked and its workers are there (``client``, or ``workers``);
-    ``release`` lets the workers go (a cluster's jobs end) once every run is done, before the tables and report."""
+    ``release`` lets the workers go (a cluster's jobs end) once every run is done, before the tables and report;
+    with ``idle_limit_s``, a client left with no worker for that long (its jobs killed and not started again)
+    ends the batch, the runs done kept."""
     from .._atomic import OutputPlaceError, mark_campaign
 
     try:
@@ -306,12 +335,16 @@ def _run_campaign(specs: list[RunSpec], manifest: Path, out: Path, *, client: An
     hosts: set[str] = set()
     try:
         if client is not None:
-            deaths = _on_client(client, specs, str(out), done=done, hosts=hosts, **kw)
+            deaths = _on_client(client, specs, str(out), done=done, hosts=hosts, idle_limit_s=idle_limit_s, **kw)
         elif workers > 1:
             deaths = _in_pool(specs, str(out), workers=workers, done=done, **kw)
         else:
             for s in specs:
                 done(process_run(s, str(out), **kw))
+    except NoWorkerLeft as exc:
+        n_done = sum(is_complete(out / "runs" / run_folder_name(s.run)) for s in specs)
+        raise NoWorkerLeft(f"{exc} — {n_done} of {total} runs have a complete result, kept; run the same command "
+                           "again to finish (complete, current runs are reused)") from None
     except KeyboardInterrupt:
         n_done = sum(is_complete(out / "runs" / run_folder_name(s.run)) for s in specs)
         raise CampaignInterrupted(
@@ -319,10 +352,11 @@ def _run_campaign(specs: list[RunSpec], manifest: Path, out: Path, *, client: An
             "or were stopped — run the same command again to finish (complete, current runs are reused)") from None
     release()  # no job holds the queue while the tables, fits and report are written
     for s in specs:  # the manifest's own doubts about a row come first among the run's warnings
-        if s.warnings:
-            rec = records[s.run]
-            rec["warnings"] = " | ".join([*s.warnings, *filter(None, [rec.get("warnings")])])
-            rec["warning_codes"] = " | ".join([*codes_of(s.warnings), *filter(None, [rec.get("warning_codes")])])
+        rec = records[s.run]
+        more = [*s.warnings, *weighed_disagrees(rec)]
+        if more:
+            rec["warnings"] = " | ".join([*more, *filter(None, [rec.get("warnings")])])
+            rec["warning_codes"] = " | ".join([*codes_of(more), *filter(None, [rec.get("warning_codes")])])
     n_reused = sum(bool(records[s.run].get("reused")) for s in specs)
     n_remeasured = sum(bool(records[s.run].get("remeasured")) for s in specs)
     table = typed(pd.DataFrame([{k: v for k, v in records[s.run].items() if k not in ("reused", "remeasured")}
@@ -395,13 +429,16 @@ def _remote_run(spec: RunSpec, out_dir: str, **kw: object) -> dict[str, object]:
 
 
 def _on_client(client: Any, specs: list[RunSpec], out: str, *, done: Callable[[dict], None], hosts: set[str],
-               **kw: object) -> int:
+               idle_limit_s: float | None = None, **kw: object) -> int:
     """The runs on a Dask client's workers; returns how many workers died while they held runs.
 
     A worker lost during a run (its job killed by the queue, its machine gone) has its runs
     started again on another worker by Dask itself (``distributed.scheduler.allowed-failures``
     times); a run whose workers keep dying is failed with the reason, and the others go on. A
     result is let go of as soon as it is read, so a worker lost later costs no finished run.
+    With ``idle_limit_s``, the client having had no worker at all for that long (every job
+    killed and none started again: the queue full, or the jobs failing at start) is a
+    :class:`NoWorkerLeft`, the runs not done cancelled.
     """
     from dask.distributed import as_completed as dask_completed
     from distributed import KilledWorker
@@ -411,10 +448,11 @@ def _on_client(client: Any, specs: list[RunSpec], out: str, *, done: Callable[[d
     keys = {str(f.key) for f in futures}
     before = {s.run: _sealed_at(Path(out) / "runs" / run_folder_name(s.run)) for s in specs}
     try:
-        for fut in dask_completed(list(futures)):
+        idle = _Idle(client, idle_limit_s)
+        for fut in _completed(dask_completed(list(futures)), idle):
             spec = futures.pop(fut)
             try:
-                rec = fut.result()
+                rec = _result(fut, idle)
             except KilledWorker:
                 rec = {"run": spec.run, "movie": str(spec.movie), **spec.meta, "status": "failed",
                        "error": "every worker that analysed this run died during it (its jobs killed, out of "
@@ -439,6 +477,62 @@ def _on_client(client: Any, specs: list[RunSpec], out: str, *, done: Callable[[d
     for s in specs:  # what workers killed mid-run left (a retry that started before the dead one was reaped
         recover(Path(out) / "runs" / run_folder_name(s.run))  # keeps it): every run is done, none is writing
     return _workers_lost(client, keys)
+
+
+class NoWorkerLeft(GrainplugError):
+    """A cluster's client had no worker for longer than the batch allows."""
+
+
+#: how often the futures and the client's workers are looked at while waiting for results (s)
+_POLL_S = 0.2
+
+
+class _Idle:
+    """Watches a Dask client's workers: :meth:`check` raises :class:`NoWorkerLeft` once the client has had no
+    worker for longer than ``limit_s`` (never with ``limit_s`` None)."""
+
+    def __init__(self, client: Any, limit_s: float | None) -> None:
+        self.client, self.limit_s = client, limit_s
+        self.since: float | None = None
+        self.checked = -np.inf
+
+    def check(self) -> None:
+        now = time.monotonic()
+        if self.limit_s is None or now - self.checked < 1.0:  # the scheduler is asked at most once a second
+            return
+        self.checked = now
+        if self.client.nthreads():
+            self.since = None
+        elif self.since is None:
+            self.since = now
+        elif now - self.since > self.limit_s:
+            raise NoWorkerLeft(f"no worker left for {self.limit_s:g} s: every job ended and none started again "
+                               "(the queue full or the jobs failing at start: see the queue's job logs)")
+
+
+def _completed(pending: Any, idle: _Idle) -> Iterator[Any]:
+    """The futures of Dask's ``as_completed`` ``pending`` as they finish, ``idle`` checked while none is."""
+    if idle.limit_s is None:
+        yield from pending
+        return
+    while not pending.is_empty():
+        if pending.has_ready():
+            yield from pending.next_batch(block=False)
+            continue
+        idle.check()
+        time.sleep(_POLL_S)
+
+
+def _result(fut: Any, idle: _Idle) -> Any:
+    """``fut``'s result, ``idle`` checked while it is awaited (a finished run whose worker died before its
+    result was read is run again, and waits for a worker)."""
+    if idle.limit_s is None:
+        return fut.result()
+    while True:
+        try:
+            return fut.result(timeout=1.0)
+        except TimeoutError:  # Dask's is Python's
+            idle.check()
 
 
 def _sealed_at(run_dir: Path) -> int | None:

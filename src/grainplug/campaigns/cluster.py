@@ -80,11 +80,17 @@ def job_cluster(kind: str, *, jobs: int = 1, timeout_s: float = CLUSTER_TIMEOUT_
         raise ParameterError("must be at least 1", param="jobs")
     if not timeout_s > 0:
         raise ParameterError("must be more than 0 s", param="cluster_timeout")
+    ctrl_c = signal.getsignal(signal.SIGINT)
     try:
         import dask_jobqueue
         from dask.distributed import Client
     except ImportError:
         raise GrainplugError(f"--cluster needs dask-jobqueue, which is not installed: {INSTALL_HINT}") from None
+    finally:
+        if threading.current_thread() is threading.main_thread() and ctrl_c is not None:
+            # dask-jobqueue's import makes Ctrl-C exit quietly with status 0 (its runner module's handler):
+            # it would skip the campaign's message and status 130
+            signal.signal(signal.SIGINT, ctrl_c)
     if shutil.which(submit) is None:
         raise GrainplugError(f"cannot find {submit}, the command that submits {kind} jobs, on PATH — run the "
                              f"batch on the cluster's login node (or load the module that provides {submit})")
@@ -132,7 +138,8 @@ def _private(kind: str) -> dict[str, object]:
     import dask
 
     opts = dict(dask.config.get(f"jobqueue.{kind}.scheduler-options", {}) or {})
-    opts.setdefault("dashboard_address", "127.0.0.1:0")
+    if not opts.get("dashboard_address"):  # None is Dask's default, every interface's port 8787
+        opts["dashboard_address"] = "127.0.0.1:0"
     shared = dask.config.get(f"jobqueue.{kind}.shared-temp-directory", None)
     if not shared:
         folder = Path.home() / ".grainplug-dask"

@@ -78,7 +78,7 @@ ANALYSIS_KEYS = {"fps": float, "mm_per_px": float, "tube_diameter_mm": float, "t
                  "glass_index": float, "flow_direction": str, "glob": str, "min_plug_mm": float,
                  "min_gap_mm": float, "sample_frames": int, "allow_truncated": yes_or_no, "roi": pixel_box,
                  "start_frame": int, "end_frame": int, "start_s": float, "end_s": float,
-                 "packed_compactness": float}
+                 "packed_compactness": float, "grain_density_kg_m3": float}
 KNOWN_META = {"mass_flow_rate_g_s": float, "humidity_pct": float, "surface": str, "group": str}
 #: the columns with a meaning (the others are metadata)
 #: what ``grainplug manifest`` copies from each movie's header beside ``fps``: kept as metadata, never taken for a

@@ -9,7 +9,7 @@ import pandas as pd
 
 from ..reports import images, page, provenance, table
 from ..reports.html import _SORT_JS as SORT_JS
-from ..reports.html import number
+from ..reports.html import number, warning_html
 from .fits import ALL_RUNS, fit_selection
 from .model_panel import ModelPanel, panel_html
 
@@ -23,6 +23,10 @@ RUN_COLUMNS = (
     ("oscillation_frequency_hz", "oscillation (Hz)", 3), ("scale_source", "scale from", None),
     ("n_corrections", "corrections", 0),
 )
+
+
+#: characters of a text cell shown in the runs table; longer texts are cut, whole in their tooltip
+SHORT_TEXT = 24
 
 
 def _cell(value: object, decimals: int | None) -> str:
@@ -67,6 +71,9 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
                 text = f"{text} to {html.escape(_cell(r['celerity_ci95_high_m_s'], d))}"
             if c == "scale_source" and ":" in text:  # the kind in the table, the whole sentence on hover
                 text = f'<span title="{text}">{text.split(":")[0]}</span>'
+            elif d is None and len(_cell(r[c], d)) > SHORT_TEXT:  # a row reads on one line: long texts cut
+                whole = _cell(r[c], d)
+                text = f'<span title="{html.escape(whole)}">{html.escape(whole[:SHORT_TEXT - 1].rstrip())}…</span>'
             if c == "run" and r.get("status") == "ok":
                 text = f'<a href="runs/{html.escape(str(r[c]))}/report.html">{text}</a>'
             v = r[c]
@@ -74,8 +81,10 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
             klass = ' class="n"' if d is not None else ""
             cells.append(f"<td{klass}{sort}>{text}</td>")
         body_rows.append("<tr>" + "".join(cells) + "</tr>")
-    runs_table = (f'<table class="sortable"><thead><tr>{head}</tr></thead>'
-                  f'<tbody>{"".join(body_rows)}</tbody></table>')
+    runs_table = (f'<div class="wide"><table class="sortable"><thead><tr>{head}</tr></thead>'
+                  f'<tbody>{"".join(body_rows)}</tbody></table></div>')  # scrolls sideways, rows on one line
+    notes = [f"<li><b>{html.escape(run) or 'fits'}</b>: {html.escape(why)}</li>"
+             for run, why in fit_selection(tab)[1].items() if run == ALL_RUNS or not why.endswith("no plugs measured")]
     fit_rows = []
     for g, f in fits.items():
         c = f.get("celerity") or {}
@@ -83,17 +92,23 @@ def campaign_report(tab: pd.DataFrame, fits: dict, folder: Path, figures: list[s
         slope, slope_se = _to_uncertainty(c.get("slope_m_s_per_g_s"), c.get("slope_stderr"))
         icpt, icpt_se = _to_uncertainty(c.get("intercept_m_s"), c.get("intercept_stderr"))
         one = (ln.get("n") or c.get("n") or 0) < 2  # one run: no spread
-        fit_rows.append([g, slope, slope_se, icpt, icpt_se, number(c.get("r2"), 3), number(c.get("n")),
+        through = c.get("n") == 2  # a line through two runs fits them exactly: its R² says nothing
+        if through:
+            notes.append(f"<li><b>{html.escape(g)}</b>: a line through 2 runs fits them exactly: no R² and no "
+                         "standard error can be given; more runs are needed to judge the line</li>")
+        fit_rows.append([g, slope, slope_se, icpt, icpt_se, "—" if through else number(c.get("r2"), 3),
+                         number(c.get("n")),
                          number(ln.get("mean_mm"), 2), "—" if one else number(ln.get("sd_mm"), 2),
                          number(ln.get("mean_over_diameter"), 2)])
-    notes = [f"<li><b>{html.escape(run) or 'fits'}</b>: {html.escape(why)}</li>"
-             for run, why in fit_selection(tab)[1].items() if run == ALL_RUNS or not why.endswith("no plugs measured")]
+    said: dict[tuple[str, str], list[str]] = {}  # a warning several runs share (a misspelt column) said once
     for _, r in tab.iterrows():
         for what, key in (("error", "error"), ("warning", "warnings")):
             text = r.get(key)
             if isinstance(text, str) and text:
-                for line in text.split(" | "):
-                    notes.append(f"<li><b>{html.escape(str(r['run']))}</b> ({what}): {html.escape(line)}</li>")
+                for line in dict.fromkeys(text.split(" | ")):
+                    said.setdefault((what, line), []).append(str(r["run"]))
+    notes += [f"<li><b>{html.escape(', '.join(runs))}</b> ({what}): {warning_html(line)}</li>"
+              for (what, line), runs in said.items()]
     inputs = {r: {"movie": m, "sha256_sampled": h} for r, m, h in
               zip(tab.run, tab.movie, tab.get("input_sha256_sampled", [None] * len(tab)), strict=True)}
     n_ok = int((tab.status == "ok").sum())

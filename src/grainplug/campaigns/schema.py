@@ -53,6 +53,10 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "tube_diameter_px": ("Float64", "tube bore in pixels"),
     "tube_axis_angle_deg": ("Float64", "angle of the tube's axis in the image, degrees"),
     "flow_direction": ("string", "direction of the flow in the image"),
+    "mass_flow_rate_images_g_s": ("Float64", "the grains' mass flow rate from the movie (compactness, grain "
+                                             "velocity, celerity), g/s: beside the weighed mass_flow_rate_g_s"),
+    "mass_flow_rate_images_ci95_low_g_s": ("Float64", "its 95 % interval, low end"),
+    "mass_flow_rate_images_ci95_high_g_s": ("Float64", "its 95 % interval, high end"),
     "input_sha256_sampled": ("string", "SHA-256 of sampled content of the movie"),
     "input_bytes": ("Int64", "size of the movie, bytes"),
     "grainplug_version": ("string", "the version that analysed the run"),

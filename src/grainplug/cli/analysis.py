@@ -195,6 +195,8 @@ def calibrate(image: Path, pitch_mm: float, pattern: str, out: Path, as_json: bo
                    "lamp: with --background (the tube empty), the grains' compactness is read from the light.")
 @click.option("--packed-compactness", type=Number(0.05, 0.95), default=0.60, show_default=True,
               help="The compactness of the grains in the --packed picture (poured and settled glass beads: 0.60).")
+@click.option("--grain-density-kg-m3", type=Number(100, 25000), default=2500.0, show_default=True,
+              help="The grains' material density, for their mass flow rate from the movie (glass: 2500).")
 @click.option("--allow-truncated", is_flag=True,
               help="For camera files that end early: analyse the complete frames instead of refusing.")
 @click.option("--start", "start", type=FRAME_OR_TIME, default=None,
@@ -223,6 +225,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
             flow_direction: str | None, min_plug_mm: float, min_gap_mm: float, glob_: str | None,
             threads: int | None,
             calibration: Path | None, background: Path | None, packed: Path | None, packed_compactness: float,
+            grain_density_kg_m3: float,
             allow_truncated: bool,
             start: tuple[str, float] | None, end: tuple[str, float] | None, roi: str | None,
             mask: tuple[str, ...], no_figures: bool,
@@ -254,7 +257,7 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
                             tube_outer_diameter_mm=tube_outer_diameter_mm, glass_index=glass_index,
                             flow_direction=flow_direction, min_plug_mm=min_plug_mm, min_gap_mm=min_gap_mm, glob=glob_,
                             allow_truncated=allow_truncated, roi=roi_px, mask_mm=mask_option(mask),
-                            packed_compactness=packed_compactness,
+                            packed_compactness=packed_compactness, grain_density_kg_m3=grain_density_kg_m3,
                             **window_params(start, end))
     # the calibration and background files are read by the library, once (gp.analyze takes their paths)
     files = {k: v for k, v in (("calibration", calibration), ("background", background), ("packed", packed))
@@ -317,6 +320,10 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
                 lo_hi = comp.get(f"{key}_ci95")
                 return fmt(comp.get(key), "", 3) + (f" (95% CI {lo_hi[0]:.3f} to {lo_hi[1]:.3f})" if lo_hi else "")
             click.echo(f"compactness     plugs {with_ci('plugs')}, bubbles {with_ci('bubbles')}")
+        if s.get("mass_flow_rate_g_s") is not None:
+            q_ci = s.get("mass_flow_rate_ci95_g_s")
+            click.echo(f"mass flow rate  {fmt(s['mass_flow_rate_g_s'], ' g/s', 3)}"
+                       + (f"  (95% CI {q_ci[0]:.3g} to {q_ci[1]:.3g})" if q_ci else ""))
         click.echo(f"scale           {fmt(s['mm_per_px'], ' mm/px', 5)} from {s['scale_source']}")
         if shake_line(s.get("shake")):
             click.echo(f"camera shake    {shake_line(s.get('shake'))}")

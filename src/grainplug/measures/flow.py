@@ -58,11 +58,20 @@ def resolve_flow(given: str | None, tube: TubeGeometry, grains: GrainMotion | No
     if speed is not None:
         direction = opposite(forward) if speed < 0 else forward
         return Flow(direction, f"inferred from the grains falling through the bubbles ({abs(speed):.2f} m/s)")
+    why = "one material only in the tube, no bubbles" if grains is None else grains.seen
     if tube.orientation == "vertical":
-        return Flow(forward, GRAVITY_DOWN)
-    return Flow(forward, "assumed", (coded("flow.assumed", f"no grains seen falling through the bubbles: the flow "
-                                           f"is assumed to run {forward}; if it does not, give the flow direction "
-                                           "(flow_direction=)"),))
+        return Flow(forward, f"{GRAVITY_DOWN}: {why}" if why else GRAVITY_DOWN)
+    return Flow(forward, "assumed", (coded("flow.assumed", f"the grains falling through the bubbles give no "
+                                           f"direction ({why}): the flow is assumed to run {forward}; if it does "
+                                           "not, give the flow direction (flow_direction=)"),))
+
+
+def assumed_down(source: str) -> str | None:
+    """What was and was not seen (maybe ``""``) when ``source``, a :class:`Flow`'s, is gravity's assumption
+    (the flow taken down a vertical tube for want of grains seen falling); None when it is not."""
+    if source == GRAVITY_DOWN:
+        return ""
+    return source.removeprefix(f"{GRAVITY_DOWN}: ") if source.startswith(f"{GRAVITY_DOWN}: ") else None
 
 def orient(diagram: Diagram, norm: Normalized, grains: GrainMotion | None, tube: TubeGeometry,
             direction: str) -> tuple[Diagram, Normalized, GrainMotion | None]:

@@ -315,6 +315,11 @@ class Movie(abc.ABC):
         """
         return self.frames()
 
+    def _analysis_levels(self) -> tuple[float, float] | None:
+        """``(offset, gain)`` that put the grey levels of :meth:`_analysis_frames` on those of :meth:`frames`
+        (``(v - offset) * gain``), or None when they are the same: limited-range ("TV") luma, for YUV video."""
+        return None
+
     def read_band(self, band: Band, *, threads: int | None = None,
                   progress: Callable[[int], None] | None = None) -> np.ndarray:
         """The band's profile of every frame: the one streaming call the analysis makes.
@@ -343,8 +348,10 @@ class Movie(abc.ABC):
         once, in order, in their native layout. All give the numbers of
         :meth:`grainplug.band.Band.profile` of the frames :meth:`frames` hands out,
         except YUV-coded video (H.264, MJPEG...), whose profiles are of the luma plane as
-        decoded, with no colour conversion: for grey or uniformly tinted scenes an affine
-        function of the channel mean, which the analysis's normalisation absorbs.
+        decoded, with no colour conversion, put on the full range of grey levels (limited-range
+        luma, 16-235, stretched to 0-255 as a conversion to grey does): for grey scenes the grey
+        levels themselves, which the light's ratios (the compactness, the references) need; for
+        tinted scenes the luma rather than the channels' mean.
         """
         from .band import BandGather, profiles_from_blocks, profiles_from_frames
 
@@ -354,7 +361,12 @@ class Movie(abc.ABC):
                              f"{(self.info.height, self.info.width)}")
         read_block = self._block_reader()
         if read_block is None:
-            return profiles_from_frames(self._analysis_frames(), band, n_frames=n, progress=progress)
+            out = profiles_from_frames(self._analysis_frames(), band, n_frames=n, progress=progress)
+            levels = self._analysis_levels()
+            if levels is not None:  # an affine map commutes with the band's weighted means
+                out -= np.float32(levels[0])
+                out *= np.float32(levels[1])
+            return out
         lo, hi = BandGather(band).byte_span(read_block(0, 1)[0])
         if self._prefetch_only(lo, hi):  # e.g. a horizontal tube: most of each frame is never read
             stride = int(np.diff(self._frame_offsets()[:2])[0])

@@ -28,6 +28,13 @@ _RGB16 = {"rgb48le", "rgb48be", "bgr48le", "bgr48be", "rgba64le", "rgba64be", "g
           "gbrp12le", "gbrp10le", "yuv444p16le", "yuv420p16le"}
 
 
+def _native_luma(pix_fmt: str) -> bool:
+    """Whether the analysis reads frames of pixel format ``pix_fmt`` as their 8-bit luma plane, as decoded."""
+    name = pix_fmt.lower()
+    return name.startswith(("yuv", "yuvj", "nv12", "nv21")) and not any(
+        d in name for d in ("9", "10", "12", "14", "16"))
+
+
 def _output_format(pix_fmt: str | None) -> tuple[str, int, int]:
     """Map a stream pixel format to (ffmpeg target format, channels, bit depth)."""
     name = (pix_fmt or "").lower()
@@ -66,6 +73,11 @@ class VideoMovie(Movie):
                 raise MovieError(f"{path}: the video stream has no frame size — the file is corrupt")
             pix_name = (ctx.format.name if ctx.format else "") or ""
             self._target, channels, depth = _output_format(pix_name or None)
+            # luma read as decoded (the analysis's frames) is limited range unless the stream says full (yuvj*,
+            # color_range 2 = JPEG): 16-235 for 8 bits, put on 0-255 as a conversion to grey does
+            self._levels = (16.0, 255.0 / 219.0) if (
+                _native_luma(pix_name) and not pix_name.startswith("yuvj")
+                and int(getattr(ctx, "color_range", 0) or 0) != 2) else None
             rate = stream.average_rate or stream.guessed_rate or stream.base_rate
             file_fps = float(rate) if rate else None
             n_frames = int(stream.frames or 0)
@@ -406,6 +418,9 @@ class VideoMovie(Movie):
             return None
         return None
 
+    def _analysis_levels(self) -> tuple[float, float] | None:
+        return self._levels
+
     def _analysis_frames(self) -> Iterator[np.ndarray]:
         """Decoded frames in their native layout: packed RGB/BGR as they are, luma only for
         YUV, planar RGB and 16-bit through a conversion to RGB. No colour
@@ -431,8 +446,7 @@ class VideoMovie(Movie):
             plane = frame.planes[0]
             arr = np.frombuffer(plane, np.uint8).reshape(h, plane.line_size)[:, : w * 4].reshape(h, w, 4)
             return arr[..., 1:] if name[0] in "0a" else arr[..., :3]
-        if name.startswith(("yuv", "yuvj", "nv12", "nv21")) and not any(
-                d in name for d in ("9", "10", "12", "14", "16")):
+        if _native_luma(name):
             plane = frame.planes[0]
             return np.frombuffer(plane, np.uint8).reshape(h, plane.line_size)[:, :w]
         return frame.to_ndarray(format=fallback)

@@ -78,6 +78,9 @@ class FrameWindow(Movie):
         # frames before the window are decoded and dropped (compressed video has no cheaper way)
         return itertools.islice(self.inner._analysis_frames(), self.start, self.stop)
 
+    def _analysis_levels(self) -> tuple[float, float] | None:
+        return self.inner._analysis_levels()
+
     def _read_sampled(self, index: int) -> np.ndarray:
         return self.inner._read_sampled(index + self.start)
 

@@ -6,6 +6,7 @@ import base64
 import datetime as _dt
 import html
 import json
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -22,14 +23,15 @@ body{font-family:system-ui,sans-serif;max-width:1000px;margin:2em auto;padding:0
 table{border-collapse:collapse;margin:1em 0;max-width:100%}td,th{border:1px solid #ccc;padding:3px 8px;text-align:left}
 th{background:#f3f3f3}img{max-width:100%;border:1px solid #ddd;margin:.5em 0}
 code,pre{background:#f6f6f6}pre{padding:.6em;overflow:auto;font-size:12px;white-space:pre-wrap;word-break:break-all}
-.note{color:#a33}
+.note{color:#a33}li code{white-space:nowrap}
 .headline{display:flex;flex-wrap:wrap;gap:.8em;margin:1em 0}
 .card{border:1px solid #ccc;border-radius:6px;padding:.5em .9em;min-width:10em;background:#fafafa}
 .card .v{font-size:1.5em;font-variant-numeric:tabular-nums}.card .k{color:#555;font-size:.85em}
 .warnbox{border:2px solid #d9a400;background:#fff8e1;border-radius:6px;padding:.3em 1em;margin:1em 0}
 .fixbox{border:2px solid #3b7dd8;background:#eef4fd;border-radius:6px;padding:.3em 1em;margin:1em 0}
 figure{margin:1.2em 0}figcaption{color:#444;font-size:.9em}
-td.n,th.n{text-align:right;font-variant-numeric:tabular-nums}th.sort{cursor:pointer}td:not(.n){overflow-wrap:anywhere}
+td.n,th.n{text-align:right;font-variant-numeric:tabular-nums}td.n{white-space:nowrap}th.sort{cursor:pointer}
+td:not(.n){overflow-wrap:anywhere}.wide{overflow-x:auto;max-width:100%}.wide td{white-space:nowrap;overflow-wrap:normal}
 .sentence{font-size:1.1em}
 """
 
@@ -43,6 +45,12 @@ def _img(path: Path) -> str:
 def _table(rows: list[tuple[str, object]]) -> str:
     body = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>" for k, v in rows)
     return f"<table>{body}</table>"
+
+
+def warning_html(text: str) -> str:
+    """A warning for a page: escaped, each analysis keyword followed by its command-line option
+    (:func:`grainplug.params.with_options`), the option in ``<code>`` kept on one line."""
+    return re.sub(r"\((--[a-z0-9-]+)\)", r"(<code>\1</code>)", html.escape(with_options(text)))
 
 
 def page(title: str, body: str) -> str:
@@ -195,6 +203,10 @@ def _cards(res: AnalysisResult) -> str:
                    f"bubbles {with_uncertainty(comp.bubble, *(comp.bubble_ci95 or (None, None)))}, ")
         cards.append(("compactness in plugs", with_uncertainty(comp.plug, *ci),
                       f"{bubbles}packed reference {res.params.packed_compactness:g}"))
+    q = res.mass_flow
+    if q.rate_g_s is not None:
+        cards.append(("grains' mass flow rate (g/s)", with_uncertainty(q.rate_g_s, *(q.ci95_g_s or (None, None))),
+                      f"from the movie, grains at {res.params.grain_density_kg_m3:g} kg/m³"))
     return '<div class="headline">' + "".join(
         f'<div class="card"><div class="k">{html.escape(k)}</div><div class="v">{html.escape(v)}</div>'
         f'<div class="k">{html.escape(n)}</div></div>' for k, v, n in cards) + "</div>"
@@ -292,7 +304,7 @@ def run_report(res: AnalysisResult, folder: Path, *, summary: dict | None = None
     plugs, captioned figures, details, and the provenance folded at the end."""
     s = summary if summary is not None else res.summary
     name = Path(res.info.path).name if res.info.path else "frames in memory"
-    warnings = "".join(f"<li>{html.escape(with_options(w))}</li>" for w in res.warnings)
+    warnings = "".join(f"<li>{warning_html(w)}</li>" for w in res.warnings)
     if warnings:
         warnings = f'<div class="warnbox" role="note"><h2>Warnings</h2><ul>{warnings}</ul></div>'
     corrections = ""

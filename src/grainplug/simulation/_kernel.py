@@ -27,20 +27,21 @@ from .scheme import SSP_STAGES
 _G2 = 2.0 - math.sqrt(2.0)
 _BETA = _G2 / 2.0
 _A = 1.0 / (_G2 * (2.0 - _G2))
-LAWS = {"v2": 0, "v|v|": 0, "coulomb-frozen": 1, "coulomb-weight": 2}
+LAWS = {"v2": 0, "v|v|": 0, "coulomb-frozen": 1, "coulomb-weight": 2, "coulomb-janssen": 3}
 BCS = {"periodic": 0, "open": 1, "outflow": 2}
 
 # indices into the constants array
 (K_C0, K_P0, K_GAMMA, K_KAPPA, K_COS, K_LAW, K_F0, K_ALPHA, K_K0, K_BAL, K_JAM, K_FR, K_CMIN, K_CMAX, K_BC,
- K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX, K_STAGES) = range(21)
+ K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX, K_STAGES, K_JTERM, K_WALL, K_VEPS, K_STOKES, K_DTMIN) = range(26)
 
 
-def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float) -> np.ndarray:
+def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float, dt_floor: float = 0.0) -> np.ndarray:
     """The constants of one integration as a float array (the scheme's constants too: a compiled
     function keeps the value of a module global it read, even from its on-disk cache)."""
     return np.array([cl.c0, cl.P0, cl.gamma, cl.kappa, cl.cos_theta, LAWS[cl.law], cl.F0, cl.alpha, cl.K0,
                      cl.balance_force, 1.0 if cl.jamming else 0.0, cl.jam_fr, cl.jam_c_min, cl.jam_c_max,
-                     BCS[bc_kind], inlet[0], inlet[1], inlet[2], P_end, dx, SSP_STAGES], dtype=np.float64)
+                     BCS[bc_kind], inlet[0], inlet[1], inlet[2], P_end, dx, SSP_STAGES, cl.jterm, cl.wall, cl.v_eps,
+                     1.0 if cl.stokes else 0.0, dt_floor], dtype=np.float64)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -101,16 +102,16 @@ def _pad(U, k, out):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _state(c, v, P, r, kap, gam, jam, fr, cmin, cmax):
+def _state(c, v, P, r, kap, gam, jam, fr, cmin, cmax, jt):
     """Flux, conserved variables and the extreme speeds of one face state (the constants as scalars, so that
     the compiler keeps them in registers and vectorizes the loop over the faces)."""
     cs = max(c, C_FLOOR)
     pj, dpj = _pj(c, jam, fr, cmin, cmax)
     m = r * (1 - c)
-    b = v / (kap * cs)
+    b = jt * (v / (kap * cs))
     a = gam * P / (cs * (1 - c)) + dpj
     root = math.sqrt(b * b + 4 * a)
-    return (c * v, c * v * v + v * v / (2 * kap) + P + pj, m * v, c, c * v, m,
+    return (c * v, c * v * v + jt * (v * v / (2 * kap)) + P + pj, m * v, c, c * v, m,
             v + 0.5 * (b - root), v + 0.5 * (b + root))
 
 
@@ -123,6 +124,7 @@ def _rate(U, k, Upad, W, out, acc, w):
     _prim(Upad, k, W)
     dx = k[K_DX]
     kap, gam, jam, fr, cmin, cmax = k[K_KAPPA], k[K_GAMMA], k[K_JAM] != 0.0, k[K_FR], k[K_CMIN], k[K_CMAX]
+    jt = k[K_JTERM]
     H = np.empty((3, n + 1))
     S = np.empty((4, n + 4))  # limited slopes of the padded cells 1 .. n + 2, each computed once
     for j in range(4):
@@ -138,8 +140,8 @@ def _rate(U, k, Upad, W, out, acc, w):
         wr2 = W[2, i + 1] - 0.5 * S[2, i + 1]
         wl3 = W[3, i] + 0.5 * S[3, i]
         wr3 = W[3, i + 1] - 0.5 * S[3, i + 1]
-        fl0, fl1, fl2, ul0, ul1, ul2, lol, hil = _state(wl0, wl1, wl2, wl3, kap, gam, jam, fr, cmin, cmax)
-        fr0, fr1, fr2, ur0, ur1, ur2, lor, hir = _state(wr0, wr1, wr2, wr3, kap, gam, jam, fr, cmin, cmax)
+        fl0, fl1, fl2, ul0, ul1, ul2, lol, hil = _state(wl0, wl1, wl2, wl3, kap, gam, jam, fr, cmin, cmax, jt)
+        fr0, fr1, fr2, ur0, ur1, ur2, lor, hir = _state(wr0, wr1, wr2, wr3, kap, gam, jam, fr, cmin, cmax, jt)
         ap = max(max(hil, hir), 0.0)
         am = min(min(lol, lor), 0.0)
         span = ap - am
@@ -148,8 +150,11 @@ def _rate(U, k, Upad, W, out, acc, w):
         H[0, f] = (ap * fl0 - am * fr0 + ap * am * (ur0 - ul0)) / span
         H[1, f] = (ap * fl1 - am * fr1 + ap * am * (ur1 - ul1)) / span
         H[2, f] = (ap * fl2 - am * fr2 + ap * am * (ur2 - ul2)) / span
-    if int(k[K_BC]) == 1:  # the feed: exactly the fed grains enter
-        H[0, 0] = k[K_IN_Q]
+    if int(k[K_BC]) == 1:  # the feed, no faster than a denser top cell's grains (scheme.inlet_flux)
+        if U[0, 0] < k[K_IN_C]:
+            H[0, 0] = k[K_IN_Q]
+        else:
+            H[0, 0] = k[K_IN_C] * min(max(U[1, 0] / U[0, 0], 0.0), k[K_IN_Q] / k[K_IN_C])
     if int(k[K_BC]) != 0:
         acc[0] += w * H[0, 0]
         acc[1] += w * H[0, n]
@@ -184,15 +189,48 @@ def _hyperbolic(U, dt, k, Upad, W, acc):
 
 
 @njit(cache=True, error_model="numpy")
+def _solve_tanh(c, aF, R, ve):
+    """The root of ``c u + aF tanh(u / ve) = R``, as :func:`grainplug.simulation.scheme._solve_tanh`."""
+    lo, hi = (R - aF) / c, (R + aF) / c
+    u = (R - math.copysign(aF, R)) / c if abs(R) > aF else R / (c + aF / ve)  # sliding, or stuck (linear)
+    for _ in range(200):
+        t = math.tanh(u / ve)
+        g = c * u + aF * t - R
+        if g == 0:
+            return u
+        if g > 0:
+            hi = u
+        else:
+            lo = u
+        un = u - g / (c + aF * (1 - t * t) / ve)
+        if not (lo < un < hi):
+            un = 0.5 * (lo + hi)
+        if abs(un - u) <= 1e-15 * max(abs(un), ve):
+            return un
+        u = un
+    return u
+
+
+@njit(cache=True, error_model="numpy")
 def _sources(U, dt, k):
     law = int(k[K_LAW])
+    jam, fr, cmin, cmax = k[K_JAM] != 0.0, k[K_FR], k[K_CMIN], k[K_CMAX]
+    ve = k[K_VEPS]
     for i in range(U.shape[1]):
         c = U[0, i]
         cs = max(c, C_FLOOR)
         v = U[1, i] / cs if c > C_FLOOR else 0.0
         G = c * k[K_COS] + k[K_BAL]
-        if law >= 1:
-            F = k[K_F0] * (c / k[K_C0] if law == 2 else 1.0)
+        if law == 3 and ve > 0:  # regularised Coulomb friction on the contact stress, TR-BDF2
+            F = k[K_WALL] * _pj(c, jam, fr, cmin, cmax)[0]
+            a = _BETA * dt
+            ug = _solve_tanh(cs, a * F, cs * v + a * (G - F * math.tanh(v / ve)) + a * G, ve)
+            v1 = _solve_tanh(cs, a * F, _A * cs * ug - (_A - 1.0) * cs * v + a * G, ve)
+        elif law >= 1:
+            if law == 3:
+                F = k[K_WALL] * _pj(c, jam, fr, cmin, cmax)[0]
+            else:
+                F = k[K_F0] * (c / k[K_C0] if law == 2 else 1.0)
             sgn = (1.0 if v > 0 else -1.0) if v != 0 else (1.0 if G >= 0 else -1.0)
             u, g = sgn * v, sgn * G
             u_free = u + dt * (g - F) / cs
@@ -304,6 +342,7 @@ def _diffusion(U, dt, k, P):
     n = U.shape[1]
     bc = int(k[K_BC])
     c0, gam, K0, dx = k[K_C0], k[K_GAMMA], k[K_K0], k[K_DX]
+    stokes = k[K_STOKES] != 0.0
     rk = np.empty(n)
     J = np.empty(n)
     kc0 = c0 * c0 / (1 - c0) ** 3
@@ -312,6 +351,8 @@ def _diffusion(U, dt, k, P):
         r = m / (1 - c)
         cs = max(c, C_FLOOR)
         rk[i] = r * K0 * ((1 - cs) ** 3 / (cs * cs)) * kc0
+        if stokes:
+            rk[i] *= 10 * cs / (1 + 9 * cs)
         J[i] = gam * P[i] / max(m, 1e-300)
     D = np.empty(n + 1)
     Pext = np.empty(n + 2)
@@ -366,7 +407,7 @@ def _max_speed(U, P_cells, k):
         v = U[1, i] / cs if c > C_FLOOR else 0.0
         P = P_cells[i]
         _, dpj = _pj(c, jam, fr, cmin, cmax)
-        b = v / (k[K_KAPPA] * cs)
+        b = k[K_JTERM] * (v / (k[K_KAPPA] * cs))
         a = k[K_GAMMA] * P / (cs * (1 - c)) + dpj
         root = math.sqrt(b * b + 4 * a)
         here = max(abs(v + 0.5 * (b - root)), abs(v + 0.5 * (b + root)))
@@ -405,9 +446,9 @@ def step(U, dt, k):
 @njit(cache=True, error_model="numpy")
 def advance(U, t, t_end, cfl, k, acc):
     """Steps of CFL-limited length from ``t`` to exactly ``t_end``, consecutive diffusion half-steps merged, as
-    :meth:`Integrator.advance`; returns the state, the time reached and the number of steps (stops early, with
-    a non-finite speed, if the state blows up). The grain that enters and leaves an open pipe meanwhile is
-    added to ``acc[0]`` and ``acc[1]``."""
+    :meth:`Integrator.advance`; returns the state, the time reached and the number of steps (stops early, the
+    count negative, if the state blows up or the time step falls below ``k[K_DTMIN]``). The grain that enters
+    and leaves an open pipe meanwhile is added to ``acc[0]`` and ``acc[1]``."""
     n = U.shape[1]
     Upad = np.empty((3, n + 4))
     W = np.empty((4, n + 4))
@@ -421,7 +462,10 @@ def advance(U, t, t_end, cfl, k, acc):
         s = _max_speed(U, P, k)
         if not math.isfinite(s) or s <= 0:
             return U, t, -1 - steps
-        dt = min((k[K_STAGES] - 1) * cfl * dx / s, t_end - t)
+        dt = (k[K_STAGES] - 1) * cfl * dx / s
+        if dt < k[K_DTMIN]:  # the model left its validity (the caller says where): stop, state finite
+            return U, t, -1 - steps
+        dt = min(dt, t_end - t)
         _diffusion(U, owed + 0.5 * dt, k, P)
         U = _core(U, dt, k, Upad, W, acc)
         owed = 0.5 * dt

@@ -81,6 +81,14 @@ class Closure:
     jam_fr: float
     jam_c_min: float
     jam_c_max: float
+    #: 1 with the paper's Janssen term ``(v^2 / 2 kappa)_z``, 0 without it
+    jterm: float = 1.0
+    #: ``4 mu_s kappa``: the coulomb-janssen friction is ``wall * sigma_c(c)``
+    wall: float = 0.0
+    #: its regularisation velocity (0: exact, set-valued)
+    v_eps: float = 0.0
+    #: Stokes' drag added to Carman-Kozeny's (``DRAG_LAWS``)
+    stokes: bool = False
 
     @classmethod
     def from_params(cls, p: ModelParams, *, balance: bool = True) -> Closure:
@@ -91,16 +99,21 @@ class Closure:
         cos_theta = math.cos(math.radians(p.theta_deg))
         # gamma P0 K(c0) / (1 - c0) = B1* P0  ->  K(c0) = B1* (1 - c0) / gamma
         K0 = p.B1_star * (1 - c0) / p.gamma
+        if p.law == "coulomb-janssen" and p.mu_s * p.kappa == 0:
+            raise ParameterError("Coulomb friction on the contact stress needs mu_s > 0")
         return cls(c0=c0, v0=p.v0_star, P0=P0, gamma=p.gamma, kappa=p.kappa, cos_theta=cos_theta, law=p.law,
                    F0=p.base_friction, alpha=2.0 * p.b * p.mu_s, K0=K0,
                    balance_force=p.base_state_residual if balance else 0.0, jamming=p.jamming,
-                   jam_fr=p.jamming_fr_pa / p.P_c_pa, jam_c_min=p.jamming_c_min, jam_c_max=p.jamming_c_max)
+                   jam_fr=p.jamming_fr_pa / p.P_c_pa, jam_c_min=p.jamming_c_min, jam_c_max=p.jamming_c_max,
+                   jterm=1.0 if p.janssen_v2_term else 0.0, wall=4.0 * p.mu_s * p.kappa,
+                   v_eps=p.friction_v_eps or 0.0, stokes=p.drag == "stokes-carman")
 
     # -- closures -------------------------------------------------------------------
     def permeability(self, c: np.ndarray) -> np.ndarray:
         """``K(c) = K(c0) [(1 - c)^3 / c^2] / [(1 - c0)^3 / c0^2]`` (Carman-Kozeny)."""
         c = np.maximum(c, C_FLOOR)
-        return self.K0 * ((1 - c) ** 3 / c**2) * (self.c0**2 / (1 - self.c0) ** 3)
+        K = self.K0 * ((1 - c) ** 3 / c**2) * (self.c0**2 / (1 - self.c0) ** 3)
+        return K * (10 * c / (1 + 9 * c)) if self.stokes else K
 
     def jamming_pressure(self, c: np.ndarray) -> np.ndarray:
         """``p_j = Fr (c - c_min)^2 / (c_max - c)^5`` above ``c_min`` (0 without jamming)."""
@@ -142,12 +155,13 @@ class Closure:
         """The hyperbolic flux ``(c v, c v^2 + v^2 / 2 kappa + P + p_j, m v)``, ``m = r (1 - c)``; ``r`` defaults
         to the air density of ``P``."""
         m = (self.air_density(P) if r is None else r) * (1 - c)
-        return np.stack([c * v, c * v * v + v * v / (2 * self.kappa) + P + self.jamming_pressure(c), m * v])
+        return np.stack([c * v, c * v * v + self.jterm * (v * v / (2 * self.kappa)) + P + self.jamming_pressure(c),
+                         m * v])
 
     def speeds(self, c: np.ndarray, v: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Smallest and largest characteristic speeds ``(v + s-, v + s+)``."""
         cs = np.maximum(c, C_FLOOR)
-        b = v / (self.kappa * cs)
+        b = self.jterm * (v / (self.kappa * cs))
         a = self.gamma * P / (cs * (1 - c)) + self.jamming_slope(c)
         root = np.sqrt(b * b + 4 * a)
         return v + 0.5 * (b - root), v + 0.5 * (b + root)

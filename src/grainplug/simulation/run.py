@@ -146,7 +146,10 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
         if params.feed_rate_g_s is not None:
             feed_v = feed_velocity(model, params.feed_rate_g_s, feed_c)
         bc = Boundary("open", inlet_c=feed_c, inlet_v=feed_v, P_end=closure.P0)
-    integ = Integrator(closure, params.n_cells, params.dx, bc)
+    if params.boundary == "open" and model.jamming and bc.inlet_c >= model.jamming_c_max:
+        raise ParameterError(f"the feed compactness {bc.inlet_c:g} is at or above close packing "
+                             f"(jamming_c_max = {model.jamming_c_max:g}): no grain can be fed that dense")
+    integ = Integrator(closure, params.n_cells, params.dx, bc, dt_floor=params.dt_floor_tc)
     rng = rng if rng is not None else np.random.default_rng(0)
     U = initial_state(closure, params, rng) if initial is None else np.array(initial, dtype=float)
     if U.shape != (3, params.n_cells):
@@ -167,7 +170,7 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
     if params.engine == "numba":
         from . import _kernel
 
-        consts = _kernel.pack(closure, bc.kind, integ.inlet, bc.P_end, params.dx)
+        consts = _kernel.pack(closure, bc.kind, integ.inlet, bc.P_end, params.dx, params.dt_floor_tc)
 
         def advance(U: np.ndarray, t: float, t_end: float) -> tuple[np.ndarray, float, int]:
             return _kernel.advance(U, t, t_end, params.cfl, consts, budget)
@@ -183,9 +186,12 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
         elif paced[0] > 0 and time.perf_counter() - paced[0] >= ESTIMATE_AFTER_S:
             _check_time(time.perf_counter() - paced[0], t - paced[1], params.duration_tc - t, max_seconds)
             paced = (-1.0, 0.0)  # estimated once
-        if n < 0 or not np.isfinite(U).all():
+        if not np.isfinite(U).all():
             raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (a non-finite state): "
                                  "try more cells or a smaller cfl=")
+        if n < 0:
+            raise ParameterError(_time_step_collapse(U, closure, params, t))
+        _check_validity(U, closure, params, t)
         steps += n
         fields[j] = np.stack(closure.primitive(U))
         totals[j] = U[0].sum() * params.dx, U[2].sum() * params.dx
@@ -201,6 +207,45 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
                            grain_outflow=crossed[:, 1])
     log.info("simulated %g t_c in %d steps, %.1f s", params.duration_tc, steps, wall)
     return dataclasses.replace(res, warnings=tuple(_checks(res, closure, c_peak, m_low)))
+
+
+#: a compactness this close to 1 was clipped by the scheme: the run left the model
+C_CLIPPED = 1.0 - 1e-6
+
+
+def _where(params: SimulationParams, i: int, t: float) -> str:
+    return f"at t = {t:.4g} t_c, z = {(i + 0.5) * params.dx:.3g} D (cell {i})"
+
+
+def _check_validity(U: np.ndarray, closure: Closure, params: SimulationParams, t: float) -> None:
+    """Stop, in one line, a run whose state left the model: a compactness reaching 1 (clipped by the scheme,
+    so no longer conserved) or a negative air mass."""
+    i = int(np.argmax(U[0]))
+    if U[0, i] >= C_CLIPPED:
+        raise ParameterError(f"the compactness reached 1 {_where(params, i, t)}: the grains overlap, the model "
+                             "no longer holds (use jamming=True, which caps it below close packing)")
+    i = int(np.argmin(U[2]))
+    if U[2, i] < -AIR_NEGATIVE:
+        raise ParameterError(f"the air mass went negative ({U[2, i]:.3g}) {_where(params, i, t)}: the state left "
+                             "the model (use more cells or a smaller cfl=)")
+
+
+def _time_step_collapse(U: np.ndarray, closure: Closure, params: SimulationParams, t: float) -> str:
+    """The one-line message of a run stopped because its time step fell below ``params.dt_floor_tc``: the cell
+    whose waves limit it and which term of their speed (air or jamming) makes them fast."""
+    c, v, P = closure.primitive(U)
+    lo, hi = closure.speeds(c, v, P)
+    s = np.maximum(np.abs(lo), np.abs(hi))
+    i = int(np.argmax(s))
+    cs = max(float(c[i]), C_FLOOR)
+    air = closure.gamma * float(P[i]) / (cs * (1 - float(c[i])))
+    jam = float(closure.jamming_slope(c[i:i + 1])[0])
+    why = ("the air's compressibility acting on almost no grain (a nearly emptied cell: the model has no air "
+           "inertia, so its waves there are unbounded)" if air >= jam else
+           "the jamming pressure's stiffness (grains packed near close packing)")
+    return (f"the time step fell below dt_floor_tc = {params.dt_floor_tc:g} t_c {_where(params, i, t)}, "
+            f"c = {float(c[i]):.4g}: its waves travel at {float(s[i]):.3g} v_c, from {why}; the run left the "
+            "model's validity")
 
 
 def _checks(res: SimulationResult, closure: Closure, c_peak: float, m_low: float) -> list[str]:

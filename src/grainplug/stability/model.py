@@ -72,7 +72,8 @@ def system_matrices(p: ModelParams, k: np.ndarray) -> tuple[np.ndarray, np.ndarr
     A[:, 0, 0] = ik * v0
     A[:, 0, 1] = ik * p.c0
     A[:, 1, 0] = -math.cos(_theta(p)) + p.friction_c + ik * p.jamming_slope
-    A[:, 1, 1] = ik * p.c0 * v0 + ik * v0 / p.kappa + p.friction
+    janssen = ik * v0 / p.kappa if p.janssen_v2_term else 0.0  # the paper's (v / kappa) v_z, or dropped
+    A[:, 1, 1] = ik * p.c0 * v0 + janssen + p.friction
     A[:, 1, 2] = ik
     A[:, 2, 1] = p.gamma * P0 / (1 - p.c0) * ik
     A[:, 2, 2] = ik * v0 + p.B_star * k**2
@@ -95,7 +96,8 @@ def dispersion_coefficients(p: ModelParams, k: float | np.ndarray) -> np.ndarray
     coefficient of the variant, ``4 b mu_s`` or 0). It holds for the printed base state
     (``v* = 1, P* = 1``, no friction on ``c~``); other set-ups' roots come from the matrix.
     """
-    if p.v0_star != 1.0 or p.P0_star != 1.0 or p.friction_c != 0.0 or p.jamming_slope != 0.0:
+    if (p.v0_star != 1.0 or p.P0_star != 1.0 or p.friction_c != 0.0 or p.jamming_slope != 0.0
+            or not p.janssen_v2_term or p.drag != "carman-kozeny"):
         from ..errors import ParameterError
 
         raise ParameterError("the printed cubic holds for the printed base state only (v* = 1, P* = 1, friction "

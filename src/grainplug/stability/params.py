@@ -29,6 +29,16 @@ FRICTION_LAWS = {
                       "perturbations (the frozen-friction variant)",
     "coulomb-weight": "Coulomb friction following the local weight: F = F0 c / c0 (a Janssen normal stress "
                       "proportional to the grains' weight), F0 = 2 b mu_s v0^2",
+    "coulomb-janssen": "rate-independent Coulomb wall friction on Janssen's wall stress: F = 4 mu_s kappa "
+                       "sigma_c(c) sgn(v), set-valued (a jammed column held at rest) or regularised as "
+                       "tanh(v / v_eps); sigma_c is the contact stress (the jamming pressure, zero below its "
+                       "c_min, random loose packing): needs jamming=True (issue 37)",
+}
+#: air-grain drag laws (the permeability of Darcy's law for the air's flow through the grains)
+DRAG_LAWS = {
+    "carman-kozeny": "as in the paper: Carman-Kozeny, beta = 180 mu c^2 / (d^2 (1 - c)); vanishes as c -> 0",
+    "stokes-carman": "Stokes' single-grain drag added: beta = 18 mu c (1 + 9 c) / (d^2 (1 - c)), which is "
+                     "Stokes' 18 mu c / d^2 for dilute grains and within 10 % of Carman-Kozeny in a plug (issue 37)",
 }
 #: base velocities: the printed v* = 1, or the one at which friction carries the weight
 BASE_VELOCITIES = ("printed", "balanced")
@@ -90,6 +100,17 @@ class ModelParams:
     jamming_fr_pa, jamming_c_min, jamming_c_max : float
         Its constants: ``Fr`` in Pa (0.05 Pa, Johnson & Jackson's glass beads), the
         compactness where contacts start to last (0.50) and random close packing (0.64).
+        With ``friction_law="coulomb-janssen"`` the jamming pressure is the contact (Janssen) stress
+        ``sigma_c`` and ``c_min`` is random loose packing (set it to 0.55-0.58).
+    janssen_v2_term : bool
+        Keep the paper's Janssen term ``(v / kappa) v_z`` in the grains' momentum (default, as printed).
+        ``False`` drops it (issue 37's closure, where the Janssen effect is the wall friction on the contact
+        stress instead).
+    friction_v_eps : float, optional
+        Regularisation velocity of the ``coulomb-janssen`` friction, units of ``v_c``:
+        ``F = 4 mu_s kappa sigma_c tanh(v / v_eps)``. None (default): exact, set-valued Coulomb friction.
+    drag : str
+        One of :data:`DRAG_LAWS` (``"carman-kozeny"`` as in the paper).
 
     Notes
     -----
@@ -119,6 +140,9 @@ class ModelParams:
     jamming_fr_pa: float = 0.05
     jamming_c_min: float = 0.50
     jamming_c_max: float = 0.64
+    janssen_v2_term: bool = True
+    friction_v_eps: float | None = None
+    drag: str = "carman-kozeny"
 
     def __post_init__(self) -> None:
         from ..params import as_number
@@ -159,9 +183,19 @@ class ModelParams:
             (0 <= self.jamming_c_min < self.jamming_c_max < 1, "need 0 <= jamming c_min < c_max < 1"),
             (not self.jamming or self.c0 < self.jamming_c_max,
              "c0 must be below the jamming compactness c_max (random close packing)"),
-            (self.base_velocity != "balanced" or not self.law.startswith("coulomb"),
+            (self.drag in DRAG_LAWS, f"drag must be one of {', '.join(DRAG_LAWS)}"),
+            (self.friction_v_eps is None or (math.isfinite(self.friction_v_eps) and self.friction_v_eps > 0),
+             "the friction's regularisation velocity v_eps must be positive (None: exact Coulomb friction)"),
+            (self.friction_v_eps is None or self.law == "coulomb-janssen",
+             "friction_v_eps regularises the coulomb-janssen friction law only"),
+            (self.law != "coulomb-janssen" or self.jamming,
+             "the coulomb-janssen friction acts on the contact stress: it needs jamming=True"),
+            (self.base_velocity != "balanced" or not self.law.startswith("coulomb")
+             or (self.law == "coulomb-janssen" and self.friction_v_eps is not None
+                 and self.janssen_stress_ratio > 1.0),
              "with Coulomb friction the velocity does not set the friction: no velocity balances the weight "
-             "(use the v2 or v|v| law, or the printed base velocity)"),
+             "(use the v2 or v|v| law, or the printed base velocity; coulomb-janssen balances with a v_eps and a "
+             "contact stress at c0 whose friction exceeds the weight)"),
         ]
         for ok, msg in checks:
             if not ok:
@@ -243,7 +277,7 @@ class ModelParams:
     def is_printed(self) -> bool:
         """Whether the set-up is the paper's as printed (friction law, base pressure and velocity)."""
         return (self.law == "v2" and self.base_pressure_pa is None and self.base_velocity == "printed"
-                and not self.jamming)
+                and not self.jamming and self.janssen_v2_term and self.drag == "carman-kozeny")
 
     @property
     def P0_star(self) -> float:
@@ -260,25 +294,61 @@ class ModelParams:
         """Base velocity in units of ``v_c`` (1 as printed; balanced: ``sqrt(c0 cos(theta) / (2 b mu_s))``)."""
         if self.base_velocity == "printed":
             return 1.0
+        if self.law == "coulomb-janssen":  # 4 mu kappa sigma_c(c0) tanh(v0 / v_eps) = c0 cos(theta)
+            return float(self.friction_v_eps or 0.0) * math.atanh(1.0 / self.janssen_stress_ratio)
         if self.mu_s == 0:
             raise ParameterError("without friction (mu_s = 0) no velocity balances the weight")
         return math.sqrt(self.c0 * math.cos(math.radians(self.theta_deg)) / (2.0 * self.b * self.mu_s))
 
     @property
+    def contact_stress(self) -> float:
+        """The contact stress ``sigma_c(c0) = p_j(c0) / P_c`` (0 without jamming or below ``c_min``)."""
+        if not self.jamming or self.c0 <= self.jamming_c_min:
+            return 0.0
+        x, y = self.c0 - self.jamming_c_min, self.jamming_c_max - self.c0
+        return self.jamming_fr_pa * x * x / y**5 / self.P_c_pa if y > 0 else math.inf
+
+    @property
+    def janssen_stress_ratio(self) -> float:
+        """The largest wall friction of the base state over the grains' weight, ``4 mu_s kappa sigma_c(c0) /
+        (c0 cos theta)``: above 1 the walls can hold the column at rest."""
+        return 4.0 * self.mu_s * self.kappa * self.contact_stress / (self.c0 * math.cos(math.radians(self.theta_deg)))
+
+    def _janssen_tanh(self) -> tuple[float, float]:
+        """``tanh(v0 / v_eps)`` and its derivative in ``v0`` (1 and 0 for the exact law with v0 > 0)."""
+        v0 = self.v0_star
+        if self.friction_v_eps is None:
+            return math.copysign(1.0, v0) if v0 != 0 else 0.0, 0.0
+        t = math.tanh(v0 / self.friction_v_eps)
+        return t, (1.0 - t * t) / self.friction_v_eps
+
+    @property
     def base_friction(self) -> float:
         """``F0 = F(c0, v0)``: the wall friction of the base state."""
+        if self.law == "coulomb-janssen":
+            return 4.0 * self.mu_s * self.kappa * self.contact_stress * self._janssen_tanh()[0]
         v0 = self.v0_star
         return 2.0 * self.b * self.mu_s * v0 * abs(v0)
 
     @property
     def friction(self) -> float:
         """``F_v = dF/dv`` at the base state: the coefficient of ``v~`` in the perturbed momentum equation."""
+        if self.law == "coulomb-janssen":
+            return 4.0 * self.mu_s * self.kappa * self.contact_stress * self._janssen_tanh()[1]
         return 0.0 if self.law.startswith("coulomb") else 4.0 * self.b * self.mu_s * abs(self.v0_star)
 
     @property
     def friction_c(self) -> float:
         """``F_c = dF/dc`` at the base state: the coefficient of ``c~`` from the friction."""
+        if self.law == "coulomb-janssen":
+            return 4.0 * self.mu_s * self.kappa * self.jamming_slope * self._janssen_tanh()[0]
         return self.base_friction / self.c0 if self.law == "coulomb-weight" else 0.0
+
+    @property
+    def drag_factor(self) -> float:
+        """The permeability at ``c0`` relative to Carman-Kozeny's: ``10 c0 / (1 + 9 c0)`` with Stokes' drag
+        added (:data:`DRAG_LAWS`), else 1."""
+        return 10.0 * self.c0 / (1.0 + 9.0 * self.c0) if self.drag == "stokes-carman" else 1.0
 
     @property
     def jamming_slope(self) -> float:
@@ -292,7 +362,7 @@ class ModelParams:
     @property
     def B_star(self) -> float:
         """Dimensionless diffusivity of the air pressure at the base pressure, ``B1* P0*``."""
-        return self.B1_star * self.P0_star
+        return self.B1_star * self.P0_star * self.drag_factor
 
     @property
     def base_state_residual(self) -> float:
@@ -328,6 +398,12 @@ class ModelParams:
                        "with Darcy's permeability, which needs many grains across the pipe")
         if self.c0 > 0.64:
             out.append(f"c0 = {self.c0:g} is above random close packing (0.64): spheres cannot pack that tight")
+        if self.law == "coulomb-janssen":
+            out.append("Coulomb wall friction on the contact stress (Janssen) is not the paper's closure (issue 37)")
+        if not self.janssen_v2_term:
+            out.append("the paper's Janssen term (v / kappa) v_z is dropped (issue 37's closure)")
+        if self.drag != "carman-kozeny":
+            out.append("Stokes' single-grain drag is added to Carman-Kozeny's (not the paper's closure)")
         if self.law == "v|v|":
             out.append("v|v| differs from the printed v^2 only for climbing grains; for this downward base flow "
                        "their linear analyses are the same")
@@ -341,4 +417,6 @@ class ModelParams:
                  base_pressure_abs_pa=self.base_pressure_abs_pa, P0_star=self.P0_star, v0_star=self.v0_star,
                  v0_m_s=self.v0_star * self.v_c_m_s, B_star=self.B_star, printed_setup=self.is_printed,
                  jamming_slope=self.jamming_slope)
+        if self.law == "coulomb-janssen":
+            d.update(contact_stress=self.contact_stress, janssen_stress_ratio=self.janssen_stress_ratio)
         return d
