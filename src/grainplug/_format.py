@@ -34,3 +34,31 @@ def duration(seconds: float) -> str:
     """A record's duration to four significant digits: ``0.0005 s`` (a high-speed clip), ``2.35 s``, ``1235 s``
     (fixed decimals read 0.5 ms as 0.001 s)."""
     return f"{seconds:.4g} s" if abs(seconds) < 1e4 else f"{seconds:.0f} s"
+
+
+def oscillation_phrase(frequency_hz: float, frequency_ci95_hz: tuple[float, float] | list[float] | None,
+                       amplitude_mm: float | None, amplitude_ci95_mm: tuple[float, float] | list[float] | None,
+                       kind: str | None = None, stick_fraction: float | None = None) -> str:
+    """One line for an oscillation: ``4.000 Hz (95% CI 3.998 to 4.002), amplitude 2.37 mm (95% CI 2.36 to 2.38,
+    half peak-to-peak), stick-slip (still 60 % of the period)``; the intervals and the kind left out when
+    missing, the digits enough to tell an interval's ends apart."""
+
+    def plain(value: float, ci: tuple[float, float] | list[float] | None, decimals: int) -> str:
+        if not ci or None in ci:
+            return f"{value:.{decimals}f}"
+        while decimals < 6 and f"{ci[0]:.{decimals}f}" == f"{ci[1]:.{decimals}f}":
+            decimals += 1
+        return f"{value:.{decimals}f} (95% CI {ci[0]:.{decimals}f} to {ci[1]:.{decimals}f}"
+
+    f_text = plain(frequency_hz, frequency_ci95_hz, 2)
+    f_text = f_text.replace(" (95% CI", " Hz (95% CI") + ")" if "CI" in f_text else f_text + " Hz"
+    out = f_text
+    if amplitude_mm is not None:
+        a_text = plain(amplitude_mm, amplitude_ci95_mm, 2)
+        a_text = (a_text.replace(" (95% CI", " mm (95% CI") + ", half peak-to-peak)" if "CI" in a_text
+                  else a_text + " mm (half peak-to-peak)")
+        out += f", amplitude {a_text}"
+    if kind:
+        out += f", {kind}" + (f" (still {100 * stick_fraction:.0f} % of the period)"
+                              if stick_fraction is not None else "")
+    return out

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._format import with_interval
+from ._format import oscillation_phrase, with_interval
 from ._version import __version__
 from .calibration.tube import TubeGeometry
 from .calibration.tube_model import BoreEstimate
@@ -36,6 +36,7 @@ from .measures import Lengths, Motion
 from .measures.compactness import PhaseCompactness
 from .measures.creep import GrainVelocity
 from .measures.mass_flow import MassFlow, mass_flow_rate, mean_compactness
+from .measures.motion import Oscillation
 from .measures.shake import Shake
 from .measures.still import BlindStretch
 from .params import AnalysisParams
@@ -399,8 +400,10 @@ class AnalysisResult:
             ("plug length", f"{num(s['plug_length_mm'], 2)} mm{ci(s['plug_length_ci95_mm'], 2)}, "
                             f"{num(s['plug_length_over_diameter'], 2)} D, {s['n_plugs']} plugs"),
             ("bubble length", f"{num(s['bubble_length_mm'], 2)} mm{ci(s['bubble_length_ci95_mm'], 2)}"),
-            ("oscillation", "none" if not s["oscillation_frequency_hz"] else
-             f"{num(s['oscillation_frequency_hz'], 2)} Hz, amplitude {num(s['oscillation_amplitude_mm'], 2)} mm"),
+            ("oscillation", "none" if not s["oscillation_frequency_hz"] else oscillation_phrase(
+                s["oscillation_frequency_hz"], s.get("oscillation_frequency_ci95_hz"), s["oscillation_amplitude_mm"],
+                s.get("oscillation_amplitude_ci95_mm"), s.get("oscillation_kind"),
+                s.get("oscillation_stick_fraction"))),
             ("compactness", s["compactness"]["note"] or
              f"plugs {num(s['compactness']['plugs'], 3)}{ci(s['compactness']['plugs_ci95'], 3)}, "
              f"bubbles {num(s['compactness']['bubbles'], 3)}{ci(s['compactness'].get('bubbles_ci95'), 3)}"),
@@ -499,7 +502,7 @@ def result_types() -> dict[str, type]:
     return {t.__name__: t for t in (AnalysisResult, AnalysisParams, MovieInfo, TubeGeometry, Calibration, Diagram,
                                     Normalized, Runs, Tracks, Motion, Lengths, WallMeasure, BoreEstimate,
                                     Background, Corrections, Edit, BlindStretch, Shake, Lamp, PhaseCompactness,
-                                    GrainVelocity)}
+                                    GrainVelocity, Oscillation)}
 
 
 def load_result(folder: str | Path) -> AnalysisResult:

@@ -62,8 +62,10 @@ TRACK_SCHEMA: dict[str, tuple[str, str]] = {
     "last_time_s": ("float64", "time of its last frame, s"),
     "n_frames": ("int64", "frames it is seen in"),
     "n_frames_whole": ("int64", "frames where both its edges are in view"),
-    "celerity_m_s": ("float64", "slope of its upstream edge (downstream edge if fewer than two seen), m/s, positive "
-                                "downstream; empty with fewer than two edges"),
+    "celerity_m_s": ("float64", "slope of a straight line through its upstream edge (downstream edge if fewer than "
+                                "two seen), m/s, positive downstream, the train's common oscillation (the celerity "
+                                "fit's periodic part) taken out first as the headline's fit does, so that a track seen "
+                                "over part of a period is not tilted by the swing; empty with fewer than two edges"),
     "mean_length_mm": ("float64", "mean length over the frames where it is whole, mm; empty if never whole"),
     "median_length_mm": ("float64", "median of the same, mm"),
     "started_by": ("string", "start (first frame), entered (the view), merge, split or cut (a reviewer's split)"),
@@ -81,7 +83,9 @@ def track_rows(res: AnalysisResult) -> list[dict[str, Any]]:
     Notes
     -----
     A track's celerity is the slope of a straight line fitted to its upper edges (its lower
-    edges when fewer than two upper ones are in view), in m/s; its lengths are over the
+    edges when fewer than two upper ones are in view), in m/s, less the train's common oscillation
+    (:meth:`grainplug.measures.motion.Motion.periodic_mm`, the periodic part of the headline's fit): a track seen
+    over a part of a period is not tilted by where in the swing it starts and ends. Its lengths are over the
     frames where both edges are in view. Tracks left without a plug by a reviewer's
     corrections (excluded, or merged into another) have no row.
     """
@@ -95,7 +99,8 @@ def track_rows(res: AnalysisResult) -> list[dict[str, Any]]:
         frames = r.frame[sel]
         top, bot = r.top_mm[sel], r.bottom_mm[sel]
         whole = np.isfinite(top) & np.isfinite(bot)
-        cel = edge_speed_mm_s(t[frames], top, bot) / 1000
+        swing = res.motion.periodic_mm(t[frames]) if res.motion is not None else 0.0
+        cel = edge_speed_mm_s(t[frames], top - swing, bot - swing) / 1000
         lengths = (bot - top)[whole]
         rows.append({
             "plug_id": tid, "first_frame": int(tr.first_frame[tid]), "last_frame": int(tr.last_frame[tid]),
@@ -232,6 +237,13 @@ def build_summary(res: AnalysisResult) -> dict[str, Any]:
         # absent, not 0, without an oscillation
         "oscillation_amplitude_mm": (_r(m.oscillation_amplitude_mm, 4) if m and m.oscillation_frequency_hz
                                      else None),
+        "oscillation_frequency_ci95_hz": ([_r(v) for v in m.oscillation.frequency_ci95_hz]
+                                          if m and m.oscillation_frequency_hz and m.oscillation else None),
+        "oscillation_amplitude_ci95_mm": ([_r(v, 4) for v in m.oscillation.amplitude_ci95_mm]
+                                          if m and m.oscillation_frequency_hz and m.oscillation else None),
+        "oscillation_kind": m.oscillation.kind if m and m.oscillation_frequency_hz and m.oscillation else None,
+        "oscillation_stick_fraction": (_r(m.oscillation.stick_fraction, 3)
+                                       if m and m.oscillation_frequency_hz and m.oscillation else None),
         "oscillation_explained_fraction": _r(m.explained_fraction, 4) if m else None,
         "regime": m.regime if m else "none",
         "n_plugs": int(ln.n_plugs_measured) if ln else 0,

@@ -11,7 +11,7 @@ import click
 from click.core import ParameterSource
 from rich.markup import escape
 
-from .._format import with_interval
+from .._format import oscillation_phrase, with_interval
 from ..errors import ParameterError
 from ..measures.shake import shake_line
 from ..params import FLOW_DIRECTIONS, AnalysisParams
@@ -311,8 +311,9 @@ def analyze(movie: Path, out: Path, config: Path | None, fps: float | None, mm_p
                    f"({fmt(s['plug_length_over_diameter'], ' D', 2)}, {n_plugs} plug{'' if n_plugs == 1 else 's'})")
         click.echo(f"bubble length   {fmt(s['bubble_length_mm'], ' mm', 2)}")
         if s["oscillation_frequency_hz"]:
-            click.echo(f"oscillation     {fmt(s['oscillation_frequency_hz'], ' Hz', 3)}, "
-                       f"amplitude {fmt(s['oscillation_amplitude_mm'], ' mm', 2)}")
+            click.echo("oscillation     " + oscillation_phrase(
+                s["oscillation_frequency_hz"], s.get("oscillation_frequency_ci95_hz"), s["oscillation_amplitude_mm"],
+                s.get("oscillation_amplitude_ci95_mm"), s.get("oscillation_kind"), s.get("oscillation_stick_fraction")))
         comp = s.get("compactness") or {}
         if comp.get("plugs") is not None or comp.get("bubbles") is not None:
             def with_ci(key: str) -> str:

@@ -39,6 +39,17 @@ it stands above the oscillation's amplitude threshold it is reported apart (``fr
 inflated for the residuals' lag-one autocorrelation ``rho`` by
 ``sqrt((1 + rho) / (1 - rho))``, and the scale's relative uncertainty added in
 quadrature.
+
+*The oscillation's figures* (:func:`oscillation_detail`). ``X(t)`` again, each track's offset now from the full
+fit with up to :data:`SHAPE_HARMONICS` harmonics; a Gauss-Newton fit of drift and harmonics with the frequency
+free refines the frequency. The amplitude is half the peak-to-peak of the period-averaged motion (the fitted
+shape over one period), not the spectrum's peak (the fundamental's alone). Their 95 % intervals: the fit's
+sandwich covariance with a Newey-West long-run variance of the scores (Bartlett kernel, Andrews' AR(1)
+bandwidth) and Kiefer and Vogelsang's fixed-b quantile; plus what holds over whole periods (an edge's error
+that depends on where it stands times each period, and each extreme, once), the shape's truncation, the scale,
+and, on the amplitude's upper end, what an exposure of up to a frame takes from the swing. Calibrated on
+``benchmarks/oscillation_intervals.py`` (docs/accuracy.md). The kind is stick-slip when the train's speed is
+below :data:`STILL_SPEED_SHARE` of its peak over at least :data:`STICK_SLIP_SHARE` of the period.
 """
 
 from __future__ import annotations
@@ -78,7 +89,8 @@ class Motion:
     oscillation_frequency_hz : float or None
         Fundamental frequency of the oscillation (None when propagative).
     oscillation_amplitude_mm : float
-        Half peak-to-peak of the periodic part (0 when propagative).
+        Half the peak-to-peak of the period-averaged motion about the drift (:class:`Oscillation`; when its
+        frequency could not be refined, of the celerity fit's periodic part); 0 when not oscillating.
     explained_fraction : float
         Share of the variance of ``X(t)`` about the drift that the periodic part explains.
     spectrum_hz, spectrum_mm : ndarray
@@ -97,6 +109,12 @@ class Motion:
         module's notes), strong enough to have been taken for an oscillation; not reported as one.
     frame_locked_mm : float
         Its amplitude (0 without one).
+    oscillation : Oscillation or None
+        The oscillation's intervals, kind and stick fraction (None when not oscillating, or when its frequency
+        could not be refined).
+    periodic_coef_mm : ndarray
+        Coefficients ``a_1, b_1, a_2, b_2 ...`` of the periodic part of the celerity's fit (empty when not
+        oscillating); :meth:`periodic_mm` evaluates it.
     """
 
     celerity_m_s: float
@@ -115,6 +133,18 @@ class Motion:
     celerity_se_camera_m_s: float = 0.0
     frame_locked_hz: float | None = None
     frame_locked_mm: float = 0.0
+    oscillation: Oscillation | None = None
+    periodic_coef_mm: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+
+    def periodic_mm(self, t_s: np.ndarray) -> np.ndarray:
+        """The periodic part of the celerity's fit at times ``t_s`` (the motion every plug shares about the drift;
+        zeros when not oscillating): a plug's edge less this is its straight line."""
+        t = np.asarray(t_s, dtype=float)
+        f = self.oscillation_frequency_hz
+        if not f or not len(self.periodic_coef_mm):
+            return np.zeros_like(t)
+        n_harm = len(self.periodic_coef_mm) // 2
+        return _harmonic_columns(t, f, n_harm) @ self.periodic_coef_mm
 
 
 def _drift_and_harmonics(t: np.ndarray, f: float | None, n_harm: int) -> np.ndarray:
@@ -334,6 +364,8 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
     duration = (last - first) / fps
     freqs, spec = _spectrum(seg, fps)
     regime, f_osc, amp, explained = "propagative", None, 0.0, 0.0
+    osc: Oscillation | None = None
+    n_harm_osc = 0
     f_lo = max(1.5 / max(duration, 1e-9), 0.3)
     band = (freqs >= f_lo) & (freqs <= 0.45 * fps)
     tol = max(0.3, 2.0 * (freqs[1] - freqs[0]) if len(freqs) > 1 else 0.3)
@@ -389,14 +421,32 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
             if explained >= 0.5 and amp_fit >= threshold and f_best * duration >= 1.5 and not camera:
                 regime, f_osc, amp = "oscillating", f_best, amp_fit
                 coef = c_best
+                # the train's motion with each track's offset from the full fit with the shape's harmonics (the
+                # drift-only offsets of a track seen over part of a period take in part of the swing, and a
+                # three-harmonic fit's offsets part of a stick-slip's sharper shape), its frequency refined, the
+                # intervals
+                n_shape = max(nh, min(SHAPE_HARMONICS, int((0.45 * fps) // f_best)))
+                c_shape = fitter.solve(f_best, n_shape)[0] if n_shape > nh else coef
+                x_tr = np.bincount(fr_k, weights=(y - c_shape[1 + tix])[keep], minlength=n_frames)
+                seen = cnt > 0
+                osc = oscillation_detail(time_s[seen], x_tr[seen] / cnt[seen], f_best, fps=fps,
+                                         scale_rel_sd=scale_rel_sd, not_hz=not_hz)
+                if abs(osc.frequency_hz - f_best) <= step:  # within a bin of the spectrum: the same peak
+                    f_osc, amp = osc.frequency_hz, osc.amplitude_mm
+                    coef = fitter.solve(f_osc, nh)[0]
+                else:
+                    log.debug("the refined frequency %.4g Hz left the peak at %.4g Hz: no interval", osc.frequency_hz,
+                              f_best)
+                    osc = None
+                n_harm_osc = nh
                 if any(abs(f_best - f_l) <= tol for f_l in frame_locked_hz(fps, 0.45 * fps)):
-                    locked_f, locked_mm = f_best, amp_fit  # reported, and said to repeat every few frames
+                    locked_f, locked_mm = f_osc, amp  # reported, and said to repeat every few frames
     celerity = float(coef[0]) / 1000.0  # mm/s -> m/s
     # interval from the drift fit of X(t) + drift, inflated for autocorrelation
     tt = time_s[first: last + 1]
     drift_series = seg + coef[0] * tt
     if regime == "oscillating":
-        drift_series = drift_series - _periodic_part(coef, n_tr, f_osc, _harmonics_for(f_osc, fps), tt)
+        drift_series = drift_series - _periodic_part(coef, n_tr, f_osc, n_harm_osc, tt)
     # the camera's motion (its frequencies, measured on the tube's walls) is not the plugs' scatter about the drift
     drift_series = _without_frequencies(drift_series, tt, not_hz, lowest_hz=f_lo)
     xm = float(tt.mean())
@@ -427,5 +477,197 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
         time_s=np.asarray(time_s), displacement_mm=X + coef[0] * np.asarray(time_s),
         n_edges=int(ok.sum()), n_tracks_used=n_tr, celerity_se_tracks_m_s=se_tracks,
         celerity_se_camera_m_s=se_camera, frame_locked_hz=locked_f,
-        frame_locked_mm=locked_mm,
+        frame_locked_mm=locked_mm, oscillation=osc,
+        periodic_coef_mm=np.asarray(coef[1 + n_tr:], dtype=float) if regime == "oscillating" else np.zeros(0),
     )
+
+
+# ---- the oscillation's intervals, amplitude and kind ---------------------------------------------------------------
+
+#: harmonics of the period-averaged motion (its shape: enough for a stick-slip staircase, whose slips are smooth)
+SHAPE_HARMONICS = 16
+#: a phase of the period is still when the train's speed there is below this share of its peak speed
+STILL_SPEED_SHARE = 0.05
+#: a motion still for at least this share of its period is stick-slip (a sinusoid is, at most, 14 %: when its
+#: swing's speed just matches the drift's, ``|c + A w cos(phi)| < 0.05 (|c| + A w)`` over 14 % of the period)
+STICK_SLIP_SHARE = 0.2
+
+
+@dataclass(frozen=True)
+class Oscillation:
+    """The oscillation of the train, from the period-averaged motion of its plugs (see the module's notes).
+
+    Attributes
+    ----------
+    frequency_hz : float
+        Fundamental frequency.
+    frequency_ci95_hz : tuple of float
+        Its 95 % interval.
+    amplitude_mm : float
+        Half the peak-to-peak of the period-averaged motion about the drift.
+    amplitude_ci95_mm : tuple of float
+        Its 95 % interval (the scale's uncertainty included).
+    kind : str
+        ``"sinusoidal"`` or ``"stick-slip"`` (still for at least :data:`STICK_SLIP_SHARE` of the period).
+    stick_fraction : float
+        Share of the period in which the train's speed is below :data:`STILL_SPEED_SHARE` of its peak.
+    n_periods : float
+        Periods in the record.
+    phase : ndarray
+        ``0 .. 1`` over one period.
+    shape_mm : ndarray
+        The period-averaged motion about the drift at those phases.
+    """
+
+    frequency_hz: float
+    frequency_ci95_hz: tuple[float, float]
+    amplitude_mm: float
+    amplitude_ci95_mm: tuple[float, float]
+    kind: str
+    stick_fraction: float
+    n_periods: float
+    phase: np.ndarray = field(repr=False, compare=False)
+    shape_mm: np.ndarray = field(repr=False, compare=False)
+
+
+def _fixed_b_quantile(b: float) -> float:
+    """97.5 % quantile of a t-ratio studentised by a Bartlett-kernel long-run variance with bandwidth ``b`` times
+    the sample (Kiefer & Vogelsang 2005, their cubic fit): wider than 1.96 when few independent stretches are left."""
+    b = float(np.clip(b, 0.0, 1.0))
+    return 1.96 + 2.9694 * b + 0.4160 * b * b - 0.5324 * b ** 3
+
+
+def _harmonic_columns(tc: np.ndarray, f: float, n_harm: int) -> np.ndarray:
+    ph = 2 * np.pi * f * tc
+    return np.stack([fn(h * ph) for h in range(1, n_harm + 1) for fn in (np.cos, np.sin)], axis=1)
+
+
+def _sinusoid_fit(tc: np.ndarray, x: np.ndarray, f: float, n_harm: int, extra: np.ndarray,
+                  *, n_iter: int = 8) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """Least squares of ``x = a + b tc + sum_h (alpha_h cos + beta_h sin)(2 pi h f tc) + extra @ gamma`` with ``f``
+    free (Gauss-Newton from ``f``, the linear part solved exactly at each step): ``f``, the linear coefficients
+    (``a, b``, the harmonics', ``gamma``), the Jacobian of every parameter (the frequency last) and the residuals."""
+    span = float(np.ptp(tc)) or 1.0
+
+    def linear(freq: float) -> tuple[np.ndarray, np.ndarray]:
+        design = np.column_stack([np.ones_like(tc), tc, _harmonic_columns(tc, freq, n_harm), extra])
+        return design, _least_squares(design, x)
+
+    def jacobian(freq: float, design: np.ndarray, beta: np.ndarray) -> np.ndarray:
+        ph = 2 * np.pi * freq * tc
+        d_f = np.zeros_like(tc)
+        for h in range(1, n_harm + 1):
+            a, b = beta[2 * h], beta[2 * h + 1]
+            d_f += 2 * np.pi * h * tc * (-a * np.sin(h * ph) + b * np.cos(h * ph))
+        return np.column_stack([design, d_f])
+
+    design, beta = linear(f)
+    for _ in range(n_iter):
+        jac = jacobian(f, design, beta)
+        step = _least_squares(jac, x - design @ beta)[-1]
+        step = float(np.clip(step, -0.25 / span, 0.25 / span))  # a quarter of a period over the record at most
+        f_new = f + step
+        d_new, b_new = linear(f_new)
+        if np.sum((x - d_new @ b_new) ** 2) > np.sum((x - design @ beta) ** 2):
+            break
+        f, design, beta = f_new, d_new, b_new
+        if abs(step) * span < 1e-6:
+            break
+    return f, beta, jacobian(f, design, beta), x - design @ beta
+
+
+def _long_run_covariance(jac: np.ndarray, res: np.ndarray) -> tuple[np.ndarray, int]:
+    """Sandwich covariance of least-squares estimates with serially correlated residuals: Newey-West (Bartlett
+    kernel) with Andrews' (1991) AR(1) plug-in bandwidth; the covariance and the bandwidth (samples)."""
+    n, p = jac.shape
+    rho = float(np.corrcoef(res[:-1], res[1:])[0, 1]) if n > 3 and np.std(res) > 0 else 0.0
+    rho = float(np.clip(np.nan_to_num(rho), 0.0, 0.97))
+    alpha = 4 * rho ** 2 / ((1 - rho) ** 2 * (1 + rho) ** 2)
+    lag = int(min(np.ceil(1.1447 * (alpha * n) ** (1 / 3)), n // 2)) if rho > 0 else 0
+    scores = jac * res[:, None]
+    meat = scores.T @ scores
+    for k in range(1, lag + 1):
+        g = scores[k:].T @ scores[:-k]
+        meat += (1 - k / (lag + 1)) * (g + g.T)
+    bread = np.linalg.pinv(jac.T @ jac)
+    return bread @ meat @ bread * n / max(n - p, 1), lag
+
+
+def _still_share(phase: np.ndarray, shape_mm: np.ndarray, drift_mm_s: float, f: float) -> float:
+    """Share of the period in which the train's speed (the drift's plus the period-averaged motion's) is below
+    :data:`STILL_SPEED_SHARE` of its peak."""
+    dphi = phase[1] - phase[0]
+    v = drift_mm_s + (np.roll(shape_mm, -1) - np.roll(shape_mm, 1)) / (2 * dphi) * f
+    peak = float(np.max(np.abs(v)))
+    return float(np.mean(np.abs(v) < STILL_SPEED_SHARE * peak)) if peak > 0 else 1.0
+
+
+def oscillation_detail(time_s: np.ndarray, x_mm: np.ndarray, f_hz: float, *, fps: float,
+                       scale_rel_sd: float = 0.0, not_hz: tuple[float, ...] = ()) -> Oscillation:
+    """Frequency and amplitude of the train's oscillation with their 95 % intervals, its kind and stick fraction.
+
+    Parameters
+    ----------
+    time_s, x_mm : ndarray
+        The train's displacement (drift included) in each frame where it was seen.
+    f_hz : float
+        The oscillation's frequency as found (refined here).
+    fps : float
+        Frame rate (bounds the harmonics).
+    scale_rel_sd : float
+        Relative standard uncertainty of the scale (the amplitude's interval takes it in).
+    not_hz : tuple of float
+        The camera's frequencies: fitted apart (their sinusoids are not the plugs'); the shape keeps only the
+        harmonics below the first that the record cannot tell from one of them.
+
+    Returns
+    -------
+    Oscillation
+    """
+    from .._filters import t_quantile_975
+    tc = time_s - time_s.mean()
+    span = float(np.ptp(tc)) or 1.0
+    n_harm = max(1, min(SHAPE_HARMONICS, int((0.45 * fps) // f_hz), (len(tc) - 3) // 2 - 1))
+    camera = [float(g) for g in not_hz if 1.0 / span <= g <= 0.45 * fps]
+    for h in range(2, n_harm + 1):  # a harmonic the record cannot tell from the camera's motion ends the shape
+        if any(abs(h * f_hz - g) < 1.0 / span for g in camera):
+            n_harm = h - 1
+            break
+    camera = [g for g in camera if all(abs(h * f_hz - g) >= 1.0 / span for h in range(1, n_harm + 1))]
+    extra = (np.stack([fn(2 * np.pi * g * tc) for g in camera for fn in (np.cos, np.sin)], axis=1) if camera
+             else np.zeros((len(tc), 0)))
+    f, beta, jac, res = _sinusoid_fit(tc, x_mm, f_hz, n_harm, extra)
+    cov, lag = _long_run_covariance(jac, res)
+    n = len(tc)
+    q = max(_fixed_b_quantile(lag / n), t_quantile_975(max(n - jac.shape[1], 1)))
+    phase = np.linspace(0.0, 1.0, 720, endpoint=False)
+    basis = _harmonic_columns(phase, 1.0, n_harm)
+    coef_h = beta[2: 2 + 2 * n_harm]
+    shape = basis @ coef_h
+    # an error of the edges that holds over a period (where they stand, the glass, a slow nuisance) times each
+    # period once: its instant is off by the residuals' scatter over the swing's speed, and the periods' instants
+    # give the frequency as a straight line's slope through ``n_periods`` points
+    n_periods = max(f * span, 2.0)
+    speed = 2 * np.pi * f * np.sqrt(2.0) * float(np.std(shape)) or np.inf
+    se_period = f * f * float(np.std(res)) / speed * np.sqrt(12.0 / (n_periods * (n_periods ** 2 - 1)))
+    se_f = float(np.sqrt(max(cov[-1, -1], 0.0) + se_period ** 2))
+    hi, lo = int(np.argmax(shape)), int(np.argmin(shape))
+    amp = 0.5 * float(shape[hi] - shape[lo])
+    grad = np.zeros(jac.shape[1])
+    grad[2: 2 + 2 * n_harm] = 0.5 * (basis[hi] - basis[lo])  # the extremes' phases do not move to first order
+    # the shape's truncation: what its last harmonic changes in the amplitude (a smooth shape's tail is smaller)
+    se_shape = abs(amp - 0.5 * float(np.ptp(basis[:, :-2] @ coef_h[:-2]))) if n_harm > 1 else 0.0
+    # the train dwells at its extremes: an edge's error that depends on where it stands (its sub-pixel place, the
+    # glass) is the same over a dwell, so each extreme is seen once a period, with the residuals' scatter
+    se_dwell = float(np.std(res)) / np.sqrt(2.0 * n_periods)
+    se_a = float(np.sqrt(max(grad @ cov @ grad, 0.0) + se_shape ** 2 + se_dwell ** 2 + (amp * scale_rel_sd) ** 2))
+    # a camera's exposure (up to a frame) averages the motion over it: harmonic h shrinks by sinc(h f / fps) at most,
+    # so the swing may be larger than seen by what that shrinking takes from it (the interval's upper end only)
+    blur = np.repeat(np.sinc(np.arange(1, n_harm + 1) * f / fps), 2)
+    exposure = max(amp - 0.5 * float(np.ptp(basis @ (coef_h * blur))), 0.0)
+    still = _still_share(phase, shape - shape.mean(), float(beta[1]), f)
+    return Oscillation(
+        frequency_hz=float(f), frequency_ci95_hz=(float(f - q * se_f), float(f + q * se_f)),
+        amplitude_mm=amp, amplitude_ci95_mm=(float(max(amp - q * se_a, 0.0)), float(amp + q * se_a + exposure)),
+        kind="stick-slip" if still >= STICK_SLIP_SHARE else "sinusoidal", stick_fraction=still,
+        n_periods=float(f * span), phase=phase, shape_mm=shape - shape.mean())

@@ -115,12 +115,16 @@ def plot_spectrum(res: AnalysisResult) -> Figure:
     sel = m.spectrum_hz <= min(60.0, m.spectrum_hz[-1])
     a2.plot(m.spectrum_hz[sel], m.spectrum_mm[sel], "-", color=palette.foreground(), lw=0.8)
     if m.oscillation_frequency_hz:
+        # A is half the peak-to-peak of the period-averaged motion (summary.json's); the spectrum's peak is the
+        # fundamental's amplitude alone, lower for a stick-slip whose harmonics carry part of the swing
         a2.axvline(m.oscillation_frequency_hz, color=palette.FIT, ls="--", lw=1,
-                   label=f"f = {m.oscillation_frequency_hz:.3f} Hz, A = {m.oscillation_amplitude_mm:.2f} mm")
+                   label=f"f = {m.oscillation_frequency_hz:.3f} Hz; A = {m.oscillation_amplitude_mm:.2f} mm "
+                         "(half peak-to-peak)")
         a2.legend(fontsize=pt(8))
     a2.set_xlabel("frequency f (Hz)")
-    a2.set_ylabel("amplitude A (mm)")
-    a1.set_title(f"oscillation of the plugs ({m.regime})", fontsize=pt(10))
+    a2.set_ylabel("spectral amplitude (mm)")
+    kind = f", {m.oscillation.kind}" if m.oscillation is not None and m.oscillation_frequency_hz else ""
+    a1.set_title(f"oscillation of the plugs ({m.regime}{kind})", fontsize=pt(10))
     return fig
 
 

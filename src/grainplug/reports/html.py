@@ -10,11 +10,12 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .._format import duration
+from .._format import duration, oscillation_phrase
 from ..measures.shake import shake_line
 from ..params import with_options
 
 if TYPE_CHECKING:
+    from ..measures.motion import Motion
     from ..result import AnalysisResult
 
 _CSS = """
@@ -154,14 +155,21 @@ def _regime_sentence(res: AnalysisResult) -> str:
         speed = (f"their mean velocity, {with_uncertainty(m.celerity_m_s, lo, hi)} m/s (95 % interval), "
                  "cannot be told from zero: no direction of travel is measured")
         if m.regime == "oscillating" and m.oscillation_frequency_hz:
-            return (f"Oscillating regime: the plugs oscillate at {m.oscillation_frequency_hz:.2f} Hz "
-                    f"(amplitude {m.oscillation_amplitude_mm:.2f} mm); {speed}.")
+            return f"Oscillating regime: the plugs oscillate at {_oscillation(m)}; {speed}."
         return f"The plugs do not measurably travel: {speed}."
     rng = with_uncertainty(abs(m.celerity_m_s), abs(lo), abs(hi))
     if m.regime == "oscillating" and m.oscillation_frequency_hz:
-        return (f"Oscillating regime: the plugs oscillate at {m.oscillation_frequency_hz:.2f} Hz "
-                f"(amplitude {m.oscillation_amplitude_mm:.2f} mm) while they {way} at {rng} m/s on average.")
+        return (f"Oscillating regime: the plugs oscillate at {_oscillation(m)}, while they {way} at {rng} m/s "
+                "on average.")
     return f"Propagative regime: the plugs {way} at a steady {rng} m/s."
+
+
+def _oscillation(m: Motion) -> str:
+    """The oscillation with its intervals and kind, as the CLI and summary.json give them."""
+    o = m.oscillation
+    return oscillation_phrase(m.oscillation_frequency_hz, o.frequency_ci95_hz if o else None,
+                              m.oscillation_amplitude_mm, o.amplitude_ci95_mm if o else None,
+                              o.kind if o else None, o.stick_fraction if o else None)
 
 
 def _cards(res: AnalysisResult) -> str:
@@ -172,8 +180,12 @@ def _cards(res: AnalysisResult) -> str:
         cards.append(("celerity c (m s⁻¹)", with_uncertainty(m.celerity_m_s, *m.celerity_ci95_m_s),
                       "95 % interval; positive downstream"))
         if m.oscillation_frequency_hz:
-            cards.append(("oscillation f (Hz)", number(m.oscillation_frequency_hz, 2),
-                          f"amplitude {number(m.oscillation_amplitude_mm, 2)} mm"))
+            o = m.oscillation
+            cards.append(("oscillation f (Hz)", number(m.oscillation_frequency_hz, 2) if o is None else
+                          with_uncertainty(m.oscillation_frequency_hz, *o.frequency_ci95_hz),
+                          f"amplitude {number(m.oscillation_amplitude_mm, 2)} mm" if o is None else
+                          f"amplitude {with_uncertainty(m.oscillation_amplitude_mm, *o.amplitude_ci95_mm)} mm "
+                          f"(half peak-to-peak; 95 % intervals), {o.kind}"))
     if ln is not None and ln.plug_length_mm is not None:
         ci = ln.plug_length_ci95_mm or (None, None)
         cards.append(("plug length λ (mm)", with_uncertainty(ln.plug_length_mm, *ci),

@@ -97,6 +97,12 @@ async function load(name) {
   show(state);
 }
 
+/** " (95% CI lo to hi)" with ``digits`` decimals, or nothing without an interval. */
+function ci(pair, digits) {
+  return pair && pair[0] !== null && pair[1] !== null ? ` (95% CI ${fmt(pair[0], digits)} to ${fmt(pair[1], digits)})`
+    : "";
+}
+
 function show(s) {
   state = s;
   const m = s.measures;
@@ -107,7 +113,13 @@ function show(s) {
   if ((m.oscillation_frequency_hz ?? null) !== null || m.regime === "oscillating") {
     parts.push(" · oscillation ", el("b", fmt(m.oscillation_frequency_hz, 2),
                                      {id: "frequency", "data-value": m.oscillation_frequency_hz}),
-               " Hz, amplitude ", el("b", fmt(m.oscillation_amplitude_mm, 2), {id: "amplitude"}), " mm");
+               " Hz", ci(m.oscillation_frequency_ci95_hz, 3),
+               ", amplitude ", el("b", fmt(m.oscillation_amplitude_mm, 2), {id: "amplitude"}), " mm",
+               ci(m.oscillation_amplitude_ci95_mm, 2), " (half peak-to-peak)");
+    if (m.oscillation_kind) {
+      parts.push(", ", el("b", m.oscillation_kind, {id: "oscillation-kind"}),
+                 ` (still ${fmt(100 * m.oscillation_stick_fraction, 0)} % of the period)`);
+    }
   }
   $("measures").replaceChildren(...parts);
   const tb = $("tracks").querySelector("tbody");
