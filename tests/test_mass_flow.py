@@ -123,7 +123,7 @@ def test_the_rate_from_the_movie_is_the_counted_one(tmp_path, name):
     f = res.fields()
     assert float(f["c"].mean()) == pytest.approx(q.mean_compactness, abs=1e-4)
     v = f["v_m_s"].values
-    assert 0.01 < np.isfinite(v).mean() < 0.5
+    assert np.isfinite(v).sum() >= 500 and np.isfinite(v).mean() < 0.5  # where windows were correlated
     assert float(np.nanmean(v)) == pytest.approx(truth.creep_m_s, rel=0.1)
     assert s["mass_flow_rate_terms_g_s"]["creep"] > 0 and s["mass_flow_rate_terms_g_s"]["pattern"] > 0
 
