@@ -284,6 +284,33 @@ def test_overlay_video_shows_the_detected_edges(analysis, tmp_path, capsys, suff
     assert len(err) == 2 and ".mp4 or .webm" in err[0]
 
 
+@pytest.mark.parametrize(("args", "rate", "duration_s"), [
+    ([], 30.0, 120 / 250 * 250 / 30),  # the default: 30 frames per second, slowed 8.3 x
+    (["--every", "4"], 30.0, 120 / 250 * 250 / 4 / 30),  # a quarter of the frames: as fast, 4 x shorter
+    (["--every", "4", "--slowdown", "25"], 2.5, 120 / 250 * 25),  # the movie's timing slowed 25 x, as asked
+])
+def test_overlay_every_keeps_a_player_s_rate_or_the_timing_asked(analysis, tmp_path, args, rate, duration_s):
+    """``--every N`` without ``--slowdown``: the frames kept play at 30 per second (a video N times shorter), not
+    at 30 / N (7.5 fps for N = 4, as long as without it); with ``--slowdown S`` the video keeps the movie's timing
+    slowed S times. Read back from the file: its rate, its frame count and its duration."""
+    import av
+
+    from grainplug.cli import main
+
+    out = tmp_path / "o.mp4"
+    assert main(["overlay", str(analysis), "--out", str(out), *args]) == 0
+    every = int(args[1]) if args else 1
+    with av.open(str(out)) as c:
+        stream = c.streams.video[0]
+        got_rate = float(stream.average_rate)
+        pts = [f.pts * f.time_base for f in c.decode(video=0)]
+        container_s = c.duration / av.time_base
+    assert got_rate == pytest.approx(rate, rel=1e-3)
+    assert len(pts) == 120 // every
+    assert float(pts[-1] - pts[0]) + 1 / got_rate == pytest.approx(duration_s, rel=1e-3)
+    assert container_s == pytest.approx(duration_s, rel=0.02)
+
+
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
 @pytest.mark.parametrize("name", ["overlay.mp4", "overlay.webm"])
 def test_overlay_plays_in_chromium(analysis, tmp_path, name):
