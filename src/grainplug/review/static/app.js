@@ -336,6 +336,7 @@ function stop() {
   clearInterval(playing.timer);
   playing = null;
   $("play").textContent = "play";
+  $("play-info").textContent = $("play-info").textContent.replace(/^playing/, "stopped; played");
 }
 
 function play() {
