@@ -645,8 +645,10 @@ def test_play_keeps_the_movie_s_time_slowed_as_stated_and_the_label_on_the_image
     assert label[0] == 0 and label[-1] == 119
     rate = 25.0  # 250 fps slowed 10 times
     late = label - (t - t[0]) * rate  # frames behind the movie's clock (negative: behind)
-    assert late.min() > -rate * (draw_s + 0.12), late.min()  # at most one image's drawing behind, never more
-    assert t[-1] - t[0] == pytest.approx(119 / rate, abs=draw_s + 0.25)
+    # at most about one image's drawing behind (and a loaded machine's slack), never more: main's 6.7 frames/s
+    # were 80 frames behind at the end
+    assert late.min() > -rate * (draw_s + 0.25), late.min()
+    assert t[-1] - t[0] == pytest.approx(119 / rate, abs=draw_s + 0.4)
     if draw_s == 0:
         assert len(label) >= 110  # a fast server: (nearly) every frame
     else:
