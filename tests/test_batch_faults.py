@@ -375,3 +375,61 @@ def test_workers_stopped_again_and_again_mid_run_leave_nothing_behind(campaign, 
     code, _, err = finish(proc)
     assert code == 0, err
     assert (out / "campaign.csv").read_bytes() == undisturbed
+
+
+#: ``python -m grainplug`` with the campaign's report stage made slow: writing ``campaign.parquet`` (in the
+#: campaign's temporary folder, after ``campaign.csv``) leaves a mark, then waits for the Ctrl-C
+_SLOW_REPORT = """
+import os, runpy, sys, time
+import pyarrow.parquet
+
+def _slow(*args, **kwargs):
+    open(os.environ["GRAINPLUG_TEST_STAGE"], "w").close()
+    time.sleep(120)
+
+pyarrow.parquet.write_table = _slow
+sys.argv = ["grainplug", *sys.argv[1:]]
+runpy.run_module("grainplug", run_name="__main__", alter_sys=True)
+"""
+
+
+def test_ctrl_c_while_the_report_is_written_keeps_the_campaign_s_files(campaign, undisturbed, tmp_path):
+    """Ctrl-C while the campaign's tables and report are written (every run done): one line that says so, status
+    130, the runs kept, the campaign's files of the batch before left as they were (none half-written, no
+    temporary folder left); the same command then writes them all."""
+    out = tmp_path / "out"
+    code, _, err = finish(start(campaign, out, "--workers", "1"))
+    assert code == 0, err
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert before["campaign.csv"] == undisturbed and "campaign.parquet" in before
+    stage = tmp_path / "report-stage"
+    env = {**os.environ, "MPLBACKEND": "Agg", "GRAINPLUG_TEST_STAGE": str(stage)}
+    proc = subprocess.Popen([sys.executable, "-c", _SLOW_REPORT, "batch", str(campaign / "manifest.csv"),
+                             "--out", str(out), "--no-figures", "--workers", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            start_new_session=True, preexec_fn=_as_in_a_terminal)
+    try:
+        end = time.monotonic() + 90
+        while not stage.exists() and proc.poll() is None and time.monotonic() < end:
+            time.sleep(0.02)
+        assert stage.exists(), "the report stage was not reached"
+        os.killpg(proc.pid, signal.SIGINT)  # what a terminal sends on Ctrl-C
+        code, _, err = finish(proc, timeout=30)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    lines = err.strip().splitlines()
+    assert code == 130 and len(lines) == 1, err
+    assert lines[0].startswith("error: interrupted while writing the campaign's tables and report: "
+                               f"{N_RUNS} of {N_RUNS} runs have a complete result, kept"), err
+    assert "run the same command again" in lines[0] and "Traceback" not in err
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before  # the batch before's, whole
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".") and p.name != ".grainplug"], \
+        "temporary folders left"
+    assert_whole(out)
+    assert runs_done(out) == [f"r{i}" for i in range(N_RUNS)]
+    code, printed, err = finish(start(campaign, out, "--workers", "1"))
+    assert code == 0, err
+    assert f"({N_RUNS} reused from an earlier batch)" in printed
+    assert (out / "campaign.csv").read_bytes() == undisturbed

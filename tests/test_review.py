@@ -197,6 +197,8 @@ def test_review_page_in_chromium(copy):
         page.mouse.click(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"])
         page.wait_for_function("() => { const i = document.getElementById('frame');"
                                " return i.complete && i.naturalWidth > 0; }", timeout=20_000)
+        page.wait_for_function("() => document.getElementById('frame-label').textContent.startsWith('frame')",
+                               timeout=20_000)  # set when the image is on screen
         label = page.inner_text("#frame-label")
         k = int(label.split()[1].rstrip(","))
         assert 50 <= k <= 70, label  # the middle of 120 frames
@@ -282,6 +284,33 @@ def test_overlay_video_shows_the_detected_edges(analysis, tmp_path, capsys, suff
     assert main(["overlay", str(tmp_path / "none")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and ".mp4 or .webm" in err[0]
+
+
+@pytest.mark.parametrize(("args", "rate", "duration_s"), [
+    ([], 30.0, 120 / 250 * 250 / 30),  # the default: 30 frames per second, slowed 8.3 x
+    (["--every", "4"], 30.0, 120 / 250 * 250 / 4 / 30),  # a quarter of the frames: as fast, 4 x shorter
+    (["--every", "4", "--slowdown", "25"], 2.5, 120 / 250 * 25),  # the movie's timing slowed 25 x, as asked
+])
+def test_overlay_every_keeps_a_player_s_rate_or_the_timing_asked(analysis, tmp_path, args, rate, duration_s):
+    """``--every N`` without ``--slowdown``: the frames kept play at 30 per second (a video N times shorter), not
+    at 30 / N (7.5 fps for N = 4, as long as without it); with ``--slowdown S`` the video keeps the movie's timing
+    slowed S times. Read back from the file: its rate, its frame count and its duration."""
+    import av
+
+    from grainplug.cli import main
+
+    out = tmp_path / "o.mp4"
+    assert main(["overlay", str(analysis), "--out", str(out), *args]) == 0
+    every = int(args[1]) if args else 1
+    with av.open(str(out)) as c:
+        stream = c.streams.video[0]
+        got_rate = float(stream.average_rate)
+        pts = [f.pts * f.time_base for f in c.decode(video=0)]
+        container_s = c.duration / av.time_base
+    assert got_rate == pytest.approx(rate, rel=1e-3)
+    assert len(pts) == 120 // every
+    assert float(pts[-1] - pts[0]) + 1 / got_rate == pytest.approx(duration_s, rel=1e-3)
+    assert container_s == pytest.approx(duration_s, rel=0.02)
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
@@ -556,3 +585,106 @@ def test_the_page_shows_and_edits_the_blind_stretches(copy):
         assert "marked" in page.inner_text("#corrections") and "removed the blind" in page.inner_text("#corrections")
         assert float(page.get_attribute("#celerity", "data-value")) == pytest.approx(res.celerity_m_s, abs=1e-6)
     assert errors == []
+
+
+def numbered_png(k: int) -> bytes:
+    """A small PNG whose width tells its frame (``k + 1`` px): the page's image says which frame it shows."""
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("L", (k + 1, 4), 128).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+#: the frame in the label and the frame whose image is on screen, each time the label changes
+_WATCH_LABEL = """() => {
+  window.seen = [];
+  const label = document.getElementById('frame-label'), img = document.getElementById('frame');
+  new MutationObserver(() => {
+    const m = /^frame (\\d+)/.exec(label.textContent);
+    if (m) window.seen.push([performance.now() / 1000, Number(m[1]), img.naturalWidth - 1]);
+  }).observe(label, {childList: true, characterData: true, subtree: true});
+}"""
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
+@pytest.mark.parametrize("draw_s", [0.0, 0.15])
+def test_play_keeps_the_movie_s_time_slowed_as_stated_and_the_label_on_the_image(analysis, monkeypatch, draw_s):
+    """Play: the frames come at the rate the speed list states (this 250 fps movie: slowed 10 x, 25 frames/s), not
+    at whatever pace the page asks them (one each 150 ms: 6.7/s); a server slower than that (150 ms a frame) skips
+    frames and keeps the time, never falls behind; and the label names the frame on screen, never the one on its
+    way (it ran a frame ahead). The frames are numbered images, so that the test reads which one is shown."""
+    import time
+
+    import numpy as np
+
+    sync_api = pytest.importorskip("playwright.sync_api")
+
+    def frame_png(self, name, k):
+        time.sleep(draw_s)
+        return numbered_png(k)
+
+    monkeypatch.setattr(ReviewSession, "frame_png", frame_png)
+    errors: list[str] = []
+    with (ReviewServer(analysis) as srv, sync_api.sync_playwright() as p,
+          chromium_page(p, "--disable-background-networking", errors=errors) as page):
+        page.goto(srv.url)
+        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+        speed = page.eval_on_selector("#speed", "s => s.options[s.selectedIndex].text")
+        assert speed == "slowed 10×: 25 frames/s"
+        page.evaluate(_WATCH_LABEL)
+        page.click("#play")
+        page.wait_for_function("() => document.getElementById('play').textContent === 'play'", timeout=30_000)
+        seen = page.evaluate("window.seen")
+        info = page.evaluate("() => document.getElementById('play-info')?.textContent ?? ''")
+    assert errors == []
+    t, label, shown = (np.array(c, float) for c in zip(*seen, strict=True))
+    assert (label == shown).all(), [s for s in seen if s[1] != s[2]][:5]  # the label is the image's
+    assert label[0] == 0 and label[-1] == 119
+    rate = 25.0  # 250 fps slowed 10 times
+    late = label - (t - t[0]) * rate  # frames behind the movie's clock (negative: behind)
+    # at most about one image's drawing behind (and a loaded machine's slack), never more: at main's 6.7
+    # frames/s the last frame came over 300 frames behind the movie's clock
+    assert late.min() > -rate * (draw_s + 0.25), late.min()
+    assert t[-1] - t[0] == pytest.approx(119 / rate, abs=draw_s + 0.4)
+    if draw_s == 0:
+        assert len(label) >= 110  # a fast server: (nearly) every frame
+    else:
+        assert len(label) < 60  # frames skipped
+        assert "the others skipped" in info and "25 of the movie's frames a second" in info
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
+def test_write_outputs_says_what_it_wrote_or_why_not(copy, monkeypatch):
+    """"Write outputs" said nothing: it says, beside the button, the folder and the files written with the number
+    of corrections; and when the writing fails, the reason, in red there and in the page's error line."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    errors: list[str] = []
+    with (ReviewServer(copy) as srv, sync_api.sync_playwright() as p, chromium_page(p, errors=errors) as page):
+        page.goto(srv.url)
+        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+        page.locator("#tracks tbody tr button").first.click()
+        page.wait_for_function("() => document.querySelector('#corrections li').textContent.includes('excluded')",
+                               timeout=20_000)
+        page.click("#save")
+        page.wait_for_function("() => document.getElementById('save-status').className !== ''", timeout=30_000)
+        said = page.inner_text("#save-status")
+        assert page.get_attribute("#save-status", "class") == "ok"
+        assert str(copy) in said and "with 1 correction:" in said
+        for name in ("summary.json", "tracks.csv", "report.html"):
+            assert name in said and (copy / name).is_file()
+        assert json.loads((copy / "summary.json").read_text())["corrections"]  # written, with the edit
+        assert page.is_visible("#save-status")
+
+        def fails(self, name, *, version=None):
+            raise GrainplugError(f"cannot write {copy}: No space left on device")
+
+        monkeypatch.setattr(ReviewSession, "save", fails)
+        page.click("#save")
+        page.wait_for_function("() => document.getElementById('save-status').className === 'failed'", timeout=30_000)
+        assert "not written" in page.inner_text("#save-status") and "No space left" in page.inner_text("#save-status")
+        assert "No space left" in page.inner_text("#error")
+        assert page.is_visible("#save-status") and page.is_visible("#error")
+    assert errors == [], errors

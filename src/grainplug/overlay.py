@@ -5,8 +5,11 @@ Notes
 Each frame of the analysis is cropped around the tube (six diameters either side, as
 the annotated figure), shown with the tube's inner walls (orange), every plug's upper
 (vermillion) and lower (blue) edge with its track number, a scale bar and the time stamp. ``slowdown``
-plays the movie that many times slower. Frames are read one at a time, so memory does not grow
-with the movie.
+plays the movie that many times slower: the video keeps the movie's timing, slowed, whichever frames it keeps.
+``every`` keeps one frame in that many, each shown for the time of the frames it stands for; without a
+``slowdown``, it is chosen for the frames kept to play at :data:`DEFAULT_MAX_FPS` frames per second (real time
+when they come slower), so that ``every=4`` gives a video four times shorter at a player's usual rate, not one as
+long at a quarter of it. Frames are read one at a time, so memory does not grow with the movie.
 
 The container follows the file name:
 
@@ -157,10 +160,12 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
         The video file: ``.mp4`` (H.264, needs PyAV) or ``.webm`` (VP8); default
         ``folder/overlay.mp4`` where PyAV is installed, else ``folder/overlay.webm``.
     slowdown : float, optional
-        Play this many times slower than real time (default: slow enough for at most
-        :data:`DEFAULT_MAX_FPS` frames per second, i.e. real time for slow cameras).
+        Play this many times slower than real time (default: slow enough for the frames kept to play at
+        most :data:`DEFAULT_MAX_FPS` frames per second, i.e. real time for slow cameras). The video's rate is
+        ``fps / slowdown / every``.
     every : int
-        Keep one frame in ``every`` (a shorter video of a long record).
+        Keep one frame in ``every`` (a shorter video of a long record); with the default slow-down, the video
+        is ``every`` times shorter.
     """
     from ._atomic import atomic_file, refuse_overwriting_inputs
     from .readers import open_movie, pyav_available
@@ -173,7 +178,7 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
     if not path:
         raise GrainplugError("the analysis was made from frames in memory: there is no movie to draw on")
     fps = float(res.info.fps)
-    slow = max(1.0, fps / DEFAULT_MAX_FPS) if slowdown is None else float(slowdown)
+    slow = max(1.0, fps / every / DEFAULT_MAX_FPS) if slowdown is None else float(slowdown)  # of the frames kept
     if not (math.isfinite(slow) and slow > 0):
         raise ParameterError("the slow-down must be a positive number", param="slowdown")
     out_fps = fps / slow / every

@@ -421,9 +421,11 @@ def review(folder: Path, port: int, no_browser: bool) -> None:
               help="The video: .mp4 (H.264, needs PyAV: pip install \"grainplug[video]\") or .webm (VP8) "
                    "[default: FOLDER/overlay.mp4 with PyAV, else FOLDER/overlay.webm].")
 @click.option("--slowdown", type=Number(0.01, 1e6), default=None,
-              help="Play this many times slower than real time [default: at most 30 frames per second].")
+              help="Play this many times slower than real time; the video's rate is the movie's / slowdown / "
+                   "every [default: the frames kept at most 30 per second].")
 @click.option("--every", type=Number(1, 1e6, integer=True), default=1, show_default=True,
-              help="Keep one frame in this many.")
+              help="Keep one frame in this many: with the default slow-down, a video this many times shorter "
+                   "at the same rate.")
 def overlay(folder: Path, out: Path | None, slowdown: float | None, every: int) -> None:
     """Write a video of the analysed movie around the tube with the detected edges, track numbers,
     a scale bar and the time stamp (for checking by eye and for supplementary material): an H.264 MP4

@@ -23,7 +23,8 @@ campaign's runs):
   plug edges drawn on it;
 - ``POST /api/run/R/edit`` (a JSON edit: ``{"action": "exclude", "track": 3}``),
   ``/undo``, ``/save``: change the corrections (kept in ``corrections.json`` at once,
-  measures recomputed) or rewrite the run's outputs (:func:`grainplug.remeasure`). A body
+  measures recomputed) or rewrite the run's outputs (:func:`grainplug.remeasure`; the answer's ``saved``
+  names the folder and the files written). A body
   with the ``version`` the page was shown is refused (409, with the state as it is now) when
   the files changed since: the page's edit named tracks of what it showed.
 
@@ -55,6 +56,7 @@ import re
 import secrets
 import socket
 import threading
+import time
 from dataclasses import dataclass
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -365,14 +367,29 @@ class ReviewSession:
             raise ParameterError("there is no edit to undo")
         self._set(run, run.corrections.undo())
 
-    def save(self, name: str, *, version: object = None) -> None:
-        """Rewrite the run's outputs with the corrections (as ``grainplug remeasure``)."""
+    def save(self, name: str, *, version: object = None) -> dict[str, object]:
+        """Rewrite the run's outputs with the corrections (as ``grainplug remeasure``); returns what was written:
+        ``{"folder": path, "files": [names], "corrections": number of edits applied}`` (the page says it)."""
         from ..workflows import remeasure
 
         run = self._check_version(name, version)
         with self._lock:
+            since = time.time_ns() - 1_000_000_000  # file systems' times may be coarse (1 s at worst here)
             run.result = remeasure(run.folder)
             run.result_id, run.corrections_id = _result_id(run.folder), _corrections_id(run.folder)
+            return {"folder": str(run.folder), "files": _written(run.folder, since),
+                    "corrections": len(run.corrections.edits)}
+
+
+def _written(folder: Path, since_ns: int) -> list[str]:
+    """The files of ``folder`` written since ``since_ns`` (``time.time_ns()``): the outputs just rewritten (a user's
+    files carried over, and ``corrections.json``, keep their times)."""
+    names = []
+    for p in folder.iterdir():
+        with contextlib.suppress(OSError):
+            if p.is_file() and not p.name.startswith(".") and p.stat().st_mtime_ns >= since_ns:
+                names.append(p.name)
+    return sorted(names)
 
 
 def _broken(t: np.ndarray, top: np.ndarray, bottom: np.ndarray,
@@ -671,8 +688,9 @@ class _Handler(BaseHTTPRequestHandler):
                 self.session.edit(name, body, version=version)
             elif action == "undo":
                 self.session.undo(name, version=version)
-            else:
-                self.session.save(name, version=version)
+            else:  # the page says what was written, and where
+                saved = self.session.save(name, version=version)
+                return self._json({**self.session.state(name), "saved": saved})
             self._json(self.session.state(name))
         except _Refused as refused:
             self._refuse(refused)

@@ -9,6 +9,12 @@ const TOKEN = document.querySelector('meta[name="grainplug-token"]').content;
 if (location.search) history.replaceState(null, "", location.pathname);
 let run = null, state = null, img = null, view = null, frame = null, selected = null, playing = null;
 let npStart = null, busy = 0, clickZ = null, blStart = null;
+// the frame shown is `frame` (its label, the cursor on the diagram, the edits' "here"); `asked` is the one whose
+// image is on its way (null: none), since `askedAt` (ms): the label changes with the image, never before it
+let asked = null, askedAt = 0;
+//: the slow-downs offered for playing, and the one picked by default: the fewest that shows at most this many of
+// the movie's frames per second (a display's rate; a slower server skips frames rather than falling behind)
+const SLOWDOWNS = [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000], DISPLAY_FPS = 25;
 const api = (path) => `api/run/${encodeURIComponent(run)}/${path}`;
 const fmt = (x, d) => (x === null || x === undefined) ? "—" : Number(x).toFixed(d);
 
@@ -43,12 +49,33 @@ function notice(text) { $("notice").textContent = text; }
 async function post(path, body) {
   busy++;
   try {
-    say(""); notice("");
+    say(""); notice(""); saveStatus("", "");  // written outputs are now behind the corrections
     show(await getJSON(api(path), Object.assign({}, body || {}, {version: state.version})));
   } catch (e) {
     if (e.state) adopt(e.state);
     say(e.message);
   } finally { busy--; }
+}
+
+function saveStatus(text, kind) { const e = $("save-status"); e.textContent = text; e.className = kind; }
+
+// "Write outputs": says while it works, then what was written and where (or why nothing was), beside the button
+async function save() {
+  busy++;
+  $("save").disabled = true;
+  saveStatus("writing the outputs…", "");
+  try {
+    say(""); notice("");
+    const s = await getJSON(api("save"), {version: state.version});
+    show(s);
+    const w = s.saved, n = w.corrections;
+    saveStatus(`written at ${new Date().toLocaleTimeString()}, with ${n} correction${n === 1 ? "" : "s"}: ` +
+               `${w.files.length} files in ${w.folder} (${w.files.join(", ")})`, "ok");
+  } catch (e) {
+    if (e.state) adopt(e.state);
+    saveStatus(`not written: ${e.message}`, "failed");
+    say(`Write outputs: ${e.message}`);
+  } finally { busy--; $("save").disabled = false; }
 }
 
 // a state read again because the files changed on disk (by hand, another page, a batch)
@@ -62,8 +89,10 @@ function adopt(s) {
     img.onload = draw;
     img.src = api("diagram.png") + "?" + Date.now();
     notice("result.npz changed on disk (the run analysed again, or remeasured): the page shows it as it is now");
-    frame = null;
+    frame = null; asked = null;
+    stop();
     show(s);
+    speeds();
     if (t !== null && t >= s.diagram.t0 && t <= s.diagram.t1) showFrame(frameAt(t));
     else { $("frame").hidden = true; $("frame-label").textContent = "click the diagram"; }
     return;
@@ -86,7 +115,9 @@ async function poll() {  // has a file changed under the page?
 }
 
 async function load(name) {
-  run = name; selected = null; npStart = null; frame = null; clickZ = null; blStart = null;
+  stop();
+  run = name; selected = null; npStart = null; frame = null; asked = null; clickZ = null; blStart = null;
+  $("play-info").textContent = ""; saveStatus("", "");
   $("frame").hidden = true;
   $("frame-label").textContent = "click the diagram";
   state = await getJSON(api("state"));
@@ -95,6 +126,7 @@ async function load(name) {
   img.onload = draw;
   img.src = api("diagram.png") + "?" + Date.now();
   show(state);
+  speeds();
 }
 
 /** " (95% CI lo to hi)" with ``digits`` decimals, or nothing without an interval. */
@@ -270,12 +302,78 @@ function frameAt(t) {
 }
 function timeOf(k) { const d = state.diagram; return d.t0 + k / Math.max(d.n_frames - 1, 1) * (d.t1 - d.t0); }
 
+// ask for frame k: its image is fetched, and the label, the cursor and "here" move to it when it is on screen
 function showFrame(k) {
+  if (state.movie !== "ok" || (k === frame && asked === null && !$("frame").hidden)) return setFrame(k);
+  asked = k; askedAt = performance.now();
+  $("frame").src = api(`frame/${k}.png`);
+}
+
+// frame k is the one on screen (its image arrived, or there is no movie to show)
+function setFrame(k) {
   frame = k;
+  if (playing) playing.shown++;
   $("frame-label").textContent = `frame ${k}, t = ${timeOf(k).toFixed(4)} s` +
     (clickZ === null ? "" : `, z = ${clickZ.toFixed(1)} mm`);
-  if (state.movie === "ok") { $("frame").src = api(`frame/${k}.png`); $("frame").hidden = false; }
   draw();
+}
+
+function arrived(ok) {  // the image asked for is on screen (or could not be drawn: hidden, the label still moves)
+  if (asked === null) return;
+  const k = asked;
+  asked = null;
+  $("frame").hidden = !ok;
+  setFrame(k);
+}
+
+// -- playing: the movie's own time slowed by the factor picked (stated in the list), whatever the server's pace:
+// one image on its way at a time, and each one the frame due when it is asked for (frames skipped, never late)
+function movieRate() { const d = state.diagram; return (d.n_frames - 1) / ((d.t1 - d.t0) || 1); }
+function perSecond(x) { return x >= 10 ? x.toFixed(0) : x.toPrecision(2); }
+
+function speeds() {  // the list of slow-downs for this run's frame rate
+  const r = movieRate(), was = Number($("speed").value) || null;
+  const pick = SLOWDOWNS.find((f) => r / f <= DISPLAY_FPS) ?? SLOWDOWNS[SLOWDOWNS.length - 1];
+  const offered = SLOWDOWNS.filter((f) => r / f >= 0.5 || f === pick);
+  $("speed").replaceChildren(...offered.map((f) => {
+    const o = new Option(f === 1 ? `real time: ${perSecond(r)} frames/s` : `slowed ${f}×: ${perSecond(r / f)} frames/s`,
+                         String(f));
+    o.selected = f === (offered.includes(was) ? was : pick);
+    return o;
+  }));
+}
+
+function stop() {
+  if (!playing) return;
+  clearInterval(playing.timer);
+  playing = null;
+  $("play").textContent = "play";
+  $("play-info").textContent = $("play-info").textContent.replace(/^playing/, "stopped; played");
+}
+
+function play() {
+  const n = state.diagram.n_frames, slow = Number($("speed").value), rate = movieRate() / slow;
+  const first = frame === null || frame >= n - 1 ? 0 : frame, t0 = performance.now();
+  const what = `playing ${slow === 1 ? "in real time" : `slowed ${slow}×`}: ${perSecond(rate)} of the movie's frames a second`;
+  playing = {timer: null, shown: 0};
+  $("play").textContent = "pause";
+  $("play-info").textContent = what;
+  const tick = () => {
+    if (!playing) return;
+    const now = performance.now(), s = (now - t0) / 1000;
+    const k = Math.min(n - 1, first + Math.floor(s * rate));
+    if (asked !== null && now - askedAt > 10000) asked = null;  // an image that never came: ask again
+    if (asked === null) {
+      if (k !== frame) showFrame(k);
+      else if (k >= n - 1) { stop(); return; }
+    }
+    if (s > 1 && playing.shown < 0.9 * s * rate) {  // the server draws fewer: said, not hidden
+      $("play-info").textContent = `${what}; ${perSecond(playing.shown / s)} a second shown, the others skipped ` +
+        `(drawing a frame takes ${Math.round(1000 * s / Math.max(playing.shown, 1))} ms here)`;
+    }
+  };
+  playing.timer = setInterval(tick, 5);
+  tick();
 }
 
 // a track number typed in a box: a whole number, or the reason it is none (an empty box is not track 0)
@@ -302,7 +400,10 @@ function setup() {
   let drag = null, moved = false;
   c.addEventListener("mousedown", (ev) => { drag = {x: canvasX(ev), view: view.slice()}; moved = false; });
   window.addEventListener("mouseup", (ev) => {
-    if (drag && !moved && ev.target === c) { clickZ = canvasZ(ev); showFrame(frameAt(xToT(canvasX(ev), c.width))); }
+    if (drag && !moved && ev.target === c) {
+      stop();
+      clickZ = canvasZ(ev); showFrame(frameAt(xToT(canvasX(ev), c.width)));
+    }
     drag = null;
   });
   c.addEventListener("mousemove", (ev) => {
@@ -320,22 +421,21 @@ function setup() {
     draw();
   }, {passive: false});
   c.addEventListener("dblclick", () => { view = [state.diagram.t0, state.diagram.t1]; draw(); });
-  $("prev").onclick = () => frame !== null && showFrame(Math.max(0, frame - 1));
-  $("next").onclick = () => frame !== null && showFrame(Math.min(state.diagram.n_frames - 1, frame + 1));
-  $("play").onclick = () => {
-    if (playing) { clearInterval(playing); playing = null; $("play").textContent = "play"; return; }
-    $("play").textContent = "pause";
-    playing = setInterval(() => {
-      if (frame === null || frame >= state.diagram.n_frames - 1) { $("play").click(); return; }
-      showFrame(frame + 1);
-    }, 150);
+  const current = () => asked ?? frame;  // a step from the frame on its way, if one is
+  $("prev").onclick = () => { stop(); if (current() !== null) showFrame(Math.max(0, current() - 1)); };
+  $("next").onclick = () => {
+    stop();
+    if (current() !== null) showFrame(Math.min(state.diagram.n_frames - 1, current() + 1));
   };
-  $("frame").onerror = () => { $("frame").hidden = true; };
+  $("play").onclick = () => (playing ? stop() : play());
+  $("speed").onchange = () => { if (playing) { stop(); play(); } };
+  $("frame").onload = () => arrived(true);
+  $("frame").onerror = () => arrived(false);
   const here = () => frame === null ? null : timeOf(frame);
   // each button says what it lacks instead of doing nothing (or sending a 0 for an empty box)
   const noTime = (what) => say(`${what}: click a time on the diagram first`);
   $("undo").onclick = () => post("undo");
-  $("save").onclick = () => post("save");
+  $("save").onclick = save;
   $("win-start").onclick = () => here() === null ? noTime("time window")
     : post("edit", {action: "window", start_s: here()});
   $("win-end").onclick = () => here() === null ? noTime("time window")
