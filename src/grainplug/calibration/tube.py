@@ -456,17 +456,20 @@ def _shaken_variance(mean: np.ndarray, var: np.ndarray) -> np.ndarray:
 
 
 def _locate(mean: np.ndarray, std: np.ndarray, orientation: str | None, *, coarse: bool = False,
-            tilt_hint: float | None = None) -> TubeGeometry:
+            tilt_hint: float | None = None, unshake: bool = False) -> TubeGeometry:
     """The tube in temporal mean and standard-deviation images (one resolution).
 
     ``coarse``: orientation, tilt, axis and an approximate width only (no block
     refinement, a 0.25 px profile grid), for the first look at a binned frame.
+    ``unshake``: the variance the camera's shake puts on still edges taken out first
+    (:func:`_shaken_variance`).
     """
     # relative variation of the contents: sensor noise removed (the background's
     # variance), divided by the local mean so that any local loss of light (the
     # dark bands of refraction at the walls, vignetting) cancels out
     var = std.astype(np.float64) ** 2
-    var = var - _shaken_variance(mean, var)
+    if unshake:
+        var = var - _shaken_variance(mean, var)
     excess = np.sqrt(np.clip(var - np.median(var), 0, None))
     floor = max(1e-3 * float(np.max(mean)), 1e-6)
     relative = (excess / np.maximum(mean, floor)).astype(np.float32)
@@ -673,11 +676,28 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
         b *= 2
     if b > 1:
         b *= 2  # the first look only needs the direction and position: coarser still
+    try:
+        return _find(frames, orientation, b, unshake=False)
+    except MovieError as first:
+        # the shaken outer edges of light walls can outshine the bore's contents: look again without the
+        # variance the shake puts on still edges (only then: on steady footage it changes nothing found)
+        try:
+            tube = _find(frames, orientation, b, unshake=True)
+        except MovieError:
+            raise first from None
+        log.info("tube found once the camera's shake was taken out of the still edges' variation (%s)", first)
+        return tube
+
+
+def _find(frames: list[np.ndarray], orientation: str | None, b: int, *, unshake: bool) -> TubeGeometry:
+    """:func:`find_tube`'s search at binning ``b`` (1: one look at full resolution; else a coarse look at the
+    binned frames, then a fine one on a band of full-resolution columns around the tube)."""
+    h, w = frames[0].shape[:2]
     if b == 1:
         mean, std, level = mean_and_variation(frames)
-        return dataclasses.replace(_locate(mean, std, orientation), background_level=level)
+        return dataclasses.replace(_locate(mean, std, orientation, unshake=unshake), background_level=level)
     mean, std, level = mean_and_variation(frames, binning=b)
-    coarse = _locate(mean, std, orientation, coarse=True)
+    coarse = _locate(mean, std, orientation, coarse=True, unshake=unshake)
     transpose = coarse.orientation == "horizontal"
     ch, cw = (w, h) if transpose else (h, w)
     tan_b = np.tan(np.radians(coarse.tilt_deg))
@@ -687,7 +707,7 @@ def find_tube(frames: list[np.ndarray], *, orientation: str | None = None) -> Tu
     lo = int(max(0, np.floor(xs.min() - reach)))
     hi = int(min(cw, np.ceil(xs.max() + reach) + 1))
     cm, cs, _ = mean_and_variation(frames, transpose=transpose, cols=slice(lo, hi))
-    fine = _locate(cm, cs, "vertical", tilt_hint=coarse.tilt_deg)
+    fine = _locate(cm, cs, "vertical", tilt_hint=coarse.tilt_deg, unshake=unshake)
     log.debug("coarse tube at binning %d: %s", b, coarse)
     return TubeGeometry(coarse.orientation, fine.tilt_deg, fine.axis_x0_px + lo, fine.inner_diameter_px,
                         fine.contrast, fine.method, (ch, cw), level, fine.back_lit, fine.walls,

@@ -26,6 +26,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from .schema import COLUMNS
+
 
 @dataclass(frozen=True)
 class LinearFit:
@@ -183,7 +185,9 @@ def fit_selection(table: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, str]]:
     if ok.empty:
         return empty, {}
     if "mass_flow_rate_g_s" not in ok:  # a campaign without fits; said when a column looks meant for it
-        near = [str(c) for c in ok.columns if "mass" in str(c).lower() or "flow_rate" in str(c).lower()]
+        # a column of grainplug's own table (the rate measured from the movies) is not one the manifest meant
+        near = [str(c) for c in ok.columns if ("mass" in str(c).lower() or "flow_rate" in str(c).lower())
+                and str(c) not in COLUMNS]
         return empty, {ALL_RUNS: f"the manifest has no mass_flow_rate_g_s column (is {near[0]!r} meant? name it "
                                  "mass_flow_rate_g_s): nothing to fit the runs against"} if near else {}
     ok["fit_group"] = ok.apply(_group, axis=1)
