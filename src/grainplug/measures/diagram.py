@@ -28,6 +28,7 @@ from .still import (
     blind_positions,
     column_levels,
     seen_through,
+    still_edges,
     still_stretches,
     travelled_enough,
 )
@@ -148,8 +149,16 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
         return DiagramMeasures(norm, runs, links, motion, lengths, statement, stretches)
 
     first = measured(given, normalized)
-    if not (normalized.two_phase and travelled_enough(diagram, first.motion, first.lengths)):
+    if not normalized.two_phase:
         return first
+    if not travelled_enough(diagram, first.motion, first.lengths):
+        # a short record: a place may see only one phase, so nothing is judged by the places; an edge that
+        # stays put while the train moves is still a still object's boundary, blind (its plug cut there)
+        edges = [BlindStretch(a, b, STILL_CONTENTS) for a, b in still_edges(diagram, first.runs, first.motion)
+                 if not any(g.from_mm <= a and b <= g.to_mm for g in given)]
+        if not edges:
+            return first
+        return measured(tuple(sorted([*given, *edges], key=lambda b: b.from_mm)), normalized)
     # every place saw plugs and bubbles: where nothing changed over the record, something hides the tube (blind);
     # where the two levels are not the open tube's, a still object dims or lights it (divided out, or blind where
     # the levels cannot be told apart); measured again

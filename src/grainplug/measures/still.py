@@ -28,6 +28,7 @@ import numpy as np
 
 from .._filters import true_runs
 from ..diagram import Diagram
+from ..plugs import Runs
 from .lengths import Lengths
 from .motion import Motion
 from .shake import Shake
@@ -244,6 +245,46 @@ def still_stretches(diagram: Diagram, motion: Motion | None, lengths: Lengths | 
     pos, half = diagram.position_mm, 0.5 * diagram.mm_per_px
     return [(float(pos[a] - half), float(pos[b - 1] + half)) for a, b in true_runs(sd < STILL_REGION_SHARE * typical)
             if (b - a) * diagram.mm_per_px >= STILL_MIN_MM]
+
+
+#: a place where a plug edge is found in at least this share of the record's frames ...
+STILL_EDGE_SEEN = 0.5
+#: ... while the train travels at least this many samples over the record is a still object's boundary
+STILL_EDGE_MIN_TRAVEL = 10.0
+
+
+def still_edges(diagram: Diagram, runs: Runs, motion: Motion | None) -> list[tuple[float, float]]:
+    """Stretches where a plug edge is found, at the same place, in most of the record's frames while the train
+    moves (by its drift or its oscillation): the boundary of a still object (a clamp, a label) that the contents'
+    detection took for a plug's edge. For records too short for :func:`still_stretches` (the train travels less
+    than its long plugs and bubbles, so a place may see only one of them): there the edges, not the places,
+    tell a still object. A moving edge dwells at one place for a share of the frames of about the place's width
+    over its travel (a sixth, within a sample of an oscillation's turning point 10 samples away); a still
+    object's boundary is there in every frame the train leaves it at.
+
+    Each stretch is the place (3 samples wide) and a sample either side.
+    """
+    if motion is None or motion.celerity_m_s is None or motion.regime == "static" or not len(runs.frame):
+        return []
+    duration = float(diagram.time_s[-1] - diagram.time_s[0])
+    travel_mm = abs(motion.celerity_m_s) * 1000.0 * duration + 2.0 * (motion.oscillation_amplitude_mm or 0.0)
+    ds = diagram.mm_per_px
+    pos = diagram.position_mm
+    if travel_mm < STILL_EDGE_MIN_TRAVEL * ds or len(pos) < 3:
+        return []
+    n_frames, n_pos = diagram.n_frames, len(pos)
+    at = np.zeros((n_frames, n_pos), bool)  # frames x positions: an edge within a sample of the place
+    for edge in (runs.top_mm, runs.bottom_mm):
+        ok = np.isfinite(edge)
+        k = np.clip(np.searchsorted(pos, edge[ok]), 0, n_pos - 1)
+        for d in (-1, 0, 1):
+            at[runs.frame[ok], np.clip(k + d, 0, n_pos - 1)] = True
+    share = at.mean(axis=0)
+    out: list[tuple[float, float]] = []
+    for a, b in true_runs(share >= STILL_EDGE_SEEN, 1):
+        centre = a + int(np.argmax(share[a:b]))
+        out.append((float(pos[max(centre - 2, 0)]), float(pos[min(centre + 2, n_pos - 1)])))
+    return out
 
 
 def blind_margin(swing_px: float = 0.0) -> int:
