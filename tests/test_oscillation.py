@@ -149,3 +149,15 @@ def test_the_review_page_shows_the_intervals_the_kind_and_the_tracks_celerities(
         assert page.inner_text("#oscillation-kind") == "stick-slip"
         long = [t["celerity_m_s"] for t in st["tracks"] if t["n_frames"] >= 20]
         np.testing.assert_allclose(long, truth.celerity_m_s, rtol=0.005)
+
+
+def test_an_oscillation_given_without_its_intervals_says_so(analysed):
+    """When the fitted frequency leaves the spectrum's peak the oscillation is still given, without intervals and
+    kind: a warning says so (nothing is left null without a word); with its intervals, none."""
+    from grainplug.checks import no_interval
+    from grainplug.warning_codes import codes_of
+
+    res, _ = next(iter(analysed.values()))
+    assert res.motion.oscillation is not None and codes_of(no_interval(res.motion)) == []
+    bare = replace(res.motion, oscillation=None)
+    assert codes_of(no_interval(bare)) == ["plugs.oscillation_no_interval"]

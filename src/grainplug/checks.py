@@ -322,7 +322,8 @@ def tube_out_of_view(stretches: tuple[tuple[int, int], ...], time_s: np.ndarray,
 
 #: the codes of the warnings :func:`train_warnings` gives: those a reviewer's corrections change, recomputed at
 #: each replay (:func:`grainplug.corrections.apply_corrections`)
-TRAIN_CODES = frozenset({"flow.sign_assumed", "plugs.frame_cadence", "still.region", "shake.too_large",
+TRAIN_CODES = frozenset({"flow.sign_assumed", "plugs.frame_cadence", "plugs.oscillation_no_interval",
+                         "still.region", "shake.too_large",
                          "shake.corrected", "shake.along_unmeasured", "still.track", "plugs.near_min_length",
                          "plugs.implausible_speed"})
 
@@ -333,10 +334,23 @@ def train_warnings(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion
     """The warnings that judge the plug train (its tracks, motion and blind stretches), in the order a report
     gives them: the analysis gives them on what it detected, and a reviewer's corrections give them again on
     what they keep (a plug excluded takes its warnings with it). Their codes are :data:`TRAIN_CODES`."""
-    return [*guessed_sign(flow_source, motion), *frame_cadence(motion, info), *still_regions(blind),
+    return [*guessed_sign(flow_source, motion), *frame_cadence(motion, info), *no_interval(motion),
+            *still_regions(blind),
             *shaken(shake, motion), *still_objects(runs, links, time_s, motion, mm_per_px),
             *near_the_threshold(runs, motion, params),
             *implausible_speeds(None if motion is None else motion.celerity_m_s, falling_m_s)]
+
+
+def no_interval(motion: Motion | None) -> list[str]:
+    """A warning when an oscillation is reported without its intervals and kind: its frequency, refined by the fit
+    of the period-averaged motion, left the spectrum's peak (few periods, or two peaks close together), so the
+    fit's intervals are not the peak's (:func:`grainplug.measures.motion.measure_motion`)."""
+    if motion is None or motion.oscillation_frequency_hz is None or motion.oscillation is not None:
+        return []
+    return [coded("plugs.oscillation_no_interval",
+        f"the oscillation at {motion.oscillation_frequency_hz:.3g} Hz is given without its 95 % intervals and its "
+        "kind: fitted, its frequency moved off the spectrum's peak (too few periods, or two peaks close together) "
+        "— film more periods")]
 
 
 def passing_shadow(shadow: MovingLight | None) -> list[str]:

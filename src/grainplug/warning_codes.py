@@ -109,6 +109,8 @@ CODES: dict[str, tuple[str, str]] = {
                             "(a codec's group of pictures), not read as an oscillation (or, uncompressed, "
                             "reported with this doubt)",
                             "record losslessly or at a higher quality; check the movie was never compressed"),
+    "plugs.oscillation_no_interval": ("the oscillation is given without intervals or kind: refined, its frequency left "
+                                      "the spectrum's peak", "film more periods"),
     # the camera's shake (the tube moving in the image)
     "shake.corrected": ("the camera shook; the diagram was held still against the tube",
                         "nothing: a plug motion at the shake's frequency is not reported as the plugs'"),
