@@ -266,6 +266,8 @@ def still_edges(diagram: Diagram, runs: Runs, motion: Motion | None) -> list[tup
     """
     if motion is None or motion.celerity_m_s is None or motion.regime == "static" or not len(runs.frame):
         return []
+    if motion.oscillation is not None and motion.oscillation.kind == "stick-slip":
+        return []  # a train that sticks dwells at its places: its own edges would look still
     duration = float(diagram.time_s[-1] - diagram.time_s[0])
     travel_mm = abs(motion.celerity_m_s) * 1000.0 * duration + 2.0 * (motion.oscillation_amplitude_mm or 0.0)
     ds = diagram.mm_per_px
