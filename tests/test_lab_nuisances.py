@@ -118,8 +118,9 @@ def _xfail(name: str, reason: str) -> pytest.param:
 #: cases grainplug gets wrong today (2026-11-28, after the shake registration, lamp and blind-stretch corrections),
 #: with the nuisance that breaks them
 WRONG_TODAY: dict[str, str] = {
-    "combined oscillating 5 Hz": "combined oscillating: the train travels less than a plug and a bubble, the clamp "
-                                 "is not found; celerity -25 %, plug lengths -14 %",
+    "combined oscillating 5 Hz": "combined oscillating: the train travels less than a plug and a bubble; the "
+                                 "clamp's top edge is found (plug lengths +1.5 %), its bottom edge, seen in few "
+                                 "frames, is not: celerity -16 %, bubbles -47 %",
 }
 #: cases that pass by under 0.2 % of a target and fail with other seeds: neither asserted nor expected to fail, so
 #: that an unrelated change of a tenth of a per cent does not trip the suite (none today: "combined c=-0.05, H.264
@@ -185,3 +186,19 @@ def test_a_passing_shadow_in_front_light_is_read_on_the_contents_and_said(tmp_pa
     assert deep["ok"] and abs(deep["bubble_err"]) < 0.2, deep  # +12 % and +8 % (seeds 1, 2): the gaps beside a plug
     clean = _measure("clean c=-0.05, front light", tmp_path)
     assert "light.moving_shadow" not in clean["codes"], clean
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_clamp_over_a_short_oscillating_record_is_found_by_its_still_edge(tmp_path, seed):
+    """The train travels less than its plugs and bubbles over the record (a place may see one phase only, so still
+    places are not judged), but the clamp's edge stays put in every frame while the edges oscillate: it is made
+    blind, and the plugs touching it are cut, not measured clamp and all."""
+    from lab_nuisances import CLAMP, OSC
+
+    scene = Scene(motion=OSC, n_frames=300, clamps=(CLAMP,))
+    movie = tmp_path / "m.tif"
+    truth = render_movie(movie, scene, np.random.default_rng(seed))
+    res = gp.analyze(movie, fps=scene.fps, mm_per_px=scene.mm_per_px, tube_diameter_mm=scene.inner_diameter_mm)
+    lo, hi = CLAMP.center_mm - CLAMP.length_mm / 2, CLAMP.center_mm + CLAMP.length_mm / 2
+    assert any(lo - 1.0 <= b.from_mm and b.to_mm <= hi + 1.0 for b in res.blind), res.blind
+    assert res.plug_length_mm == pytest.approx(truth_record(truth)["plug_length_mm"], rel=0.05)
