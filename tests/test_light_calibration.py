@@ -57,9 +57,11 @@ def test_a_background_removes_fixed_spots_and_gradients(movies):
     dirty = gp.analyze(movies["dirty"], fps=500.0, mm_per_px=CFG.mm_per_px)
     bg = gp.Background(np.mean(movies["empty"], axis=0, dtype=np.float64).astype(np.float32), {"name": "empty"}, 10)
     fixed = gp.analyze(movies["dirty"], fps=500.0, mm_per_px=CFG.mm_per_px, background=bg)
-    # the case is hard: without the background, the spots are read as plug edges
-    assert abs(dirty.plug_length_mm / clean.plug_length_mm - 1) > 0.1
-    # with it, the measures are those of the clean movie
+    # the case is hard: without the background, the spots are read as plug edges, or (the record too short for the
+    # places to be judged) their edges, still, are taken for still objects' and blinded
+    assert abs(dirty.plug_length_mm / clean.plug_length_mm - 1) > 0.1 or dirty.blind
+    # with it, nothing is blind, and the measures are those of the clean movie
+    assert not fixed.blind
     assert fixed.celerity_m_s == pytest.approx(clean.celerity_m_s, rel=0.01)
     assert fixed.plug_length_mm == pytest.approx(clean.plug_length_mm, rel=0.02)
     assert fixed.celerity_m_s == pytest.approx(CFG.celerity_m_s, rel=0.02)
