@@ -170,11 +170,11 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         movie_beside = None if reads is None else np.array(beside[:: max(1, len(beside) // 500)])
         values, lamp = divide_by_lamp(values, beside, beside_at, back_lit=tube.back_lit)
         values = np.ascontiguousarray(values)  # its own memory, not a view of the read
-        shake = measure_shake(across, [beside], fps=info.fps,
+        shake = measure_shake(across, probes.along(read), fps=info.fps,
                               band_margin_px=band_margin_px(tube.inner_diameter_px, CORE_FRACTION))
         view = tube_view(across, len(values))  # frames where the tube's walls are not seen: not measured
         del read, across, beside  # the diagram is all that is kept of the read
-        if shake.along_px is not None:  # the diagram held still against the tube
+        if shake.held_along:  # the diagram held still against the tube
             values = shift_along(values, shake.along_px)
         laps("stream_s")
         time_s, time_warnings = frame_times(movie, info, len(values))

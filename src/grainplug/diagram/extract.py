@@ -115,6 +115,12 @@ ACROSS_PROFILES = 3
 BESIDE_STEP = 4
 #: the profiles across the tube reach this many inner widths either side of the axis (beyond the walls)
 ACROSS_WIDTHS = 1.6
+#: where the tube's motion along it is read at every position (inner widths from the axis, when its outer
+#: silhouette was not measured): in its walls, and just beyond them, where what is fixed to the tube (a clamp's
+#: overhang, a label's edges, a mark) stands still against the tube while the grains move inside
+NEAR_WALL_WIDTHS = (0.7, 1.15)
+#: just beyond the outer silhouette, this far out (px, at least; or this share of the inner width)
+NEAR_OUTSIDE_PX, NEAR_OUTSIDE_WIDTHS = 2.0, 0.1
 
 
 @dataclass(frozen=True)
@@ -138,6 +144,9 @@ class Probes:
     across: np.ndarray
     #: the position (in samples along the tube) of each sample beside it
     beside_at: np.ndarray
+    #: profiles along the tube at every position, in its walls and just beyond them (:data:`NEAR_WALL_WIDTHS`):
+    #: one row of output columns each, all in the frame
+    near: tuple[np.ndarray, ...] = ()
 
     def core_band(self, band: Band) -> Band:
         """The core's samples of ``band`` alone (what :func:`band_along_tube` gives)."""
@@ -154,6 +163,18 @@ class Probes:
         cols = self.beside[where]
         beside = values[:, cols[0]: cols[-1] + 1] if cols.size else values[:, :0]  # the columns are consecutive
         return core, across, beside, self.beside_at[where]
+
+    def along(self, values: np.ndarray) -> list[tuple[np.ndarray, float, str]]:
+        """The profiles along the tube of what does not move with the grains (views of ``values``), each with its
+        spacing in positions along the tube and what it is: the tube's walls and just beyond them at every
+        position, the background beside the tube every :data:`BESIDE_STEP` (where the frame reaches it all)."""
+        names = ("the tube's walls", "just beyond the walls")
+        out = [(values[:, cols[0]: cols[-1] + 1], 1.0, name) for cols, name in zip(self.near, names, strict=False)
+               if cols.size]
+        if self.beside.size and (self.beside >= 0).all():
+            cols = self.beside
+            out.append((values[:, cols[0]: cols[-1] + 1], float(BESIDE_STEP), "the background beside the tube"))
+        return out
 
 
 def resample_positions(values: np.ndarray, at: np.ndarray) -> np.ndarray:
@@ -240,6 +261,16 @@ def probes_along_tube(tube: TubeGeometry, *,
     c = np.rint(tube.axis_x(r.astype(float)) + side).astype(np.int64)
     beside = add(r, c)
     beside_at = at + 0.5 * (BESIDE_STEP - 1)
+    near = []
+    for offset in _near_offsets(tube):  # two pixels a side, every position; a side out of the frame anywhere: dropped
+        r = np.repeat(rows[:, None], 2, axis=1)
+        sides = []
+        for sign in (-1.0, 1.0):
+            c = np.rint(tube.axis_x(r.astype(float)) + sign * (offset + np.array([0.0, 1.0]))[None, :]).astype(np.int64)
+            if ((c >= 0) & (c < w) & (r >= 0) & (r < h)).all():
+                sides.append(c)
+        if sides:
+            near.append(add(np.repeat(r, len(sides), axis=1), np.concatenate(sides, axis=1)))
     offsets = np.arange(-np.ceil(ACROSS_WIDTHS * d), np.ceil(ACROSS_WIDTHS * d) + 1)
     heights = rows[np.linspace(0, n - 1, ACROSS_PROFILES + 2).round().astype(int)[1:-1]]
     tall = width
@@ -253,5 +284,16 @@ def probes_along_tube(tube: TubeGeometry, *,
     ww = np.concatenate([core.weights, *groups_w]) if groups_w else core.weights
     band = Band(cc, rr, np.ascontiguousarray(ww), (w, h)) if horizontal else \
         Band(rr, cc, np.ascontiguousarray(ww), (h, w))
-    probes = Probes(slice(0, n), beside, np.stack(across) if across else np.zeros((0, 0), np.int64), beside_at)
+    probes = Probes(slice(0, n), beside, np.stack(across) if across else np.zeros((0, 0), np.int64), beside_at,
+                    tuple(near))
     return band, axis_px, probes
+
+
+def _near_offsets(tube: TubeGeometry) -> tuple[float, float]:
+    """Distances (px from the axis, across it) of the profiles along the tube in its walls and just beyond them:
+    from the outer silhouette when it was measured, else :data:`NEAR_WALL_WIDTHS`."""
+    d = float(tube.inner_diameter_px)
+    outer = None if tube.walls is None else float(tube.walls.outer_half_px)
+    if outer is None or not np.isfinite(outer) or outer <= 0.5 * d + 1.0:
+        return NEAR_WALL_WIDTHS[0] * d, NEAR_WALL_WIDTHS[1] * d
+    return 0.5 * (0.5 * d + outer) - 0.5, outer + max(NEAR_OUTSIDE_PX, NEAR_OUTSIDE_WIDTHS * d)
