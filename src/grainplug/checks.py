@@ -279,10 +279,18 @@ def shaken(shake: Shake | None, motion: Motion | None) -> list[str]:
                f"{shake.along_source}), and a plug motion at that frequency is not reported as the plugs'")
         return [coded("shake.corrected", f"the camera shook{f} ({', '.join(parts)}): {fix}")]
     osc = "" if motion is None or motion.regime != "oscillating" else " (the oscillation reported is at another)"
+    drift = ""
+    if motion is not None and shake.mm_per_px and len(motion.time_s) > 1:
+        # what the camera's unmeasured drift along the tube does to the drift of the plugs
+        per_px = shake.mm_per_px / max(float(motion.time_s[-1] - motion.time_s[0]), 1e-9) / 1000.0
+        share = (f", {100.0 * per_px / abs(motion.celerity_m_s):.2g} % of it" if motion.celerity_m_s else "")
+        drift = (f"; and a drift of the camera along the tube moves the celerity by {per_px:.2g} m/s per pixel over "
+                 f"the record{share}, beyond its interval, which assumes the camera drifted along as it did across")
     return [coded("shake.along_unmeasured",
         f"the camera shook{f} ({', '.join(parts)}, measured on the tube's walls); its motion along the tube could "
         f"not be measured ({shake.along_source}), so the plug edges carry it: a plug motion at that frequency is "
-        f"taken for the camera's and not reported{osc} — steady the camera, or put a mark beside the tube")]
+        f"taken for the camera's and not reported{osc}{drift} — steady the camera, or put a mark beside the tube "
+        "(a clamp, a label, a ruler) to measure it on")]
 
 
 def tube_out_of_view(stretches: tuple[tuple[int, int], ...], time_s: np.ndarray, *, first: int = 0) -> list[str]:

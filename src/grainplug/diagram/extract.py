@@ -119,6 +119,8 @@ ACROSS_WIDTHS = 1.6
 #: silhouette was not measured): in its walls, and just beyond them, where what is fixed to the tube (a clamp's
 #: overhang, a label's edges, a mark) stands still against the tube while the grains move inside
 NEAR_WALL_WIDTHS = (0.7, 1.15)
+#: what the profiles along the tube at :data:`NEAR_WALL_WIDTHS` are read on
+NEAR_NAMES = ("the tube's walls", "just beyond the walls")
 #: just beyond the outer silhouette, this far out (px, at least; or this share of the inner width)
 NEAR_OUTSIDE_PX, NEAR_OUTSIDE_WIDTHS = 2.0, 0.1
 
@@ -167,13 +169,40 @@ class Probes:
     def along(self, values: np.ndarray) -> list[tuple[np.ndarray, float, str]]:
         """The profiles along the tube of what does not move with the grains (views of ``values``), each with its
         spacing in positions along the tube and what it is: the tube's walls and just beyond them at every
-        position, the background beside the tube every :data:`BESIDE_STEP` (where the frame reaches it all)."""
-        names = ("the tube's walls", "just beyond the walls")
-        out = [(values[:, cols[0]: cols[-1] + 1], 1.0, name) for cols, name in zip(self.near, names, strict=False)
-               if cols.size]
+        position (:meth:`near_profiles`), the background beside the tube every :data:`BESIDE_STEP` (where the frame
+        reaches it all)."""
+        out = [(p, 1.0, name) for p, name in zip(self.near_profiles(values), NEAR_NAMES, strict=True)
+               if p is not None]
         if self.beside.size and (self.beside >= 0).all():
             cols = self.beside
             out.append((values[:, cols[0]: cols[-1] + 1], float(BESIDE_STEP), "the background beside the tube"))
+        return out
+
+    def near_of(self, band: Band, frames: list[np.ndarray]) -> list[np.ndarray | None]:
+        """:meth:`near_profiles` of a few frames (``frames x positions`` each), reading those profiles' samples of
+        ``band`` only (:meth:`grainplug.band.Band.profile`, plainly)."""
+        cols = [c for c in self.near[: len(NEAR_NAMES)] if c.size]
+        if not cols or not frames:
+            return [None] * len(NEAR_NAMES)
+        every = np.concatenate(cols)
+        used = max(int((band.weights[every] != 0).sum(axis=1).max()), 1)  # their samples lead, the padding follows
+        sub = Band(band.rows[every, :used], band.cols[every, :used], band.weights[every, :used], band.frame_shape)
+        values = np.stack([sub.profile(f) for f in frames])
+        out: list[np.ndarray | None] = [None] * len(NEAR_NAMES)
+        start = 0
+        for k, c in enumerate(self.near[: len(NEAR_NAMES)]):
+            if c.size:
+                out[k] = values[:, start: start + c.size]
+                start += c.size
+        return out
+
+    def near_profiles(self, values: np.ndarray) -> list[np.ndarray | None]:
+        """The profiles along the tube in its walls and just beyond them (views of ``values``; None for one not
+        read), in the order of :data:`NEAR_NAMES`."""
+        out: list[np.ndarray | None] = [None] * len(NEAR_NAMES)
+        for k, cols in enumerate(self.near[: len(NEAR_NAMES)]):
+            if cols.size:
+                out[k] = values[:, cols[0]: cols[-1] + 1]
         return out
 
 
@@ -200,8 +229,8 @@ def resample_positions(values: np.ndarray, at: np.ndarray) -> np.ndarray:
     return (values[:, i0] * (1 - frac) + values[:, i0 + 1] * frac).astype(dtype, copy=False)
 
 
-def probes_along_tube(tube: TubeGeometry, *,
-                      core_fraction: float = CORE_FRACTION) -> tuple[Band, np.ndarray, Probes]:
+def probes_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTION,
+                      near: tuple[bool, bool] = (True, True)) -> tuple[Band, np.ndarray, Probes]:
     """The core band of the bore (:func:`band_along_tube`) and, read in the same pass, what does not move
     with the grains: the background beside the tube along it (the lamp's light, row by row and frame by frame)
     and profiles across the tube through its walls (the tube's own motion in the image: camera shake).
@@ -215,6 +244,10 @@ def probes_along_tube(tube: TubeGeometry, *,
         As :func:`band_along_tube`.
     probes : Probes
         Which output columns hold what.
+
+    ``near``: whether the profiles along the tube in its walls and just beyond them are read (each costs about a
+    third of the core's reading: :func:`grainplug.measures.shake.measurable_along` on a few frames tells whether
+    they hold anything still to register on).
     """
     core, axis_px = band_along_tube(tube, core_fraction=core_fraction)
     h, w = tube.canonical_shape
@@ -261,16 +294,21 @@ def probes_along_tube(tube: TubeGeometry, *,
     c = np.rint(tube.axis_x(r.astype(float)) + side).astype(np.int64)
     beside = add(r, c)
     beside_at = at + 0.5 * (BESIDE_STEP - 1)
-    near = []
-    for offset in _near_offsets(tube):  # two pixels a side, every position; a side out of the frame anywhere: dropped
-        r = np.repeat(rows[:, None], 2, axis=1)
+    wanted, near = near, []
+    for offset, read in zip(_near_offsets(tube), wanted, strict=True):
+        if not read:  # kept in place: the profiles' order says what each is
+            near.append(np.zeros(0, np.int64))
+            continue
+        # a pixel a side, every position; a side out of the frame anywhere is dropped (its switch from two sides to
+        # one would be an edge fixed to the frame, not to the tube)
+        r = rows[:, None]
         sides = []
         for sign in (-1.0, 1.0):
-            c = np.rint(tube.axis_x(r.astype(float)) + sign * (offset + np.array([0.0, 1.0]))[None, :]).astype(np.int64)
+            c = np.rint(tube.axis_x(r.astype(float)) + sign * offset).astype(np.int64)
             if ((c >= 0) & (c < w) & (r >= 0) & (r < h)).all():
                 sides.append(c)
-        if sides:
-            near.append(add(np.repeat(r, len(sides), axis=1), np.concatenate(sides, axis=1)))
+        near.append(add(np.repeat(r, len(sides), axis=1), np.concatenate(sides, axis=1)) if sides
+                    else np.zeros(0, np.int64))
     offsets = np.arange(-np.ceil(ACROSS_WIDTHS * d), np.ceil(ACROSS_WIDTHS * d) + 1)
     heights = rows[np.linspace(0, n - 1, ACROSS_PROFILES + 2).round().astype(int)[1:-1]]
     tall = width

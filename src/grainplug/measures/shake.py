@@ -318,7 +318,7 @@ def measure_shake(across: list[np.ndarray], along: list[tuple[np.ndarray, float,
             wander = main_frequency(slow, fps, lowest_hz=0.3)
             break
     source = (" and ".join(used) if x_along is not None else
-              "nothing still along the tube (plain walls and a flat background beside it) to register it on")
+              "nothing still along the tube to register it on: plain walls, a flat background beside it")
     reach = None if x_across is None else float(np.percentile(np.abs(x_across - np.median(x_across)), 99))
     return Shake(x_across, x_along, rms_a, rms_l, freq, bool(shaking), source, wander,
                  reach_across_px=reach, band_margin_px=band_margin_px, along_sd_px=sd_along)
@@ -338,14 +338,29 @@ def register_along(profile: np.ndarray, step: float = 1.0) -> tuple[np.ndarray, 
     return s * k * step, sd * k * step
 
 
-def _along_measurable(profile: np.ndarray, step: float) -> bool:
-    """Whether a profile along the tube can measure its motion: tried first on :data:`TRIAL_FRAMES` frames spread
-    over the record (a plain wall or a flat background is so found without registering every frame)."""
+def best_along(profiles: list[np.ndarray | None]) -> int | None:
+    """Which of the profiles along the tube (on a few frames spread over the record: the sampled frames) measures
+    a motion along it best (the smallest standard error), if any can (:func:`along_sd_px`); None when none."""
+    sds = [np.inf if p is None else along_sd_px(p) for p in profiles]
+    k = int(np.argmin(sds)) if sds else 0
+    return k if sds and sds[k] <= 1.5 * MEASURABLE_ALONG_SD_PX else None
+
+
+def along_sd_px(profile: np.ndarray, step: float = 1.0) -> float:
+    """The typical standard error (px) of a motion along the tube registered on ``profile``, tried on at most
+    :data:`TRIAL_FRAMES` of its frames spread over the record (a plain wall or a flat background is so found without
+    registering every frame); inf when it is too short."""
     if not profile.size or profile.shape[1] < 8:
-        return False
+        return float("inf")
     p = profile
     trial = p[np.unique(np.linspace(0, len(p) - 1, min(len(p), TRIAL_FRAMES)).round().astype(int))]
-    return bool(np.median(register_along(trial, step)[1]) <= 1.5 * MEASURABLE_ALONG_SD_PX)
+    return float(np.median(register_along(trial, step)[1]))
+
+
+def _along_measurable(profile: np.ndarray, step: float) -> bool:
+    """Whether a profile along the tube can measure its motion (:func:`along_sd_px`, with a margin: the full
+    record's reference is better)."""
+    return along_sd_px(profile, step) <= 1.5 * MEASURABLE_ALONG_SD_PX
 
 
 #: a long profile is registered on at most this many samples (neighbours averaged): the same sub-pixel shift,
