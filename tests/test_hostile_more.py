@@ -235,6 +235,29 @@ def test_a_damaged_result_is_one_line(damaged, command):
     assert snapshot(damaged) == before
 
 
+@pytest.mark.parametrize("harm", ["missing", "another"])
+def test_a_result_without_its_diagram_beside_it_is_one_line(tmp_path, movie, harm):
+    """result.npz refers to the diagram in diagram.npz beside it (not a second copy): a folder copied in part, or
+    a diagram.npz from another analysis, is one clear line, not a wrong diagram."""
+    out = tmp_path / "done"
+    assert gp_run("analyze", movie, "--out", out, "--no-figures")[0] == 0
+    import grainplug as gp
+
+    whole = gp.load_result(out)
+    with np.load(out / "diagram.npz", allow_pickle=False) as d:
+        assert np.array_equal(whole.diagram.values, d["values"]) and np.array_equal(whole.normalized.z, d["contrast"])
+    if harm == "missing":
+        (out / "diagram.npz").unlink()
+        words = ("needs diagram.npz beside it", "copy an analysis folder whole")
+    else:
+        with open(out / "diagram.npz", "wb") as fh:
+            np.savez(fh, values=whole.diagram.values[:-1], contrast=whole.normalized.z[:-1])
+        words = ("does not hold the result's diagram.values", "analyse the movie again")
+    code, _, err = gp_run("remeasure", out, "--no-figures", timeout=60)
+    assert code == 2
+    one_error(err, *words)
+
+
 def test_a_damaged_result_in_python(tmp_path):
     import io
     import zipfile

@@ -105,7 +105,7 @@ def _as_saved_before_codes(folder) -> None:
     with np.load(npz, allow_pickle=False) as data:
         arrays = {k: data[k] for k in data.files}
     meta = json.loads(str(arrays.pop("__tree__")))
-    assert meta["format_version"] == 3
+    assert meta["format_version"] == 4
 
     def plain(obj):
         if isinstance(obj, dict):

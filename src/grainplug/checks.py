@@ -200,8 +200,8 @@ def still_objects(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion 
         f"{'; '.join(still[:5])}{' and more' if len(still) > 5 else ''} (from the upstream end of the view): "
         f"{'it stays' if len(still) == 1 else 'they stay'} put while the plugs move at "
         f"{motion.celerity_m_s:+.3g} m/s — a still object over the tube (a clamp, a label, a fitting, the tube's "
-        "end)? Left out of the plug lengths; if it is a plug, or to leave such things out of view, see grainplug "
-        "review, or give roi= or mask_mm=")]
+        "end)? Left out of the plug lengths — to keep such a thing out of the analysis, give mask_mm= or roi=; a "
+        "plug that stays put while the others move is no plug of this train")]
 
 #: plugs just over ``min_plug_mm``: this share of the whole plugs seen within :data:`NEAR_THRESHOLD` of it ...
 NEAR_SHARE = 0.1

@@ -22,9 +22,10 @@ import numpy as np
 from .errors import GrainplugError
 from .warning_codes import CODES, CodedWarning
 
-#: version of the layout of ``result.npz`` (3: warnings keep their codes; 2: corrections keep where their tracks
-#: were; 1 and 2 are read too, their warnings as uncoded text)
-FORMAT_VERSION = 3
+#: version of the layout of ``result.npz`` (4: arrays written in another file of the folder, the diagram and its
+#: contrast in ``diagram.npz``, are read from there, not held twice; 3: warnings keep their codes; 2: corrections
+#: keep where their tracks were; 1 to 3 are read too, the first two's warnings as uncoded text)
+FORMAT_VERSION = 4
 RESULT_FILE = "result.npz"
 
 
@@ -76,14 +77,46 @@ def _decode(obj: Any, arrays: Any, types: dict[str, type]) -> Any:
     return {k: _decode(v, arrays, types) for k, v in obj.items()}
 
 
-def write_result(res: Any, path: str | Path) -> None:
+def write_result(res: Any, path: str | Path, *, beside: Mapping[str, tuple[str, str]] | None = None) -> None:
     """Write ``res`` (an AnalysisResult) to ``path`` (an ``.npz`` file; not atomic by itself:
-    :meth:`AnalysisResult.save` writes it inside an atomic folder)."""
+    :meth:`AnalysisResult.save` writes it inside an atomic folder).
+
+    ``beside``: arrays of the result (by their path in it, ``"diagram.values"``) already written in another
+    ``.npz`` file of the same folder, as ``(file name, key)``: the result refers to them there (with their shape
+    and type) instead of holding a second copy.
+    """
     arrays: dict[str, np.ndarray] = {}
     tree = _encode(res, "", arrays)
-    meta = {"format": "grainplug-result", "format_version": FORMAT_VERSION, "tree": tree}
+    refs = {}
+    for name, (file, key) in (beside or {}).items():
+        if name in arrays:
+            a = arrays.pop(name)
+            refs[name] = {"file": file, "key": key, "shape": list(a.shape), "dtype": a.dtype.str}
+    meta = {"format": "grainplug-result", "format_version": FORMAT_VERSION, "tree": tree, "beside": refs}
     with open(path, "wb") as fh:
         np.savez(fh, __tree__=np.array(json.dumps(meta)), **arrays)
+
+
+def _read_beside(p: Path, refs: Mapping[str, Any], arrays: dict[str, np.ndarray]) -> None:
+    """The arrays ``result.npz`` refers to in another file of its folder (:func:`write_result`'s ``beside``),
+    checked for their shape and type."""
+    for name, ref in refs.items():
+        other = p.parent / str(ref["file"])
+        try:
+            with open(other, "rb") as fh, np.load(fh, allow_pickle=False) as data:
+                a = data[str(ref["key"])]
+        except FileNotFoundError:
+            raise GrainplugError(f"{p.name} needs {other.name} beside it (it holds the result's {name}), and "
+                                 f"{other.parent} has none — copy an analysis folder whole, or analyse the movie "
+                                 "again") from None
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+            raise GrainplugError(f"{other} is damaged ({type(exc).__name__}: {exc}): the result's {name} is in it "
+                                 "— analyse the movie again (grainplug analyze ... --overwrite)") from None
+        if list(a.shape) != list(ref["shape"]) or a.dtype.str != ref["dtype"]:
+            raise GrainplugError(f"{other} does not hold the result's {name} ({a.dtype.str} {list(a.shape)}, "
+                                 f"not {ref['dtype']} {ref['shape']}): it was replaced since — analyse the movie "
+                                 "again (grainplug analyze ... --overwrite)")
+        arrays[name] = a
 
 
 def read_result(path: str | Path, types: Mapping[str, type]) -> Any:
@@ -105,6 +138,7 @@ def read_result(path: str | Path, types: Mapping[str, type]) -> Any:
     if meta.get("format") != "grainplug-result" or meta.get("format_version", 0) > FORMAT_VERSION:
         raise GrainplugError(f"{p} was written by a newer grainplug (format {meta.get('format_version')}) "
                              "— upgrade grainplug to read it")
+    _read_beside(p, meta.get("beside") or {}, arrays)
     try:
         return _decode(meta["tree"], arrays, dict(types))
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
