@@ -227,6 +227,29 @@ class Label:
 
 
 @dataclass(frozen=True)
+class Ruler:
+    """A printed ruler standing beside the tube (in front of the lamp): dark ticks every ``pitch_mm``.
+
+    Attributes
+    ----------
+    from_axis_mm : float
+        Where its ticks start, across, from the tube's axis (on the right of the image).
+    tick_mm : float
+        The ticks' length across (every fifth twice as long).
+    pitch_mm, line_mm : float
+        Their spacing along the tube and their thickness.
+    level : float
+        The ticks' radiance, as a share of the back-light's.
+    """
+
+    from_axis_mm: float = 5.0
+    tick_mm: float = 1.0
+    pitch_mm: float = 1.0
+    line_mm: float = 0.2
+    level: float = 0.1
+
+
+@dataclass(frozen=True)
 class Scene:
     """Everything one movie holds: the tube, the flow, the nuisances, the camera.
 
@@ -284,6 +307,7 @@ class Scene:
     shadows: tuple[Shadow, ...] = ()
     clamps: tuple[Clamp, ...] = ()
     labels: tuple[Label, ...] = ()
+    rulers: tuple[Ruler, ...] = ()
     blur_px: float = 0.8
     noise: float = 0.01
     shot: float = 0.02
@@ -540,6 +564,14 @@ def render_frames(scene: Scene, rng: np.random.Generator) -> tuple[np.ndarray, T
             cov = _overlap(s_lo, s_hi, cl.center_mm - cl.length_mm / 2, cl.center_mm + cl.length_mm / 2)[:, None] \
                 * _overlap(x_lo, x_hi, -half, half)[None, :]
             img = img * (1 - cov) + cov * cl.level
+        for ru in scene.rulers:
+            ink = np.zeros((h, w))
+            for j in range(int(np.floor(s_lo.min() / ru.pitch_mm)) - 1, int(np.ceil(s_hi.max() / ru.pitch_mm)) + 2):
+                long = ru.tick_mm * (2.0 if j % 5 == 0 else 1.0)
+                ink += _overlap(s_lo, s_hi, j * ru.pitch_mm, j * ru.pitch_mm + ru.line_mm)[:, None] \
+                    * _overlap(x_lo, x_hi, ru.from_axis_mm, ru.from_axis_mm + long)[None, :]
+            ink = np.clip(ink, 0.0, 1.0)
+            img = img * (1 - ink) + ink * ru.level
         if scene.shadows:
             img = img * _shadow_factor(scene.shadows, 0.5 * (s_lo + s_hi), float(t))[:, None]
         img = img * light[k]

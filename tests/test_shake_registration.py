@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from lab_nuisances import Clamp, Label, Motion, Scene, Shake, render_frames, truth_record
+from lab_nuisances import Clamp, Label, Motion, Ruler, Scene, Shake, render_frames, truth_record
 
 import grainplug as gp
 from grainplug.calibration import find_tube
@@ -176,3 +176,20 @@ def test_the_motion_along_read_on_a_coarse_probe_is_given_in_pixels():
     assert got.along_px is not None
     # within a quarter of a pixel (a twentieth of a sample; read as samples, it would be off by 1.3 px rms)
     assert _rms_about_mean(got.along_px - true) < 0.25
+
+
+def test_the_advice_a_mark_beside_the_tube_makes_the_motion_along_it_measured():
+    # the warning shake.along_unmeasured advises a mark beside the tube: on plain glass the camera's wander along
+    # the tube moves the plugs' drift; a ruler standing beside the tube (read on the background beside it, every
+    # 4 positions) measures it, and the celerity comes right
+    plain = Scene(height_px=400, n_frames=200, motion=Motion("propagative", -0.02), shake=Shake(1.0, 20.0, 3.0))
+    ruled = Scene(**{**plain.__dict__, "rulers": (Ruler(from_axis_mm=5.0, tick_mm=1.5),)})
+    before, _ = _analyse(plain, 8)
+    after, t = _analyse(ruled, 8)
+    assert "shake.along_unmeasured" in before.summary["warning_codes"]
+    assert after.shake.along_px is not None and "beside the tube" in after.shake.along_source
+    assert _rms_about_mean(after.shake.along_px - t["truth"].shake_px[:, 0]) < 0.3
+    err_before = abs(before.summary["celerity_m_s"] / -0.02 - 1.0)
+    err_after = abs(after.summary["celerity_m_s"] / -0.02 - 1.0)
+    assert err_after < 0.015 and err_after <= err_before + 1e-3, (err_before, err_after)
+    assert abs(after.summary["plug_length_mm"] / t["record"]["plug_length_mm"] - 1.0) < 0.03

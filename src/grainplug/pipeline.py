@@ -148,11 +148,11 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         other_tubes = other_moving_regions(steady, tube)
         del steady
         probe_band, axis_px, probes = probes_along_tube(tube)  # the tube's core, and what does not move with it
-        # of the profiles along the tube's walls and just beyond them, the one that measures its motion along best is
-        # read, if one can (something still on it: a clamp, a label; tried on the sampled frames): plain glass, and
-        # the second, cost nothing (each costs a fifth of the core's reading)
+        # of the profiles along the tube's walls, just beyond them and beside the tube, the one that measures its
+        # motion along best is read, if one can (something still on it: a clamp, a label, a ruler; tried on the
+        # sampled frames): plain glass, and the others, cost nothing (each costs a fifth of the core's reading)
         best = best_along(probes.near_of(probe_band, sample))
-        probe_band, axis_px, probes = probes_along_tube(tube, near=(best == 0, best == 1))
+        probe_band, axis_px, probes = probes_along_tube(tube, near=tuple(best == k for k in range(len(probes.near))))
         sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
         laps("tube_s")
         band = probes.core_band(probe_band)

@@ -120,7 +120,7 @@ ACROSS_WIDTHS = 1.6
 #: overhang, a label's edges, a mark) stands still against the tube while the grains move inside
 NEAR_WALL_WIDTHS = (0.7, 1.15)
 #: what the profiles along the tube at :data:`NEAR_WALL_WIDTHS` are read on
-NEAR_NAMES = ("the tube's walls", "just beyond the walls")
+NEAR_NAMES = ("the tube's walls", "the background just beyond the walls", "a mark beside the tube")
 #: just beyond the outer silhouette, this far out (px, at least; or this share of the inner width)
 NEAR_OUTSIDE_PX, NEAR_OUTSIDE_WIDTHS = 2.0, 0.1
 
@@ -230,7 +230,7 @@ def resample_positions(values: np.ndarray, at: np.ndarray) -> np.ndarray:
 
 
 def probes_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTION,
-                      near: tuple[bool, bool] = (True, True)) -> tuple[Band, np.ndarray, Probes]:
+                      near: tuple[bool, ...] = (True, True, True)) -> tuple[Band, np.ndarray, Probes]:
     """The core band of the bore (:func:`band_along_tube`) and, read in the same pass, what does not move
     with the grains: the background beside the tube along it (the lamp's light, row by row and frame by frame)
     and profiles across the tube through its walls (the tube's own motion in the image: camera shake).
@@ -245,9 +245,9 @@ def probes_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTIO
     probes : Probes
         Which output columns hold what.
 
-    ``near``: whether the profiles along the tube in its walls and just beyond them are read (each costs about a
-    third of the core's reading: :func:`grainplug.measures.shake.measurable_along` on a few frames tells whether
-    they hold anything still to register on).
+    ``near``: whether the profiles along the tube at every position in its walls, just beyond them and beside the
+    tube (where a ruler or a mark would stand: :data:`NEAR_NAMES`) are read (each costs about a fifth of the
+    core's reading: :func:`grainplug.measures.shake.best_along` on the sampled frames tells which measures best).
     """
     core, axis_px = band_along_tube(tube, core_fraction=core_fraction)
     h, w = tube.canonical_shape
@@ -327,11 +327,13 @@ def probes_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTIO
     return band, axis_px, probes
 
 
-def _near_offsets(tube: TubeGeometry) -> tuple[float, float]:
-    """Distances (px from the axis, across it) of the profiles along the tube in its walls and just beyond them:
-    from the outer silhouette when it was measured, else :data:`NEAR_WALL_WIDTHS`."""
+def _near_offsets(tube: TubeGeometry) -> tuple[float, float, float]:
+    """Distances (px from the axis, across it) of the profiles along the tube in its walls, just beyond them (from
+    the outer silhouette when it was measured, else :data:`NEAR_WALL_WIDTHS`) and beside the tube (where the lamp is
+    read: :data:`BESIDE_WIDTHS`)."""
     d = float(tube.inner_diameter_px)
+    beside = 0.5 * (BESIDE_WIDTHS[0] + BESIDE_WIDTHS[1]) * d
     outer = None if tube.walls is None else float(tube.walls.outer_half_px)
     if outer is None or not np.isfinite(outer) or outer <= 0.5 * d + 1.0:
-        return NEAR_WALL_WIDTHS[0] * d, NEAR_WALL_WIDTHS[1] * d
-    return 0.5 * (0.5 * d + outer) - 0.5, outer + max(NEAR_OUTSIDE_PX, NEAR_OUTSIDE_WIDTHS * d)
+        return NEAR_WALL_WIDTHS[0] * d, NEAR_WALL_WIDTHS[1] * d, beside
+    return 0.5 * (0.5 * d + outer) - 0.5, outer + max(NEAR_OUTSIDE_PX, NEAR_OUTSIDE_WIDTHS * d), beside
