@@ -190,6 +190,7 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
             raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (a non-finite state): "
                                  "try more cells or a smaller cfl=")
         if n < 0:
+            _check_validity(U, closure, params, t)  # grains packed to c = 1 stall the step too: say that first
             raise ParameterError(_time_step_collapse(U, closure, params, t))
         _check_validity(U, closure, params, t)
         steps += n
@@ -240,9 +241,13 @@ def _time_step_collapse(U: np.ndarray, closure: Closure, params: SimulationParam
     cs = max(float(c[i]), C_FLOOR)
     air = closure.gamma * float(P[i]) / (cs * (1 - float(c[i])))
     jam = float(closure.jamming_slope(c[i:i + 1])[0])
-    why = ("the air's compressibility acting on almost no grain (a nearly emptied cell: the model has no air "
-           "inertia, so its waves there are unbounded)" if air >= jam else
-           "the jamming pressure's stiffness (grains packed near close packing)")
+    if air < jam:
+        why = "the jamming pressure's stiffness (grains packed near close packing)"
+    elif float(c[i]) > 0.5:
+        why = "the air's compressibility in a cell packed almost solid (its air squeezed out: 1 - c is nearly 0)"
+    else:
+        why = ("the air's compressibility acting on almost no grain (a nearly emptied cell: the model has no air "
+               "inertia, so its waves there are unbounded)")
     return (f"the time step fell below dt_floor_tc = {params.dt_floor_tc:g} t_c {_where(params, i, t)}, "
             f"c = {float(c[i]):.4g}: its waves travel at {float(s[i]):.3g} v_c, from {why}; the run left the "
             "model's validity")

@@ -1,0 +1,152 @@
+"""Issue 37, third step: Janssen's stress carried down each dense stretch (``wall_stress="janssen-column"``) in the
+open pipe at the paper's conditions. The numbers and the figure of docs/model.md's subsection.
+
+    .venv/bin/python benchmarks/closures_janssen_column.py [--out docs/figures] [--json runs.jsonl]
+
+A 100 D pipe (300 mm) of 3 mm bore, 0.2 mm grains, atmospheric air, exact coulomb-janssen friction on the carried
+stress, no (v/kappa) v_z term, Stokes + Carman-Kozeny drag, fed from the top at Table 1's rates (c = 0.58, rain)
+for 60 t_c (1.05 s). Three starts: a plug of 30 D held at the outlet (as for the local stress, where it stays and
+climbs); the pipe full of a dense feed (c = 0.5846); the pipe full of the fed rain. Each run is measured as a movie
+(:func:`grainplug.simulation.measure.measure`, second half) and as fields: the dense stretch's (c > c_min) top and
+bottom over time, the time it takes to leave, the speed of its bottom, the grain budget. The grid (200, 400, 800
+cells) and the stretch threshold c_min (0.55, 0.56, 0.57) are varied. About 2 minutes; writes
+model_janssen_column.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from grainplug.simulation import SimulationParams, SimulationResult, simulate
+from grainplug.simulation.equations import Closure
+from grainplug.simulation.measure import measure
+from grainplug.simulation.run import feed_velocity
+from grainplug.stability import ModelParams
+from grainplug.stability.params import P_ATM_PA
+
+log = logging.getLogger("closures_janssen_column")
+
+LENGTH_D, PLUG_D, DURATION_TC = 100.0, 30.0, 60.0
+
+
+def model(*, c_min: float = 0.56, column: bool = True) -> ModelParams:
+    kw = dict(wall_stress="janssen-column") if column else dict(friction_v_eps=0.01)
+    return ModelParams(grain_diameter_um=200, c0=0.585, base_pressure_pa=P_ATM_PA, jamming=True, jamming_c_min=c_min,
+                       friction_law="coulomb-janssen", janssen_v2_term=False, drag="stokes-carman", **kw)
+
+
+def run(start: str, *, rate: float = 0.5, cells: int = 400, c_min: float = 0.56, c_plug: float = 0.60,
+        column: bool = True) -> tuple[dict[str, object], SimulationResult]:
+    """One run; ``start`` is "held" (a plug of c_plug at the outlet, rain above), "dense" or "rain"."""
+    m = model(c_min=c_min, column=column)
+    feed_c = 0.5846 if start == "dense" else 0.58
+    sim = SimulationParams(boundary="open", length_D=LENGTH_D, n_cells=cells, duration_tc=DURATION_TC,
+                           output_interval_tc=0.25, feed_c=feed_c, feed_rate_g_s=rate, noise=0.0)
+    cl = Closure.from_params(m, balance=False)
+    z = (np.arange(cells) + 0.5) * sim.dx
+    if start == "held":
+        plug = z > LENGTH_D - PLUG_D
+        U0 = cl.conserved(np.where(plug, c_plug, 0.02), np.where(plug, 0.0, 2.0), np.full(cells, cl.P0))
+    else:
+        fv = feed_velocity(m, rate, feed_c)
+        U0 = cl.conserved(np.full(cells, feed_c), np.full(cells, fv), np.full(cells, cl.P0))
+    t0 = time.perf_counter()
+    res = simulate(m, sim, initial=U0, max_seconds=300)
+    out: dict[str, object] = dict(start=start, wall_stress=m.wall_stress, rate_g_s=rate, cells=cells, c_min=c_min,
+                                  c_plug=c_plug if start == "held" else None, wall_s=round(time.perf_counter() - t0, 1),
+                                  steps=res.n_steps, budget_residual=res.grain_budget_residual)
+    dense = res.c[:, z > 5.0] > c_min  # below the fed cells at the inlet
+    zz = z[z > 5.0]
+    alive = dense.any(axis=1)
+    out["dense_stretch_gone_s"] = (None if alive[-1] else float(res.time[np.argmin(alive)] * m.t_c_s))
+    bottoms = np.array([zz[np.flatnonzero(row)[-1]] if row.any() else math.nan for row in dense])
+    tops = np.array([zz[np.flatnonzero(row)[0]] if row.any() else math.nan for row in dense])
+    early = alive & (res.time * m.t_c_s < 0.1)  # the first 0.1 s, while the plug is still whole
+    if early.sum() >= 3:
+        out["bottom_speed_m_s"] = float(np.polyfit(res.time[early] * m.t_c_s, bottoms[early] * m.D_m, 1)[0])
+        out["top_speed_m_s"] = float(np.polyfit(res.time[early] * m.t_c_s, tops[early] * m.D_m, 1)[0])
+    c = res.c[-1]
+    out.update(c_range_end=[float(c.min()), float(c.max())], share_below_0_1_end=float(np.mean(c < 0.1)),
+               v_range_end=[float(res.v[-1].min()), float(res.v[-1].max())])
+    ms = measure(res).as_dict()
+    out["movie"] = {k: ms[k] for k in ("regime", "celerity_m_s", "plug_length_mm", "bubble_length_mm", "n_tracks")}
+    return out, res
+
+
+def unheld_share(length_D: float, wall: float) -> float:
+    """The share of a uniform stretch's weight its walls cannot hold with Janssen's stress zero at its top and
+    fully mobilised below: ``lambda (1 - exp(-L / lambda)) / L``, ``lambda = D / (4 mu_s kappa)``."""
+    lam = 1.0 / wall
+    return lam * (1.0 - math.exp(-length_D / lam)) / length_D
+
+
+def figure(column: SimulationResult, local: SimulationResult, path: Path) -> None:
+    p = column.model
+    fig, axs = plt.subplots(1, 3, figsize=(12.5, 4.2), gridspec_kw=dict(width_ratios=[1, 1, 0.85]))
+    for ax, res, title in ((axs[0], local, "local stress (v_eps 0.01): held, climbs"),
+                           (axs[1], column, "janssen-column: released from the bottom")):
+        im = ax.imshow(res.c.T, aspect="auto", origin="upper", cmap="gray_r", vmin=0, vmax=0.64,
+                       extent=[0, res.time[-1] * p.t_c_s, res.params.length_D * p.diameter_mm, 0])
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("z from the inlet (mm)")
+    fig.colorbar(im, ax=axs[1], label="compactness c")
+    z = column.z * p.diameter_mm
+    for t_s, ls in ((0.0, "-"), (0.035, "--"), (0.07, "-."), (0.105, ":")):
+        j = int(np.argmin(np.abs(column.time * p.t_c_s - t_s)))
+        axs[2].plot(column.c[j], z, ls=ls, label=f"t = {column.time[j] * p.t_c_s:.3f} s")
+    axs[2].axvline(p.jamming_c_min, c="k", lw=0.6)
+    axs[2].set_ylim(z[-1], 150)
+    axs[2].set_xlabel("c (janssen-column); line: c_min")
+    axs[2].legend(fontsize=7)
+    axs[2].set_title("janssen-column: the plug dilates, slides and is released", fontsize=9)
+    fig.suptitle("30 D plug held at the outlet of a 100 D pipe, rain fed at 0.5 g/s (c = 0.58), 3 mm bore, 0.2 mm "
+                 "grains, atmospheric air, stokes-carman drag, c_min 0.56", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", type=Path, default=Path("docs/figures"))
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    wall = 4.0 * model().mu_s * model().kappa
+    log.info("share of a 30 D stretch's weight its walls cannot hold: %.4f (lambda = %.3f D)",
+             unheld_share(PLUG_D, wall), 1 / wall)
+    lines = []
+    specs = ([dict(start="held", cells=n) for n in (200, 400, 800)]
+             + [dict(start="held", c_min=cm) for cm in (0.55, 0.57)]
+             + [dict(start="held", c_plug=0.57), dict(start="dense")]
+             + [dict(start="rain", rate=r) for r in (0.37, 0.52, 0.67, 0.84, 1.05)])
+    kept = None
+    for spec in specs:
+        out, res = run(**spec)
+        if spec == dict(start="held", cells=400):
+            kept = res
+        log.info("%s", json.dumps(out))
+        lines.append(json.dumps(out))
+    out, local = run("held", column=False)
+    log.info("%s", json.dumps(out))
+    lines.append(json.dumps(out))
+    if args.json is not None:
+        args.json.write_text("\n".join(lines) + "\n")
+    args.out.mkdir(parents=True, exist_ok=True)
+    figure(kept, local, args.out / "model_janssen_column.png")
+
+
+if __name__ == "__main__":
+    main()
