@@ -434,3 +434,36 @@ def test_the_cli_refuses_bad_closures_in_one_line(tmp_path, capsys, command, arg
     assert code == 2
     assert_one_line_error(code, err, needle)
     assert not (tmp_path / "sim").exists()
+
+
+# -- an inlet that admits air only through a hopper's grains (SimulationParams.inlet_seal_D) ------------------
+def test_a_sealed_inlet_draws_the_pressure_down_and_the_engines_agree():
+    """A dense column fed at the top of a pipe whose air comes in through 30 D of the fed grains: as the grains
+    fall the air pressure in the pipe drops below the atmosphere (it is held at the ends otherwise), both engines
+    give the same run, and the grain budget closes to round-off; without the seal the suction is less than half."""
+    p = ModelParams(**COLUMN)
+    n, fc = 60, 0.5846
+    cl = Closure.from_params(p, balance=False)
+    U0 = cl.conserved(np.full(n, fc), np.full(n, feed_velocity(p, 0.5, fc)), np.full(n, cl.P0))
+    sim = SimulationParams(boundary="open", length_D=30.0, n_cells=n, duration_tc=6.0, output_interval_tc=1.0,
+                           feed_c=fc, feed_rate_g_s=0.5, noise=0.0, inlet_seal_D=30.0)
+    a = simulate(p, sim, initial=U0)
+    b = simulate(p, sim.replace(engine="numpy"), initial=U0)
+    np.testing.assert_allclose(a.c, b.c, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(a.P, b.P, rtol=1e-9)
+    assert a.grain_budget_residual < 1e-12
+    open_top = simulate(p, sim.replace(inlet_seal_D=None), initial=U0)
+    suction = (a.P[-1].min() - cl.P0) * p.P_c_pa
+    assert suction < -500.0, suction  # -765 Pa
+    assert suction < 2 * (open_top.P[-1].min() - cl.P0) * p.P_c_pa  # -328 Pa: the column draws air through itself
+
+
+@pytest.mark.parametrize(("kw", "needle"), [
+    ({"boundary": "open", "inlet_seal_D": -1.0}, "inlet_seal_D"),
+    ({"boundary": "open", "inlet_seal_D": math.inf}, "inlet_seal_D"),
+    ({"inlet_seal_D": 10.0}, "open pipe only"),
+])
+def test_a_bad_inlet_seal_is_refused_in_one_line(kw, needle):
+    with pytest.raises(ParameterError, match=needle) as e:
+        SimulationParams(**kw)
+    assert "\n" not in str(e.value)

@@ -249,6 +249,9 @@ def _print_stability_warnings(lines: list[str]) -> None:
               help="Open pipe: velocity of the fed grains in units of v_c [default: the base velocity].")
 @click.option("--feed-rate-g-s", type=Number(1e-6, 1e6, unit="g/s"), default=None,
               help="Open pipe: mass flow rate of the grains fed at the top (sets their velocity).")
+@click.option("--inlet-seal-D", "inlet_seal_D", type=Number(0, 1e6, unit="D"), default=None,
+              help="Open pipe: the air enters the top only through a column of this many D of the fed grains (a "
+                   "hopper full of grains), the atmosphere beyond it [default: the pressure held at the top face].")
 @click.option("--balance/--no-balance", "balance", default=None,
               help="Add the uniform force S that makes the base state steady, as the linear analysis assumes "
                    "[default: in a periodic box, not in an open pipe].")
@@ -259,8 +262,8 @@ def _print_stability_warnings(lines: list[str]) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, output_interval_tc: float, cfl: float,
              noise: float, seed: int, feed_c: float | None, feed_v: float | None, feed_rate_g_s: float | None,
-             balance: bool | None, out_dir: Path, publication: bool, overwrite: bool, as_json: bool,
-             **model: object) -> None:
+             inlet_seal_D: float | None, balance: bool | None, out_dir: Path, publication: bool, overwrite: bool,
+             as_json: bool, **model: object) -> None:
     """Integrate the paper's 1D model in time (finite volumes) and measure what it forms.
 
     Conservative in grain and air mass (the air's mass balance replaces the printed
@@ -275,7 +278,7 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
     p = _model_params(**model)
     sim = SimulationParams(boundary=boundary, length_D=length_D, n_cells=n_cells, duration_tc=duration_tc,
                            output_interval_tc=output_interval_tc, cfl=cfl, noise=noise, feed_c=feed_c, feed_v=feed_v,
-                           feed_rate_g_s=feed_rate_g_s, balance=balance)
+                           feed_rate_g_s=feed_rate_g_s, balance=balance, inlet_seal_D=inlet_seal_D)
     from .._atomic import check_output_place
 
     check_output_place(out_dir, kind="simulation")  # refuse a bad place before the run, not after

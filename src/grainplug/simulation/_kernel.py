@@ -32,16 +32,19 @@ BCS = {"periodic": 0, "open": 1, "outflow": 2}
 
 # indices into the constants array
 (K_C0, K_P0, K_GAMMA, K_KAPPA, K_COS, K_LAW, K_F0, K_ALPHA, K_K0, K_BAL, K_JAM, K_FR, K_CMIN, K_CMAX, K_BC,
- K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX, K_STAGES, K_JTERM, K_WALL, K_VEPS, K_STOKES, K_DTMIN, K_COLUMN) = range(27)
+ K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX, K_STAGES, K_JTERM, K_WALL, K_VEPS, K_STOKES, K_DTMIN, K_COLUMN,
+ K_SEAL) = range(28)
 
 
-def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float, dt_floor: float = 0.0) -> np.ndarray:
+def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float, dt_floor: float = 0.0,
+         inlet_seal: float = 0.0) -> np.ndarray:
     """The constants of one integration as a float array (the scheme's constants too: a compiled
     function keeps the value of a module global it read, even from its on-disk cache)."""
     return np.array([cl.c0, cl.P0, cl.gamma, cl.kappa, cl.cos_theta, LAWS[cl.law], cl.F0, cl.alpha, cl.K0,
                      cl.balance_force, 1.0 if cl.jamming else 0.0, cl.jam_fr, cl.jam_c_min, cl.jam_c_max,
                      BCS[bc_kind], inlet[0], inlet[1], inlet[2], P_end, dx, SSP_STAGES, cl.jterm, cl.wall, cl.v_eps,
-                     1.0 if cl.stokes else 0.0, dt_floor, 1.0 if cl.column else 0.0], dtype=np.float64)
+                     1.0 if cl.stokes else 0.0, dt_floor, 1.0 if cl.column else 0.0, inlet_seal],
+                    dtype=np.float64)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -425,6 +428,8 @@ def _diffusion(U, dt, k, P):
         if bc == 1:
             D[0] *= 2.0
             D[n] *= 2.0
+            if k[K_SEAL] > 0:  # the air's way in crosses a column of packed grains too (Boundary.inlet_seal)
+                D[0] = 1.0 / (1.0 / D[0] + k[K_SEAL] / dx)
         else:
             D[0] = D[n] = 0.0
     for f in range(1, n):

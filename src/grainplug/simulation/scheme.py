@@ -83,12 +83,17 @@ class Boundary:
         ``"outflow"``: both ends free, no air flux through them (Riemann problems).
     inlet_c, inlet_v, P_end : float
         Inlet compactness and velocity, and the air pressure at both ends (dimensionless).
+    inlet_seal : float
+        Open pipe: the resistance of the air's way in at the top, ``H / (r K(c_h))`` for a column of ``H`` (in
+        ``D``) of packed grains it must cross from the atmosphere (a hopper), in series with the half cell to the
+        top face; 0 (default): the pressure is held at ``P_end`` at the top face.
     """
 
     kind: str = "periodic"
     inlet_c: float = 0.0
     inlet_v: float = 0.0
     P_end: float = 1.0
+    inlet_seal: float = 0.0
 
 
 def inlet_flux(c_top: float, v_top: float, c_feed: float, v_feed: float) -> float:
@@ -353,6 +358,8 @@ class Integrator:
         D = 0.5 * (rk_ext[:-1] + rk_ext[1:])
         if self.bc.kind == "open":
             D[[0, -1]] *= 2.0  # the held pressure is half a cell away
+            if self.bc.inlet_seal > 0:  # ... and at the top, beyond a column of packed grains too (in series)
+                D[0] = 1.0 / (1.0 / D[0] + self.bc.inlet_seal / self.dx)
         elif self.bc.kind == "outflow":
             D[[0, -1]] = 0.0
         J = cl.gamma * P / np.maximum(m, 1e-300)
