@@ -269,8 +269,8 @@ def _sources(U, dt, k):
     ve = k[K_VEPS]
     column = k[K_COLUMN] != 0.0 and law == 3 and not ve > 0
     n = U.shape[1]
-    push = np.zeros(n)
-    cap = np.zeros(n)
+    push = np.zeros(n if column else 0)  # no allocation on the other laws' path
+    cap = np.zeros(n if column else 0)
     if column:
         _column_stress(U, k, push, cap)
     for i in range(n):
