@@ -9,7 +9,9 @@ for 60 t_c (1.05 s). Three starts: a plug of 30 D held at the outlet (as for the
 climbs); the pipe full of a dense feed (c = 0.5846); the pipe full of the fed rain. Each run is measured as a movie
 (:func:`grainplug.simulation.measure.measure`, second half) and as fields: the dense stretch's (c > c_min) top and
 bottom over time, the time it takes to leave, the speed of its bottom, the grain budget. The grid (200, 400, 800
-cells) and the stretch threshold c_min (0.55, 0.56, 0.57) are varied. About 2 minutes; writes
+cells) and the stretch threshold c_min (0.55, 0.56, 0.57) are varied. Then a dense feed into a pipe whose air
+enters the top only through a hopper's grains (``inlet_seal_D``): its suction, its column's lower front and how
+fast it climbs, at two grids, two seals, two rates and in a 1 m pipe. About 2.5 minutes; writes
 model_janssen_column.png.
 """
 
@@ -84,6 +86,38 @@ def run(start: str, *, rate: float = 0.5, cells: int = 400, c_min: float = 0.56,
     return out, res
 
 
+def sealed(length_D: float, cells: int, duration_tc: float, *, seal_D: float = 30.0,
+           rate: float = 0.5) -> tuple[dict[str, object], SimulationResult]:
+    """A dense feed (c = 0.5846) into a pipe whose air enters the top only through ``seal_D`` of the fed grains (a
+    hopper): the suction, the dense column's lower front (c > 0.3) and its climb (fitted over the run's second
+    half), and the movie measures."""
+    m = model()
+    fc = 0.5846
+    sim = SimulationParams(boundary="open", length_D=length_D, n_cells=cells, duration_tc=duration_tc,
+                           output_interval_tc=0.25, feed_c=fc, feed_rate_g_s=rate, noise=0.0, inlet_seal_D=seal_D)
+    cl = Closure.from_params(m, balance=False)
+    fv = feed_velocity(m, rate, fc)
+    t0 = time.perf_counter()
+    res = simulate(m, sim, initial=cl.conserved(np.full(cells, fc), np.full(cells, fv), np.full(cells, cl.P0)),
+                   max_seconds=300)
+    z = res.z
+    front = np.array([z[np.flatnonzero(r > 0.3)[-1]] if (r > 0.3).any() else math.nan for r in res.c])
+    late = (res.time > res.time[-1] / 2) & (front < length_D - 2.0)
+    climb = float(np.polyfit(res.time[late] * m.t_c_s, front[late] * m.D_m, 1)[0]) if late.sum() >= 3 else None
+    above = z < front[-1] - 2.0
+    c, v = res.c[-1], res.v[-1]
+    ms = measure(res).as_dict()
+    out = dict(start="dense, sealed inlet", seal_D=seal_D, length_D=length_D, cells=cells, rate_g_s=rate,
+               wall_s=round(time.perf_counter() - t0, 1), budget_residual=res.grain_budget_residual,
+               suction_pa=float((res.P[-1].min() - cl.P0) * m.P_c_pa), front_D=float(front[-1]), front_climb_m_s=climb,
+               column_c=[float(c[above].min()), float(c[above].max())], column_v_m_s=[float(v[above].min() * m.v_c_m_s),
+                                                                          float(v[above].max() * m.v_c_m_s)],
+               below_c=[float(c[~above].min()), float(c[~above].max())], share_below_0_1=float(np.mean(c < 0.1)),
+               share_dense=float(np.mean(c > m.jamming_c_min)),
+               movie={k: ms[k] for k in ("regime", "celerity_m_s", "plug_length_mm", "bubble_length_mm", "n_tracks")})
+    return out, res
+
+
 def unheld_share(length_D: float, wall: float) -> float:
     """The share of a uniform stretch's weight its walls cannot hold with Janssen's stress zero at its top and
     fully mobilised below: ``lambda (1 - exp(-L / lambda)) / L``, ``lambda = D / (4 mu_s kappa)``."""
@@ -91,28 +125,30 @@ def unheld_share(length_D: float, wall: float) -> float:
     return lam * (1.0 - math.exp(-length_D / lam)) / length_D
 
 
-def figure(column: SimulationResult, local: SimulationResult, path: Path) -> None:
+def figure(column: SimulationResult, local: SimulationResult, seal: SimulationResult, path: Path) -> None:
     p = column.model
-    fig, axs = plt.subplots(1, 3, figsize=(12.5, 4.2), gridspec_kw=dict(width_ratios=[1, 1, 0.85]))
-    for ax, res, title in ((axs[0], local, "local stress (v_eps 0.01): held, climbs"),
-                           (axs[1], column, "janssen-column: released from the bottom")):
+    fig, axs = plt.subplots(1, 4, figsize=(15.5, 4.3), gridspec_kw=dict(width_ratios=[1, 1, 0.75, 1.2]))
+    for ax, res, title in ((axs[0], local, "(a) local stress (v_eps 0.01):\nthe plug at the outlet is held, climbs"),
+                           (axs[1], column, "(b) janssen-column: the same plug\nslides out, released from its bottom"),
+                           (axs[3], seal, "(d) janssen-column, dense feed (c = 0.5846), air in\nthrough 30 D of grains "
+                                          "(hopper): held by suction, 1 m pipe")):
         im = ax.imshow(res.c.T, aspect="auto", origin="upper", cmap="gray_r", vmin=0, vmax=0.64,
                        extent=[0, res.time[-1] * p.t_c_s, res.params.length_D * p.diameter_mm, 0])
-        ax.set_title(title, fontsize=9)
+        ax.set_title(title, fontsize=8)
         ax.set_xlabel("time (s)")
         ax.set_ylabel("z from the inlet (mm)")
-    fig.colorbar(im, ax=axs[1], label="compactness c")
+    fig.colorbar(im, ax=axs[3], label="compactness c")
     z = column.z * p.diameter_mm
     for t_s, ls in ((0.0, "-"), (0.035, "--"), (0.07, "-."), (0.105, ":")):
         j = int(np.argmin(np.abs(column.time * p.t_c_s - t_s)))
         axs[2].plot(column.c[j], z, ls=ls, label=f"t = {column.time[j] * p.t_c_s:.3f} s")
     axs[2].axvline(p.jamming_c_min, c="k", lw=0.6)
     axs[2].set_ylim(z[-1], 150)
-    axs[2].set_xlabel("c (janssen-column); line: c_min")
+    axs[2].set_xlabel("c in (b); line: c_min")
     axs[2].legend(fontsize=7)
-    axs[2].set_title("janssen-column: the plug dilates, slides and is released", fontsize=9)
-    fig.suptitle("30 D plug held at the outlet of a 100 D pipe, rain fed at 0.5 g/s (c = 0.58), 3 mm bore, 0.2 mm "
-                 "grains, atmospheric air, stokes-carman drag, c_min 0.56", fontsize=9)
+    axs[2].set_title("(c) profiles of (b): the plug\ndilates and is released", fontsize=8)
+    fig.suptitle("(a-c) 30 D plug at the outlet of a 100 D pipe, rain fed at 0.5 g/s (c = 0.58); all: 3 mm bore, "
+                 "0.2 mm grains, atmospheric air, stokes-carman drag, c_min 0.56", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -142,10 +178,17 @@ def main() -> None:
     out, local = run("held", column=False)
     log.info("%s", json.dumps(out))
     lines.append(json.dumps(out))
+    for spec in (dict(length_D=100.0, cells=400, duration_tc=60.0), dict(length_D=100.0, cells=800, duration_tc=60.0),
+                 dict(length_D=100.0, cells=400, duration_tc=60.0, seal_D=100.0),
+                 dict(length_D=100.0, cells=400, duration_tc=60.0, rate=1.05),
+                 dict(length_D=333.0, cells=666, duration_tc=240.0)):
+        out, seal = sealed(**spec)
+        log.info("%s", json.dumps(out))
+        lines.append(json.dumps(out))
     if args.json is not None:
         args.json.write_text("\n".join(lines) + "\n")
     args.out.mkdir(parents=True, exist_ok=True)
-    figure(kept, local, args.out / "model_janssen_column.png")
+    figure(kept, local, seal, args.out / "model_janssen_column.png")
 
 
 if __name__ == "__main__":
