@@ -467,3 +467,16 @@ def test_a_bad_inlet_seal_is_refused_in_one_line(kw, needle):
     with pytest.raises(ParameterError, match=needle) as e:
         SimulationParams(**kw)
     assert "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--boundary", "open", "--inlet-seal-D", "-1"], "--inlet-seal-D"),
+    (["--inlet-seal-D", "10"], "open pipe only"),
+])
+def test_the_cli_refuses_a_bad_inlet_seal_in_one_line(tmp_path, capsys, args, needle):
+    from test_cli_basics import assert_one_line_error, run
+
+    code, _, err = run(capsys, "simulate", *args, "--out", tmp_path / "sim")
+    assert code == 2
+    assert_one_line_error(code, err, needle)
+    assert not (tmp_path / "sim").exists()
