@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from lab_nuisances import Motion, Scene, Shake, render_frames, truth_record
+from lab_nuisances import Clamp, Label, Motion, Scene, Shake, render_frames, truth_record
 
 import grainplug as gp
 from grainplug.calibration import find_tube
-from grainplug.measures.shake import across_profiles, register_sample, register_wide, shake_line
+from grainplug.measures.shake import across_profiles, measure_shake, register_sample, register_wide, shake_line
 from grainplug.warning_codes import codes_of
 
 #: a short record of the renderer's tube (3 mm bore at 0.15 mm/px: 20 px), quick to draw
@@ -139,3 +139,40 @@ def test_the_frames_moved_back_hold_the_tube_still_whichever_way_it_lies(horizon
     assert got.registered and got.rms_px > 1.0
     again, _ = register_wide(across_profiles(steady, orientation=orientation, tilt_deg=0.0))
     assert np.std(again) < 0.05
+
+
+@pytest.mark.parametrize("fixed", ["clamp", "label"])
+def test_the_tubes_motion_along_is_measured_on_what_is_fixed_to_it_and_the_diagram_held_still(fixed):
+    # a camera that wanders along the tube by a few pixels moves every plug edge alike: measured on a clamp's
+    # overhang or a label's edges (over the walls), it is taken out of the diagram before the edges are found
+    thing = {"clamp": {"clamps": (Clamp(30.0, 6.0),)}, "label": {"labels": (Label(30.0, 10.0),)}}[fixed]
+    scene = Scene(height_px=400, n_frames=200, motion=Motion("propagative", -0.02), shake=Shake(1.0, 20.0, 3.0),
+                  **thing)
+    res, t = _analyse(scene, 8)
+    along = t["truth"].shake_px[:, 0]
+    assert res.shake.along_px is not None, res.shake.along_source
+    assert _rms_about_mean(res.shake.along_px - along) < 0.3
+    s = res.summary
+    assert s["shake"]["along_measured"] and "shake.along_unmeasured" not in s["warning_codes"]
+    assert "shake.corrected" in s["warning_codes"]
+    assert abs(s["celerity_m_s"] / -0.02 - 1.0) < 0.015
+    lo, hi = s["celerity_ci95_m_s"]
+    assert lo <= -0.02 <= hi
+
+
+def test_the_motion_along_read_on_a_coarse_probe_is_given_in_pixels():
+    # the background beside the tube is read every 4 positions (its structure broader than that): its shifts are
+    # 4 positions a sample
+    rng = np.random.default_rng(3)
+    x = np.arange(800, dtype=float)
+    texture = np.convolve(rng.normal(0.0, 40.0, x.size + 60), np.ones(25) / 25, mode="same")[30:-30] + 100.0
+    true = 2.5 * np.sin(np.arange(120) / 5.0)
+
+    def seen(s: float) -> np.ndarray:  # the background moved by s px, averaged every 4 positions
+        return np.interp(x - s, x, texture).reshape(-1, 4).mean(axis=1) + rng.normal(0.0, 0.3, x.size // 4)
+
+    beside = np.stack([seen(s) for s in true]).astype(np.float32)
+    got = measure_shake([], [(beside, 4.0, "the background beside the tube")], fps=250.0)
+    assert got.along_px is not None
+    # within a quarter of a pixel (a twentieth of a sample; read as samples, it would be off by 1.3 px rms)
+    assert _rms_about_mean(got.along_px - true) < 0.25

@@ -18,8 +18,7 @@ from .measures import Motion
 from .measures.flow import assumed_down
 from .measures.grains import GrainMotion
 from .measures.shake import Shake
-from .measures.still import STILL_CONTENTS, BlindStretch
-from .measures.tracks import edge_speed_mm_s
+from .measures.still import STILL_CONTENTS, BlindStretch, still_tracks
 from .params import AnalysisParams
 from .plugs import Runs, Tracks
 from .readers import MovieInfo
@@ -188,41 +187,21 @@ def still_regions(blind: tuple[BlindStretch, ...]) -> list[str]:
         "not, or to name others, remove or add blind stretches in grainplug review, or give mask_mm=")]
 
 
-#: a track that moves less than this share of what the plug train moves over its life stays put
-STILL_SHARE = 0.2
-
-#: ... judged only where the train moves at least this many pixels over the track's life
-STILL_MIN_TRAIN_PX = 5.0
-
 def still_objects(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion | None,
-                   mm_per_px: float) -> list[str]:
-    """A warning for the tracks that stay put while the plug train moves: a still object over the tube (a clamp,
-    a label, a fitting, the tube's end) taken for a plug, whose "length" enters the lengths."""
-    if motion is None or motion.regime != "propagative" or motion.celerity_m_s is None:
-        return []
-    speed = abs(motion.celerity_m_s) * 1000.0  # mm/s
-    still = []
-    for tid in range(len(links)):
-        sel = links.run_track == tid
-        if np.count_nonzero(sel) < 3:
-            continue
-        t = time_s[runs.frame[sel]]
-        span = float(t.max() - t.min())
-        top, bottom = runs.top_mm[sel], runs.bottom_mm[sel]
-        if speed * span < STILL_MIN_TRAIN_PX * mm_per_px:
-            continue
-        slope = edge_speed_mm_s(t, top, bottom)  # as the tracks table reads it
-        if np.isfinite(slope) and abs(slope) <= STILL_SHARE * speed:
-            seen = np.concatenate([top[np.isfinite(top)], bottom[np.isfinite(bottom)]])
-            still.append(f"plug {tid} at {seen.min():.0f}-{seen.max():.0f} mm for {span:.2g} s")
-    if not still:
+                  mm_per_px: float) -> list[str]:
+    """A warning for the tracks that stay put while the plug train moves
+    (:func:`grainplug.measures.still.still_tracks`): a still object over the tube (a clamp, a label, a fitting, the
+    tube's end) taken for a plug, left out of the plug lengths."""
+    still = [f"plug {tid} at {a:.0f}-{b:.0f} mm for {span:.2g} s"
+             for tid, (a, b, span) in still_tracks(runs, links, time_s, motion, mm_per_px).items()]
+    if not still or motion is None or motion.celerity_m_s is None:
         return []
     return [coded("still.track",
         f"{'; '.join(still[:5])}{' and more' if len(still) > 5 else ''} (from the upstream end of the view): "
         f"{'it stays' if len(still) == 1 else 'they stay'} put while the plugs move at "
         f"{motion.celerity_m_s:+.3g} m/s — a still object over the tube (a clamp, a label, a fitting, the tube's "
-        "end)? Measured as plugs, they bias the lengths: exclude them (grainplug review, or Corrections in "
-        "Python) or leave them out with roi=")]
+        "end)? Left out of the plug lengths; if it is a plug, or to leave such things out of view, see grainplug "
+        "review, or give roi= or mask_mm=")]
 
 #: plugs just over ``min_plug_mm``: this share of the whole plugs seen within :data:`NEAR_THRESHOLD` of it ...
 NEAR_SHARE = 0.1
@@ -300,10 +279,18 @@ def shaken(shake: Shake | None, motion: Motion | None) -> list[str]:
                f"{shake.along_source}), and a plug motion at that frequency is not reported as the plugs'")
         return [coded("shake.corrected", f"the camera shook{f} ({', '.join(parts)}): {fix}")]
     osc = "" if motion is None or motion.regime != "oscillating" else " (the oscillation reported is at another)"
+    drift = ""
+    if motion is not None and shake.mm_per_px and len(motion.time_s) > 1:
+        # what the camera's unmeasured drift along the tube does to the drift of the plugs
+        per_px = shake.mm_per_px / max(float(motion.time_s[-1] - motion.time_s[0]), 1e-9) / 1000.0
+        share = (f", {100.0 * per_px / abs(motion.celerity_m_s):.2g} % of it" if motion.celerity_m_s else "")
+        drift = (f"; and a drift of the camera along the tube moves the celerity by {per_px:.2g} m/s per pixel over "
+                 f"the record{share}, beyond its interval, which assumes the camera drifted along as it did across")
     return [coded("shake.along_unmeasured",
         f"the camera shook{f} ({', '.join(parts)}, measured on the tube's walls); its motion along the tube could "
         f"not be measured ({shake.along_source}), so the plug edges carry it: a plug motion at that frequency is "
-        f"taken for the camera's and not reported{osc} — steady the camera, or put a mark beside the tube")]
+        f"taken for the camera's and not reported{osc}{drift} — steady the camera, or put a mark beside the tube "
+        "(a clamp, a label, a ruler) to measure it on")]
 
 
 def tube_out_of_view(stretches: tuple[tuple[int, int], ...], time_s: np.ndarray, *, first: int = 0) -> list[str]:

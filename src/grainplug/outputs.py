@@ -67,36 +67,31 @@ def edges_long_table(res: AnalysisResult) -> str:
     """CSV with one row per plug edge per frame, trackpy's long layout (:data:`grainplug.summary.EDGE_LONG_SCHEMA`)."""
     r, track = res.runs, res.links.run_track
     t = res.diagram.time_s
-    rows: list[tuple[int, float, int, str, float, float]] = []
-    for name, pos in (("upstream", r.top_mm), ("downstream", r.bottom_mm)):
-        seen = np.isfinite(pos)
-        order = np.lexsort((r.frame, track))
-        for tid in np.unique(track):
-            sel = order[(track[order] == tid) & seen[order]]
-            if not sel.size:
-                continue
-            f, x = r.frame[sel].astype(np.int64), pos[sel]
-            ts = t[f]
-            v = np.full(f.size, np.nan)
-            nxt = np.r_[f[1:] - f[:-1] == 1, False]  # the next frame holds this edge
-            prv = np.r_[False, f[1:] - f[:-1] == 1]
-            both = nxt & prv
-            idx = np.arange(f.size)
-            v[both] = (x[idx[both] + 1] - x[idx[both] - 1]) / (ts[idx[both] + 1] - ts[idx[both] - 1])
-            one = nxt & ~prv
-            v[one] = (x[idx[one] + 1] - x[idx[one]]) / (ts[idx[one] + 1] - ts[idx[one]])
-            last = prv & ~nxt
-            v[last] = (x[idx[last]] - x[idx[last] - 1]) / (ts[idx[last]] - ts[idx[last] - 1])
-            v /= 1000.0  # mm/s -> m/s
-            rows += list(zip(f.tolist(), ts.tolist(), [int(tid)] * f.size, [name] * f.size, x.tolist(), v.tolist(),
-                             strict=True))
-    rows.sort(key=lambda row: (row[0], row[2], row[3] != "upstream"))
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(EDGE_LONG_SCHEMA)
-    for f, ts, tid, name, x, v in rows:
-        w.writerow([f, f"{ts:.6f}", tid, name, f"{x:.4f}", "" if not np.isfinite(v) else f"{v:.6f}"])
-    return buf.getvalue()
+    parts = []
+    for kind, pos in enumerate((r.top_mm, r.bottom_mm)):  # 0: upstream, 1: downstream
+        seen = np.flatnonzero(np.isfinite(pos))
+        sel = seen[np.lexsort((r.frame[seen], track[seen]))]  # by track, then frame
+        f, x, k = r.frame[sel].astype(np.int64), pos[sel], track[sel]
+        ts = t[f]
+        # the edge's velocity: centred where the frames before and after hold it (in the same track), one-sided at
+        # a track's ends, none where it is seen alone
+        step = (np.diff(f) == 1) & (np.diff(k) == 0)
+        nxt, prv = np.r_[step, False], np.r_[False, step]
+        v = np.full(f.size, np.nan)
+        i = np.flatnonzero(nxt & prv)
+        v[i] = (x[i + 1] - x[i - 1]) / (ts[i + 1] - ts[i - 1])
+        i = np.flatnonzero(nxt & ~prv)
+        v[i] = (x[i + 1] - x[i]) / (ts[i + 1] - ts[i])
+        i = np.flatnonzero(prv & ~nxt)
+        v[i] = (x[i] - x[i - 1]) / (ts[i] - ts[i - 1])
+        parts.append((f, ts, k, np.full(f.size, kind), x, v / 1000.0))  # mm/s -> m/s
+    f, ts, k, kind, x, v = (np.concatenate(c) for c in zip(*parts, strict=True))
+    order = np.lexsort((kind, k, f))  # by frame, then track, upstream edge first
+    names = ("upstream", "downstream")
+    lines = [f"{a},{b:.6f},{c},{names[d]},{e:.4f},{'' if g != g else f'{g:.6f}'}\n"
+             for a, b, c, d, e, g in zip(f[order].tolist(), ts[order].tolist(), k[order].tolist(),
+                                         kind[order].tolist(), x[order].tolist(), v[order].tolist(), strict=True)]
+    return ",".join(EDGE_LONG_SCHEMA) + "\n" + "".join(lines)
 
 
 def write_diagram_tif(res: AnalysisResult, path: Path) -> None:

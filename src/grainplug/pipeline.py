@@ -58,7 +58,7 @@ from .measures.compactness import grain_contents, reference_reads
 from .measures.creep import grain_velocity
 from .measures.diagram import DiagramMeasures, confirm_px, measure_diagram
 from .measures.flow import falling, orient, resolve_flow
-from .measures.shake import band_margin_px, measure_shake, register_sample, shake_hz, shift_along
+from .measures.shake import band_margin_px, best_along, measure_shake, register_sample, shake_hz, shift_along
 from .measures.still import blind_positions, shaken_margin, unmeasured_wander_mm
 from .measures.view import tube_view
 from .params import AnalysisParams, runs_backwards, tube_orientation
@@ -147,9 +147,14 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                 steady, sample_shake = sample, dataclasses.replace(sample_shake, registered=False)
         other_tubes = other_moving_regions(steady, tube)
         del steady
+        probe_band, axis_px, probes = probes_along_tube(tube)  # the tube's core, and what does not move with it
+        # of the profiles along the tube's walls and just beyond them, the one that measures its motion along best is
+        # read, if one can (something still on it: a clamp, a label; tried on the sampled frames): plain glass, and
+        # the second, cost nothing (each costs a fifth of the core's reading)
+        best = best_along(probes.near_of(probe_band, sample))
+        probe_band, axis_px, probes = probes_along_tube(tube, near=(best == 0, best == 1))
         sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
         laps("tube_s")
-        probe_band, axis_px, probes = probes_along_tube(tube)  # the tube's core, and what does not move with it
         band = probes.core_band(probe_band)
         saturation = saturated_share(sample, band, info)
         scale = decide_scale(tube, params, mm_per_px=params.mm_per_px, calibration=params.calibration,
@@ -170,11 +175,11 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         movie_beside = None if reads is None else np.array(beside[:: max(1, len(beside) // 500)])
         values, lamp = divide_by_lamp(values, beside, beside_at, back_lit=tube.back_lit)
         values = np.ascontiguousarray(values)  # its own memory, not a view of the read
-        shake = measure_shake(across, [beside], fps=info.fps,
+        shake = measure_shake(across, probes.along(read), fps=info.fps,
                               band_margin_px=band_margin_px(tube.inner_diameter_px, CORE_FRACTION))
         view = tube_view(across, len(values))  # frames where the tube's walls are not seen: not measured
         del read, across, beside  # the diagram is all that is kept of the read
-        if shake.along_px is not None:  # the diagram held still against the tube
+        if shake.held_along:  # the diagram held still against the tube
             values = shift_along(values, shake.along_px)
         laps("stream_s")
         time_s, time_warnings = frame_times(movie, info, len(values))

@@ -121,8 +121,8 @@ CODES: dict[str, tuple[str, str]] = {
     # still objects over the tube
     "still.region": ("a stretch of the tube where nothing changes over the record (a clamp, a fitting, the end)",
                      "leave it out of the region analysed (roi=)"),
-    "still.track": ("a track that stays put while the plugs move (a still object taken for a plug)",
-                    "exclude it (grainplug review) or leave it out with roi="),
+    "still.track": ("a track that stays put while the plugs move (a still object taken for a plug), left out of the "
+                    "lengths", "if it is a plug, see grainplug review; or leave such things out with roi= or mask_mm="),
     # the grains' compactness
     "compactness.unmeasured": ("references were given, but the compactness cannot be read (front light)",
                                "film in back light (a lamp behind the tube)"),

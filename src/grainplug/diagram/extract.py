@@ -115,6 +115,14 @@ ACROSS_PROFILES = 3
 BESIDE_STEP = 4
 #: the profiles across the tube reach this many inner widths either side of the axis (beyond the walls)
 ACROSS_WIDTHS = 1.6
+#: where the tube's motion along it is read at every position (inner widths from the axis, when its outer
+#: silhouette was not measured): in its walls, and just beyond them, where what is fixed to the tube (a clamp's
+#: overhang, a label's edges, a mark) stands still against the tube while the grains move inside
+NEAR_WALL_WIDTHS = (0.7, 1.15)
+#: what the profiles along the tube at :data:`NEAR_WALL_WIDTHS` are read on
+NEAR_NAMES = ("the tube's walls", "just beyond the walls")
+#: just beyond the outer silhouette, this far out (px, at least; or this share of the inner width)
+NEAR_OUTSIDE_PX, NEAR_OUTSIDE_WIDTHS = 2.0, 0.1
 
 
 @dataclass(frozen=True)
@@ -138,6 +146,9 @@ class Probes:
     across: np.ndarray
     #: the position (in samples along the tube) of each sample beside it
     beside_at: np.ndarray
+    #: profiles along the tube at every position, in its walls and just beyond them (:data:`NEAR_WALL_WIDTHS`):
+    #: one row of output columns each, all in the frame
+    near: tuple[np.ndarray, ...] = ()
 
     def core_band(self, band: Band) -> Band:
         """The core's samples of ``band`` alone (what :func:`band_along_tube` gives)."""
@@ -154,6 +165,45 @@ class Probes:
         cols = self.beside[where]
         beside = values[:, cols[0]: cols[-1] + 1] if cols.size else values[:, :0]  # the columns are consecutive
         return core, across, beside, self.beside_at[where]
+
+    def along(self, values: np.ndarray) -> list[tuple[np.ndarray, float, str]]:
+        """The profiles along the tube of what does not move with the grains (views of ``values``), each with its
+        spacing in positions along the tube and what it is: the tube's walls and just beyond them at every
+        position (:meth:`near_profiles`), the background beside the tube every :data:`BESIDE_STEP` (where the frame
+        reaches it all)."""
+        out = [(p, 1.0, name) for p, name in zip(self.near_profiles(values), NEAR_NAMES, strict=True)
+               if p is not None]
+        if self.beside.size and (self.beside >= 0).all():
+            cols = self.beside
+            out.append((values[:, cols[0]: cols[-1] + 1], float(BESIDE_STEP), "the background beside the tube"))
+        return out
+
+    def near_of(self, band: Band, frames: list[np.ndarray]) -> list[np.ndarray | None]:
+        """:meth:`near_profiles` of a few frames (``frames x positions`` each), reading those profiles' samples of
+        ``band`` only (:meth:`grainplug.band.Band.profile`, plainly)."""
+        cols = [c for c in self.near[: len(NEAR_NAMES)] if c.size]
+        if not cols or not frames:
+            return [None] * len(NEAR_NAMES)
+        every = np.concatenate(cols)
+        used = max(int((band.weights[every] != 0).sum(axis=1).max()), 1)  # their samples lead, the padding follows
+        sub = Band(band.rows[every, :used], band.cols[every, :used], band.weights[every, :used], band.frame_shape)
+        values = np.stack([sub.profile(f) for f in frames])
+        out: list[np.ndarray | None] = [None] * len(NEAR_NAMES)
+        start = 0
+        for k, c in enumerate(self.near[: len(NEAR_NAMES)]):
+            if c.size:
+                out[k] = values[:, start: start + c.size]
+                start += c.size
+        return out
+
+    def near_profiles(self, values: np.ndarray) -> list[np.ndarray | None]:
+        """The profiles along the tube in its walls and just beyond them (views of ``values``; None for one not
+        read), in the order of :data:`NEAR_NAMES`."""
+        out: list[np.ndarray | None] = [None] * len(NEAR_NAMES)
+        for k, cols in enumerate(self.near[: len(NEAR_NAMES)]):
+            if cols.size:
+                out[k] = values[:, cols[0]: cols[-1] + 1]
+        return out
 
 
 def resample_positions(values: np.ndarray, at: np.ndarray) -> np.ndarray:
@@ -179,8 +229,8 @@ def resample_positions(values: np.ndarray, at: np.ndarray) -> np.ndarray:
     return (values[:, i0] * (1 - frac) + values[:, i0 + 1] * frac).astype(dtype, copy=False)
 
 
-def probes_along_tube(tube: TubeGeometry, *,
-                      core_fraction: float = CORE_FRACTION) -> tuple[Band, np.ndarray, Probes]:
+def probes_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTION,
+                      near: tuple[bool, bool] = (True, True)) -> tuple[Band, np.ndarray, Probes]:
     """The core band of the bore (:func:`band_along_tube`) and, read in the same pass, what does not move
     with the grains: the background beside the tube along it (the lamp's light, row by row and frame by frame)
     and profiles across the tube through its walls (the tube's own motion in the image: camera shake).
@@ -194,6 +244,10 @@ def probes_along_tube(tube: TubeGeometry, *,
         As :func:`band_along_tube`.
     probes : Probes
         Which output columns hold what.
+
+    ``near``: whether the profiles along the tube in its walls and just beyond them are read (each costs about a
+    third of the core's reading: :func:`grainplug.measures.shake.measurable_along` on a few frames tells whether
+    they hold anything still to register on).
     """
     core, axis_px = band_along_tube(tube, core_fraction=core_fraction)
     h, w = tube.canonical_shape
@@ -240,6 +294,21 @@ def probes_along_tube(tube: TubeGeometry, *,
     c = np.rint(tube.axis_x(r.astype(float)) + side).astype(np.int64)
     beside = add(r, c)
     beside_at = at + 0.5 * (BESIDE_STEP - 1)
+    wanted, near = near, []
+    for offset, read in zip(_near_offsets(tube), wanted, strict=True):
+        if not read:  # kept in place: the profiles' order says what each is
+            near.append(np.zeros(0, np.int64))
+            continue
+        # a pixel a side, every position; a side out of the frame anywhere is dropped (its switch from two sides to
+        # one would be an edge fixed to the frame, not to the tube)
+        r = rows[:, None]
+        sides = []
+        for sign in (-1.0, 1.0):
+            c = np.rint(tube.axis_x(r.astype(float)) + sign * offset).astype(np.int64)
+            if ((c >= 0) & (c < w) & (r >= 0) & (r < h)).all():
+                sides.append(c)
+        near.append(add(np.repeat(r, len(sides), axis=1), np.concatenate(sides, axis=1)) if sides
+                    else np.zeros(0, np.int64))
     offsets = np.arange(-np.ceil(ACROSS_WIDTHS * d), np.ceil(ACROSS_WIDTHS * d) + 1)
     heights = rows[np.linspace(0, n - 1, ACROSS_PROFILES + 2).round().astype(int)[1:-1]]
     tall = width
@@ -253,5 +322,16 @@ def probes_along_tube(tube: TubeGeometry, *,
     ww = np.concatenate([core.weights, *groups_w]) if groups_w else core.weights
     band = Band(cc, rr, np.ascontiguousarray(ww), (w, h)) if horizontal else \
         Band(rr, cc, np.ascontiguousarray(ww), (h, w))
-    probes = Probes(slice(0, n), beside, np.stack(across) if across else np.zeros((0, 0), np.int64), beside_at)
+    probes = Probes(slice(0, n), beside, np.stack(across) if across else np.zeros((0, 0), np.int64), beside_at,
+                    tuple(near))
     return band, axis_px, probes
+
+
+def _near_offsets(tube: TubeGeometry) -> tuple[float, float]:
+    """Distances (px from the axis, across it) of the profiles along the tube in its walls and just beyond them:
+    from the outer silhouette when it was measured, else :data:`NEAR_WALL_WIDTHS`."""
+    d = float(tube.inner_diameter_px)
+    outer = None if tube.walls is None else float(tube.walls.outer_half_px)
+    if outer is None or not np.isfinite(outer) or outer <= 0.5 * d + 1.0:
+        return NEAR_WALL_WIDTHS[0] * d, NEAR_WALL_WIDTHS[1] * d
+    return 0.5 * (0.5 * d + outer) - 0.5, outer + max(NEAR_OUTSIDE_PX, NEAR_OUTSIDE_WIDTHS * d)

@@ -130,17 +130,16 @@ def _plug_mask(frame: np.ndarray, start: np.ndarray, stop: np.ndarray, shape: tu
     return owner
 
 
-def _erode(mask: np.ndarray, n: int) -> np.ndarray:
-    """``mask`` (1D bool) shrunk by ``n`` samples at every end of its runs."""
+def _erode_rows(mask: np.ndarray, n: int) -> np.ndarray:
+    """Every row of ``mask`` (2D bool) shrunk by ``n`` samples at every end of its runs."""
     if n <= 0:
         return mask
-    c = np.concatenate([[0], np.cumsum(~mask)])
-    m = len(mask)
-    i = np.arange(m)
-    lo, hi = i - n, i + n + 1
-    ok = (lo >= 0) & (hi <= m)
-    out = np.zeros(m, bool)
-    out[ok] = (c[hi[ok]] - c[lo[ok]]) == 0
+    m = mask.shape[1]
+    c = np.concatenate([np.zeros((mask.shape[0], 1), np.int64), np.cumsum(~mask, axis=1)], axis=1)
+    out = np.zeros(mask.shape, bool)
+    if m >= 2 * n + 1:
+        i = np.arange(n, m - n)
+        out[:, i] = (c[:, i + n + 1] - c[:, i - n]) == 0
     return out
 
 
@@ -149,28 +148,25 @@ def _pairs(values: np.ndarray, owner: np.ndarray, starts: np.ndarray, lag: int |
     """Windows of frames ``starts`` against ``starts + lag`` (one lag, or one per start): frame, lag, centre, run,
     shift (samples), peak."""
     n_pos = values.shape[1]
-    lags = np.broadcast_to(np.asarray(lag, dtype=np.int64), np.shape(starts))
-    fr, lg, cen = [], [], []
+    starts = np.asarray(starts, dtype=np.int64)
+    lags = np.broadcast_to(np.asarray(lag, dtype=np.int64), starts.shape)
     step = 2 * half
-    for k, lag_k in zip(np.asarray(starts).tolist(), lags.tolist(), strict=True):
-        a = _erode(owner[k] >= 0, half + margin)
-        b = _erode(owner[k + lag_k] >= 0, half + search + margin)
-        ok = a & b
-        if not ok.any():
-            continue
-        # centres a window apart along each stretch of valid centres
-        idx = np.flatnonzero(ok)
-        brk = np.flatnonzero(np.diff(idx) > 1) + 1
-        for seg in np.split(idx, brk):
-            n = 1 + (len(seg) - 1) // step
-            off = (len(seg) - 1 - (n - 1) * step) // 2
-            cen.extend(seg[off::step][:n])
-            fr.extend([k] * n)
-            lg.extend([lag_k] * n)
-    if not fr:
+    # valid centres: inside a plug in both frames, a window (and the search) from its ends; every frame at once
+    ok = _erode_rows(owner[starts] >= 0, half + margin) & _erode_rows(owner[starts + lags] >= 0, half + search + margin)
+    # centres a window apart along each stretch of valid centres, centred in it
+    edges = np.diff(np.pad(ok, ((0, 0), (1, 1))).astype(np.int8), axis=1)
+    row, lo = np.nonzero(edges == 1)
+    _, hi = np.nonzero(edges == -1)  # row by row, in order: each stretch's end follows its start
+    n = 1 + (hi - lo - 1) // step
+    off = (hi - lo - 1 - (n - 1) * step) // 2
+    which = np.repeat(np.arange(len(n)), n)
+    within = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+    cen = lo[which] + off[which] + step * within
+    fr, lg = starts[row[which]], lags[row[which]]
+    if not len(fr):
         e = np.empty(0)
         return e.astype(int), e.astype(int), e.astype(int), e.astype(int), e, e
-    fr_a, lg_a, cen_a = np.asarray(fr), np.asarray(lg), np.asarray(cen)
+    fr_a, lg_a, cen_a = fr, lg, cen
     w = np.arange(-half, half)
     a = values[fr_a[:, None], np.clip(cen_a[:, None] + w, 0, n_pos - 1)].astype(np.float64)
     a = _detrend(a)

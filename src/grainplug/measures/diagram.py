@@ -27,9 +27,11 @@ from .still import (
     BlindStretch,
     blind_positions,
     column_levels,
+    merged,
     seen_through,
     still_edges,
     still_stretches,
+    still_tracks,
     travelled_enough,
 )
 
@@ -94,7 +96,10 @@ def measure_train(time_s: np.ndarray, runs: Runs, links: Tracks, *, fps: float, 
         motion = measure_motion(time_s, runs.top_mm, links.run_track, runs.frame, fps=fps,
                                 mm_per_px=mm_per_px, scale_rel_sd=scale_rel_sd, not_hz=not_hz,
                                 frame_cadence=frame_cadence, wander_mm=wander_mm)
-        lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd, blind=blind, walls=walls)
+        # a track that stays put while the train moves is a still object taken for a plug: not a plug's length
+        still = still_tracks(runs, links, time_s, motion, mm_per_px)
+        lengths = measure_lengths(runs, links, scale_rel_sd=scale_rel_sd, blind=blind, walls=walls,
+                                  not_plugs=frozenset(still))
     statement = "" if motion is not None else NO_FOLLOWED_EDGE
     return motion, lengths, statement
 
@@ -152,9 +157,12 @@ def measure_diagram(diagram: Diagram, params: AnalysisParams | None = None, *, f
     if not normalized.two_phase:
         return first
     if not travelled_enough(diagram, first.motion, first.lengths):
-        # a short record: a place may see only one phase, so nothing is judged by the places; an edge that
-        # stays put while the train moves is still a still object's boundary, blind (its plug cut there)
-        edges = [BlindStretch(a, b, STILL_CONTENTS) for a, b in still_edges(diagram, first.runs, first.motion)
+        # a short record: a place may see only one phase, so the levels are not judged place by place; a still
+        # stretch longer than a long plug or bubble could cover throughout, and an edge that stays put while the
+        # train moves, are still objects, blind (their plugs cut there)
+        found = merged([*still_stretches(diagram, first.motion, first.lengths),
+                        *still_edges(diagram, first.runs, first.motion)])
+        edges = [BlindStretch(a, b, STILL_CONTENTS) for a, b in found
                  if not any(g.from_mm <= a and b <= g.to_mm for g in given)]
         if not edges:
             return first

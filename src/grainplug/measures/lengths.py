@@ -101,15 +101,17 @@ def _bubble_medians(runs: Runs, tracks: Tracks, min_frames: int, blind: np.ndarr
 
 
 def measure_lengths(runs: Runs, tracks: Tracks, *, scale_rel_sd: float = 0.0,
-                    min_frames: int = 3, blind: np.ndarray | None = None, walls: Runs | None = None) -> Lengths:
+                    min_frames: int = 3, blind: np.ndarray | None = None, walls: Runs | None = None,
+                    not_plugs: frozenset[int] | set[int] = frozenset()) -> Lengths:
     """Mean plug and bubble lengths (see module notes); ``blind``: positions whose contents are hidden (a
     bubble across them is not measured; a plug against them is cut, as :func:`grainplug.plugs.find_runs`
     marks it); ``walls``: runs left out of the train (plugs a reviewer excluded) that still bound the gaps
-    beside them: a gap between a plug and one of them is not a bubble measured."""
+    beside them: a gap between a plug and one of them is not a bubble measured; ``not_plugs``: tracks whose
+    length is not a plug's (a still object taken for one: :func:`grainplug.measures.still.still_tracks`)."""
     both = np.isfinite(runs.top_mm) & np.isfinite(runs.bottom_mm)
     per_track: dict[int, float] = {}
     for tid in range(len(tracks)):
-        if tracks.composite(tid):
+        if tracks.composite(tid) or tid in not_plugs:
             continue
         sel = both & (tracks.run_track == tid)
         if sel.sum() >= min_frames:

@@ -405,7 +405,7 @@ def measure_motion(time_s: np.ndarray, top_mm: np.ndarray, track: np.ndarray, fr
             width = 1.5 * step / m
             cand = scan(np.linspace(f0 - width, f0 + width, 13), None)
             cand = scan(np.linspace(cand[0] - width / 6, cand[0] + width / 6, 11), cand)
-            if best is None or cand[2] < 0.8 * best[2]:
+            if best is None or (cand[2] < 0.8 * best[2] and _own_share(cand[1][1 + n_tr:], m) >= SUBHARMONIC_SHARE):
                 best = cand
         if best is not None:
             f_best, c_best, _, _, nh = best
@@ -535,6 +535,22 @@ def _fixed_b_quantile(b: float) -> float:
     the sample (Kiefer & Vogelsang 2005, their cubic fit): wider than 1.96 when few independent stretches are left."""
     b = float(np.clip(b, 0.0, 1.0))
     return 1.96 + 2.9694 * b + 0.4160 * b * b - 0.5324 * b ** 3
+
+
+#: a sub-harmonic ``f_peak / m`` is the fundamental only if its own harmonics (those not multiples of ``m``) reach this
+#: share of the peak's amplitude: otherwise its extra terms only fit the record's slow wobbles (two periods of a
+#: sub-harmonic in a short record) and the peak is the fundamental
+SUBHARMONIC_SHARE = 0.25
+
+
+def _own_share(harmonics: np.ndarray, m: int) -> float:
+    """The amplitude of the harmonics of ``f_peak / m`` that are not multiples of ``m`` (rss of their cos and sin
+    coefficients), over that of its ``m``-th harmonic (the peak's): ``harmonics`` as ``(cos_1, sin_1, cos_2, ...)``."""
+    amp = np.hypot(harmonics[0::2], harmonics[1::2])
+    if len(amp) < m or amp[m - 1] <= 0:
+        return 0.0
+    own = np.array([h % m != 0 for h in range(1, len(amp) + 1)])
+    return float(np.sqrt(np.sum(amp[own] ** 2)) / amp[m - 1])
 
 
 def _harmonic_columns(tc: np.ndarray, f: float, n_harm: int) -> np.ndarray:

@@ -83,6 +83,17 @@ class Shake:
     sample_registered: bool = False
     #: the scale, for the figures in mm (None: not known yet)
     mm_per_px: float | None = None
+    #: the typical standard error (px) of the motion along the tube, when it was measured
+    along_sd_px: float = float("inf")
+
+    @property
+    def held_along(self) -> bool:
+        """Whether the diagram is moved back by the motion along the tube: it was measured and stands above the
+        registration's noise (a steady camera's diagram is left as read)."""
+        if self.along_px is None or not len(self.along_px):
+            return False
+        rms = float(np.std(self.along_px))
+        return rms >= SHAKE_MIN_RMS_PX and rms >= SHAKE_MIN_SNR * self.along_sd_px
 
     @property
     def too_large(self) -> bool:
@@ -248,7 +259,12 @@ def band_margin_px(bore_px: float, core_fraction: float) -> float:
     return 0.5 * bore_px - half + 2.0 * BAND_OUT_SHARE * half
 
 
-def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: float,
+#: a motion along the tube wider than this (px, peak to peak) read on the tube's walls or just beyond them (a clamp, a
+#: label) is not the camera's: a shake and a wander of a few pixels each stay within it
+MAX_NEAR_SWING_PX = 12.0
+
+
+def measure_shake(across: list[np.ndarray], along: list[tuple[np.ndarray, float, str]], *, fps: float,
                   band_margin_px: float | None = None) -> Shake:
     """The tube's motion from its probes.
 
@@ -256,8 +272,12 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
     ----------
     across : list of ndarray, shape (n_frames, n_offsets)
         Profiles across the tube, through its walls.
-    along : list of ndarray, shape (n_frames, n_positions)
-        Profiles along the tube of what does not move with the grains (the background beside it).
+    along : list of (ndarray, float, str)
+        Profiles along the tube (``n_frames x n_samples``) of what does not move with the grains, each with its
+        spacing (positions along the tube a sample stands for) and what it is read on
+        (:meth:`grainplug.diagram.extract.Probes.along`: the walls, just beyond them, the background beside the
+        tube). A background beside the tube (spacing above 1) must swing by less than :data:`MAX_ALONG_SWING_PX`
+        (a passing shadow is structure that moves), the walls by less than :data:`MAX_NEAR_SWING_PX`.
     fps : float
         Frame rate.
     band_margin_px : float, optional
@@ -269,10 +289,18 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
     full = [p for p in across if p.size and p.shape[1] == max(q.shape[1] for q in across)]
     across = [np.mean(full, axis=0, dtype=np.float32)] if full else []
     x_across, sd_across = _combine([register_wide(p) for p in _measuring(across, MEASURABLE_SD_PX)])
-    x_along, sd_along = _combine([_register_binned(p) for p in _measuring(along, MEASURABLE_ALONG_SD_PX)],
-                                 limit_px=MEASURABLE_ALONG_SD_PX)
-    if x_along is not None and np.ptp(x_along) > MAX_ALONG_SWING_PX:
-        x_along, sd_along = None, np.inf  # not the camera's motion
+    read_along: list[tuple[np.ndarray, np.ndarray]] = []
+    names: list[str] = []
+    for p, step, name in along:
+        if not _along_measurable(p, step):
+            continue
+        s, sd = register_along(p, step)
+        if np.ptp(s) > (MAX_ALONG_SWING_PX if step > 1 else MAX_NEAR_SWING_PX):
+            continue  # not the camera's motion
+        read_along.append((s, sd))
+        names.append(name)
+    x_along, sd_along = _combine(read_along, limit_px=MEASURABLE_ALONG_SD_PX)
+    used = [n for n, (_, sd) in zip(names, read_along, strict=True) if np.median(sd) <= MEASURABLE_ALONG_SD_PX]
     rms_a = None if x_across is None else _detrended_rms(x_across, fps)
     rms_l = None if x_along is None else _detrended_rms(x_along, fps)
     candidates = [(r, x, sd) for r, x, sd in ((rms_a, x_across, sd_across), (rms_l, x_along, sd_along))
@@ -282,14 +310,57 @@ def measure_shake(across: list[np.ndarray], along: list[np.ndarray], *, fps: flo
         r, x, sd = max(candidates, key=lambda c: c[0])
         shaking = r >= SHAKE_MIN_RMS_PX and r >= SHAKE_MIN_SNR * sd
         freq = main_frequency(_detrended(x, fps), fps) if shaking else None
+    for x, sd in ((x_along, sd_along), (x_across, sd_across)):  # the camera's slow wander, along first
+        if x is None:
+            continue
         slow = x - _detrended(x, fps)
-        if np.ptp(slow) >= 1.0 and np.ptp(slow) >= 2 * SHAKE_MIN_SNR * sd:  # the camera wanders by a pixel or more
+        if np.ptp(slow) >= 1.0 and np.ptp(slow) >= 2 * SHAKE_MIN_SNR * sd:  # by a pixel or more
             wander = main_frequency(slow, fps, lowest_hz=0.3)
-    source = ("the background beside the tube" if x_along is not None else
-              "nothing still along the tube (a flat background beside it) to register it on")
+            break
+    source = (" and ".join(used) if x_along is not None else
+              "nothing still along the tube to register it on: plain walls, a flat background beside it")
     reach = None if x_across is None else float(np.percentile(np.abs(x_across - np.median(x_across)), 99))
     return Shake(x_across, x_along, rms_a, rms_l, freq, bool(shaking), source, wander,
-                 reach_across_px=reach, band_margin_px=band_margin_px)
+                 reach_across_px=reach, band_margin_px=band_margin_px, along_sd_px=sd_along)
+
+
+def register_along(profile: np.ndarray, step: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """The shift (px along the tube, about the median) of every frame's profile along the tube, and its standard
+    error: :func:`register_wide` (shifts of a few pixels) on at most :data:`REGISTERED_SAMPLES` samples
+    (neighbours averaged); ``step``: the positions along the tube one sample of ``profile`` stands for."""
+    P = np.asarray(profile, np.float32)
+    k = max(1, P.shape[1] // REGISTERED_SAMPLES)
+    if k > 1:
+        n = P.shape[1] // k * k
+        P = P[:, :n].reshape(len(P), -1, k).mean(axis=2)
+    search = max(3, int(np.ceil(SAMPLE_SEARCH_PX / (k * step))))
+    s, sd = register_wide(P, search_px=search)
+    return s * k * step, sd * k * step
+
+
+def best_along(profiles: list[np.ndarray | None]) -> int | None:
+    """Which of the profiles along the tube (on a few frames spread over the record: the sampled frames) measures
+    a motion along it best (the smallest standard error), if any can (:func:`along_sd_px`); None when none."""
+    sds = [np.inf if p is None else along_sd_px(p) for p in profiles]
+    k = int(np.argmin(sds)) if sds else 0
+    return k if sds and sds[k] <= 1.5 * MEASURABLE_ALONG_SD_PX else None
+
+
+def along_sd_px(profile: np.ndarray, step: float = 1.0) -> float:
+    """The typical standard error (px) of a motion along the tube registered on ``profile``, tried on at most
+    :data:`TRIAL_FRAMES` of its frames spread over the record (a plain wall or a flat background is so found without
+    registering every frame); inf when it is too short."""
+    if not profile.size or profile.shape[1] < 8:
+        return float("inf")
+    p = profile
+    trial = p[np.unique(np.linspace(0, len(p) - 1, min(len(p), TRIAL_FRAMES)).round().astype(int))]
+    return float(np.median(register_along(trial, step)[1]))
+
+
+def _along_measurable(profile: np.ndarray, step: float) -> bool:
+    """Whether a profile along the tube can measure its motion (:func:`along_sd_px`, with a margin: the full
+    record's reference is better)."""
+    return along_sd_px(profile, step) <= 1.5 * MEASURABLE_ALONG_SD_PX
 
 
 #: a long profile is registered on at most this many samples (neighbours averaged): the same sub-pixel shift,

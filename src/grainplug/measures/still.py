@@ -28,10 +28,11 @@ import numpy as np
 
 from .._filters import true_runs
 from ..diagram import Diagram
-from ..plugs import Runs
+from ..plugs import Runs, Tracks
 from .lengths import Lengths
 from .motion import Motion
 from .shake import Shake
+from .tracks import edge_speed_mm_s
 
 #: positions whose grey level varies over the record less than this share of the tube's typical variation are still
 STILL_REGION_SHARE = 0.1
@@ -154,20 +155,33 @@ def column_levels(z: np.ndarray, *, max_frames: int = 500, n_iter: int = 4) -> C
     return ColumnLevels(plug.astype(float), bubble.astype(float), spread.astype(float), measured)
 
 
-def travelled_enough(diagram: Diagram, motion: Motion | None, lengths: Lengths | None) -> bool:
-    """Whether the train moved over the record by more than its long plugs and bubbles (:data:`LONG_QUANTILE`), so
-    that every place along the tube saw both (a place covered throughout by a longer one must still be a
-    :data:`STILL_MIN_MM` stretch to be taken as still); a still train never does."""
+def unswept_mm(diagram: Diagram, motion: Motion | None, lengths: Lengths | None) -> float | None:
+    """How much longer (mm) the train's long plugs and bubbles (:data:`LONG_QUANTILE`) are than the train's travel
+    over the record: the longest stretch one of them may cover throughout, so that it looks still (0 when the train
+    travelled farther; None when it is not known to move: a static train, no plugs)."""
     if (motion is None or motion.regime == "static" or motion.celerity_m_s is None or lengths is None
             or lengths.plug_length_mm is None):
-        return False
-    duration = float(diagram.time_s[-1] - diagram.time_s[0])
-    travel_mm = abs(motion.celerity_m_s) * 1000.0 * duration + 2.0 * motion.oscillation_amplitude_mm
+        return None
+    # the train's reach over the record: the span of its displacement (a drift and an oscillation partly cancel)
+    x = np.asarray(motion.displacement_mm, float)
+    x = x[np.isfinite(x)]
+    if x.size:
+        travel_mm = float(np.ptp(x))
+    else:
+        duration = float(diagram.time_s[-1] - diagram.time_s[0])
+        travel_mm = abs(motion.celerity_m_s) * 1000.0 * duration + 2.0 * motion.oscillation_amplitude_mm
     plugs = np.asarray(list(lengths.per_track_mm.values()) or [lengths.plug_length_mm], float)
     bubbles = np.asarray(lengths.per_bubble_mm, float)
     longest = max(float(np.percentile(plugs, LONG_QUANTILE)),
                   float(np.percentile(bubbles, LONG_QUANTILE)) if bubbles.size else 0.0)
-    return travel_mm >= longest
+    return max(longest - travel_mm, 0.0)
+
+
+def travelled_enough(diagram: Diagram, motion: Motion | None, lengths: Lengths | None) -> bool:
+    """Whether the train moved over the record by more than its long plugs and bubbles (:data:`LONG_QUANTILE`), so
+    that every place along the tube saw both (a place covered throughout by a longer one must still be a
+    :data:`STILL_MIN_MM` stretch to be taken as still); a still train never does."""
+    return unswept_mm(diagram, motion, lengths) == 0.0
 
 
 def seen_through(z: np.ndarray, diagram: Diagram, levels: ColumnLevels, *,
@@ -229,12 +243,15 @@ def seen_through(z: np.ndarray, diagram: Diagram, levels: ColumnLevels, *,
 def still_stretches(diagram: Diagram, motion: Motion | None, lengths: Lengths | None) -> list[tuple[float, float]]:
     """The stretches (1 mm or more) where nothing changes over the record while the rest of the tube does.
 
-    Judged only where the plug train travelled farther than its longest plug and bubble over the record
-    (:func:`travelled_enough`), so that every place should have seen both (in a shorter record a long plug may
-    cover a place throughout); none otherwise.
+    Where the plug train travelled farther than its long plugs and bubbles over the record
+    (:func:`travelled_enough`), every place should have seen both. In a shorter record a long plug or bubble may
+    cover a place throughout, over at most the stretch by which it is longer than the travel (:func:`unswept_mm`):
+    only a still stretch longer than that, by :data:`STILL_MIN_MM`, is a still object. None in a still train.
     """
-    if not travelled_enough(diagram, motion, lengths):
+    unswept = unswept_mm(diagram, motion, lengths)
+    if unswept is None:
         return []
+    shortest = STILL_MIN_MM + unswept
     values = diagram.values
     d = np.asarray(values[:: max(1, values.shape[0] // 1000)], np.float32)
     # in grey levels, not their logarithm: a dark clamp's noise is small in grey levels and large in logarithm
@@ -244,11 +261,13 @@ def still_stretches(diagram: Diagram, motion: Motion | None, lengths: Lengths | 
         return []  # record): no contrast to judge by
     pos, half = diagram.position_mm, 0.5 * diagram.mm_per_px
     return [(float(pos[a] - half), float(pos[b - 1] + half)) for a, b in true_runs(sd < STILL_REGION_SHARE * typical)
-            if (b - a) * diagram.mm_per_px >= STILL_MIN_MM]
+            if (b - a) * diagram.mm_per_px >= shortest]
 
 
-#: a place where a plug edge is found in at least this share of the record's frames ...
-STILL_EDGE_SEEN = 0.5
+#: a place where a plug edge is found in at least this share of the record's frames (twice the most a moving edge
+#: dwells within a sample of one place: about a sixth of the frames, at an oscillation's turning point; a still
+#: object's boundary is an edge whenever a bubble lies beside it, a third of the frames or more) ...
+STILL_EDGE_SEEN = 0.3
 #: ... while the train travels at least this many samples over the record is a still object's boundary
 STILL_EDGE_MIN_TRAVEL = 10.0
 
@@ -286,6 +305,51 @@ def still_edges(diagram: Diagram, runs: Runs, motion: Motion | None) -> list[tup
     for a, b in true_runs(share >= STILL_EDGE_SEEN, 1):
         centre = a + int(np.argmax(share[a:b]))
         out.append((float(pos[max(centre - 2, 0)]), float(pos[min(centre + 2, n_pos - 1)])))
+    return out
+
+
+#: a track that moves less than this share of what the plug train moves over its life stays put ...
+STILL_TRACK_SHARE = 0.2
+#: ... judged only where the train moves at least this many pixels over the track's life
+STILL_TRACK_MIN_TRAIN_PX = 5.0
+
+
+def still_tracks(runs: Runs, links: Tracks, time_s: np.ndarray, motion: Motion | None,
+                 mm_per_px: float) -> dict[int, tuple[float, float, float]]:
+    """The tracks that stay put while a propagative train moves (their edges' speed under :data:`STILL_TRACK_SHARE`
+    of the train's, over a life in which the train moves :data:`STILL_TRACK_MIN_TRAIN_PX` or more): a still object
+    over the tube (a clamp's shadow, a label's edge, a fitting) taken for a plug. Their lengths are not the plugs'.
+
+    Returns each one's ``(from_mm, to_mm, life_s)``.
+    """
+    if motion is None or motion.regime != "propagative" or motion.celerity_m_s is None:
+        return {}
+    speed = abs(motion.celerity_m_s) * 1000.0  # mm/s
+    out = {}
+    for tid in range(len(links)):
+        sel = links.run_track == tid
+        if np.count_nonzero(sel) < 3:
+            continue
+        t = time_s[runs.frame[sel]]
+        span = float(t.max() - t.min())
+        top, bottom = runs.top_mm[sel], runs.bottom_mm[sel]
+        if speed * span < STILL_TRACK_MIN_TRAIN_PX * mm_per_px:
+            continue
+        slope = edge_speed_mm_s(t, top, bottom)  # as the tracks table reads it
+        if np.isfinite(slope) and abs(slope) <= STILL_TRACK_SHARE * speed:
+            seen = np.concatenate([top[np.isfinite(top)], bottom[np.isfinite(bottom)]])
+            out[tid] = (float(seen.min()), float(seen.max()), span)
+    return out
+
+
+def merged(stretches: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """``(from, to)`` stretches with those that overlap or touch joined, in order."""
+    out: list[tuple[float, float]] = []
+    for a, b in sorted(stretches):
+        if out and a <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], b))
+        else:
+            out.append((a, b))
     return out
 
 

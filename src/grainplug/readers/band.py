@@ -51,10 +51,36 @@ class BandGather:
         # frame's rows are far apart in memory, and a gather that goes down them at one stride lets the processor
         # fetch the next rows ahead (twice as fast, on a memory-mapped frame, as one that reads the band's
         # samples at one position after another); the same sums follow, in the same order
-        self._idx = np.ascontiguousarray(off.reshape(b.n_positions, -1).T, dtype=np.intp)
-        self._span = int(self._idx.max()) + 1
+        off = off.reshape(b.n_positions, -1)
         w = b.weights if n_ch == 1 else np.repeat(b.weights, n_ch, axis=1) / n_ch
-        self._w = np.ascontiguousarray(w, dtype=np.float32)
+        # positions with at most half the samples the band is wide (the profiles along the tube's walls, padded
+        # with zero weights) are gathered apart, their samples only: the padding would cost more than the samples.
+        # The others are gathered together, padding and all: one sweep down the frame per sample is cheaper, on a
+        # memory-mapped frame, than a sweep per group
+        nonzero = w != 0
+        counts = nonzero.sum(axis=1)
+        narrow = counts <= max(int(counts.max(initial=0)) // 2, 0)
+        self._groups = []
+        wide = np.flatnonzero(~narrow)
+        if wide.size:
+            self._groups.append((slice(None) if wide.size == b.n_positions else wide,
+                                 np.ascontiguousarray(off[wide].T, dtype=np.intp),
+                                 np.ascontiguousarray(np.asarray(w, np.float32)[wide]), True))
+        for c in np.unique(counts[narrow]):
+            if c == 0:
+                continue
+            rows = np.flatnonzero(narrow & (counts == c))
+            keep = np.argsort(~nonzero[rows], axis=1, kind="stable")[:, :c]  # its samples, in their order
+            # sample by sample too, and summed over the samples with whole rows of positions at a time (an einsum
+            # over a few samples a position spends its time in its loop's overhead)
+            self._groups.append((rows, np.ascontiguousarray(np.take_along_axis(off[rows], keep, axis=1).T,
+                                                            dtype=np.intp),
+                                 np.ascontiguousarray(np.take_along_axis(np.asarray(w, np.float32)[rows], keep,
+                                                                         axis=1).T), False))
+        self._empty = bool((counts == 0).any())
+        self._n = b.n_positions
+        self._lo = min((int(g[1].min()) for g in self._groups), default=0)  # (offsets of the samples gathered)
+        self._span = max((int(g[1].max()) for g in self._groups), default=0) + 1
         self._key = (frame.shape, frame.strides, frame.dtype.str)
 
     def _adopt(self, frame: np.ndarray) -> np.ndarray:
@@ -71,7 +97,7 @@ class BandGather:
         """Bytes ``[lo, hi)`` of a frame laid out like ``frame`` that the gather touches,
         counted from the frame's lowest address (a reader restricts its read-ahead to them)."""
         frame = self._adopt(frame)
-        return int(self._idx.min()) * frame.itemsize, self._span * frame.itemsize
+        return self._lo * frame.itemsize, self._span * frame.itemsize
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
         """The band's profile of one frame (float32), reading the band's samples only."""
@@ -79,8 +105,17 @@ class BandGather:
         if frame.strides[0] < 0 or frame.strides[1] < 0 or (frame.ndim == 3 and frame.strides[2] < 0):
             frame = frame[self._lowest]
         flat = np.lib.stride_tricks.as_strided(frame, shape=(self._span,), strides=(frame.itemsize,))
-        vals = np.take(flat, self._idx)
-        return np.einsum("ij,ij->i", np.ascontiguousarray(vals.T, dtype=np.float32), self._w)
+        if len(self._groups) == 1 and not self._empty and self._groups[0][3]:
+            _, idx, w, _ = self._groups[0]
+            return np.einsum("ij,ij->i", np.ascontiguousarray(np.take(flat, idx).T, dtype=np.float32), w)
+        out = np.zeros(self._n, np.float32)
+        for rows, idx, w, wide in self._groups:
+            vals = np.take(flat, idx)
+            if wide:
+                out[rows] = np.einsum("ij,ij->i", np.ascontiguousarray(vals.T, dtype=np.float32), w)
+            else:  # samples x positions, weights alike
+                out[rows] = (vals.astype(np.float32) * w).sum(axis=0)
+        return out
 
 
 def profiles_from_frames(frames: Iterable[np.ndarray], band: Band, *, n_frames: int,
