@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import re
 
 import numpy as np
@@ -113,6 +114,15 @@ def test_paper_cli(tmp_path, capsys):
     small, large = frozen["nonlinear"]
     assert small["n_waves"] == large["n_waves"] == 1
     assert large["dense_length_D"] > 1.5 * small["dense_length_D"]
+    # every simulated set-up carries its movie measures as numbers (None where the analysis finds no plugs)
+    runs = [n for q in panel["predictions"] for n in q["nonlinear"]]
+    assert runs
+    for n in runs:
+        assert isinstance(n["regime"], str)
+        for key in ("plug_length_mm", "bubble_length_mm", "celerity_m_s"):
+            assert n[key] is None or (isinstance(n[key], float) and math.isfinite(n[key])), (key, n[key])
+        assert n["regime"] != "none" or n["celerity_m_s"] is None
+    assert "movie: plug (mm)" in (tmp_path / "p" / "report.html").read_text()
     assert (tmp_path / "p" / "model_vs_experiment.png").stat().st_size > 0
     assert "Model against experiment" in (tmp_path / "p" / "report.html").read_text()
 

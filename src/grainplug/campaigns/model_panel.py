@@ -56,6 +56,12 @@ class Nonlinear:
     c_min: float
     c_max: float
     seen_as_movie: str
+    #: the movie measures of the run's compactness diagram (:func:`grainplug.simulation.measure.measure`): None
+    #: (and regime "none") when the analysis finds no plugs
+    regime: str = "none"
+    celerity_m_s: float | None = None
+    plug_length_mm: float | None = None
+    bubble_length_mm: float | None = None
 
     def as_dict(self) -> dict[str, object]:
         return dict(self.__dict__)
@@ -127,7 +133,12 @@ def _nonlinear(p: ModelParams, box_D: float) -> Nonlinear:
     seen = measure(res)
     movie = (f"{seen.regime}, celerity {seen.celerity_m_s:+.3f} m/s" if seen.celerity_m_s is not None
              else "no plugs (a single phase)")
-    return Nonlinear(box_D, w.n_waves, w.dense_length_D, w.front_speed * p.v_c_m_s, w.c_min, w.c_max, movie)
+    def number(x: float | None) -> float | None:
+        return None if x is None or not math.isfinite(x) else float(x)
+
+    return Nonlinear(box_D, w.n_waves, w.dense_length_D, w.front_speed * p.v_c_m_s, w.c_min, w.c_max, movie,
+                     regime=seen.regime, celerity_m_s=number(seen.celerity_m_s),
+                     plug_length_mm=number(seen.plug_length_mm), bubble_length_mm=number(seen.bubble_length_mm))
 
 
 def predict(*, diameter_mm: float = 3.0, simulate: bool = True) -> list[Prediction]:
@@ -214,16 +225,18 @@ def panel_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
         return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, fmt)
 
     headers = ["set-up", "most unstable λ/D", "cut-off λ/D", "phase speed (m/s)", "box (D)", "waves",
-               "dense segment (D)", "front speed (m/s)", "c range", "seen by the movie analysis", "note"]
+               "dense segment (D)", "front speed (m/s)", "c range", "seen by the movie analysis",
+               "movie: plug (mm)", "movie: bubble (mm)", "movie: celerity (m/s)", "note"]
     rows = []
     for q in preds:
         lin = [q.label, f(q.lambda_D, ".1f"), ", ".join(format(c, ".1f") for c in q.cutoff_lambda_D) or "—",
                f(q.phase_speed_m_s, "+.3f")]
         if not q.nonlinear:
-            rows.append([*lin, "—", "—", "—", "—", "—", "—", q.note or "not simulated"])
+            rows.append([*lin, "—", "—", "—", "—", "—", "—", "—", "—", "—", q.note or "not simulated"])
         for n in q.nonlinear:
             rows.append([*lin, f(n.box_D, ".0f"), str(n.n_waves), f(n.dense_length_D, ".1f"),
-                         f(n.front_speed_m_s, "+.3f"), f"{n.c_min:.2f}–{n.c_max:.2f}", n.seen_as_movie, q.note])
+                         f(n.front_speed_m_s, "+.3f"), f"{n.c_min:.2f}–{n.c_max:.2f}", n.seen_as_movie,
+                         f(n.plug_length_mm, ".1f"), f(n.bubble_length_mm, ".1f"), f(n.celerity_m_s, "+.3f"), q.note])
     return headers, rows
 
 

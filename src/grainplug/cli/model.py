@@ -57,11 +57,29 @@ _MODEL_OPTIONS = [
               show_default=True,
               help="printed: the paper's equations as printed; frozen-friction: wall friction not perturbed "
                    "(= --friction-law coulomb-frozen)."),
-    click.option("--friction-law", type=click.Choice(["v2", "v|v|", "coulomb-frozen", "coulomb-weight"]), default=None,
+    click.option("--friction-law", type=click.Choice(["v2", "v|v|", "coulomb-frozen", "coulomb-weight",
+                                                     "coulomb-janssen"]), default=None,
               metavar="LAW",
               help="Wall friction F(c, v), one of: v2 as printed (2 b mu_s v^2), v|v| (signed), coulomb-frozen "
-                   "(held at its base value), coulomb-weight (following the local weight) [default: v2, or the "
-                   "variant's]."),
+                   "(held at its base value), coulomb-weight (following the local weight), coulomb-janssen "
+                   "(rate-independent Coulomb friction on the contact stress, needs --jamming; issue 37) [default: "
+                   "v2, or the variant's]."),
+    click.option("--friction-v-eps", type=Number(1e-9, 1e3, unit="v_c"), default=None,
+              help="coulomb-janssen only: regularise the friction as tanh(v / v_eps), v_eps in units of v_c "
+                   "[default: exact, set-valued Coulomb friction that holds a jammed column at rest]."),
+    click.option("--wall-stress", type=click.Choice(["local", "janssen-column"]), default=_m("wall_stress"),
+              show_default=True,
+              help="coulomb-janssen only: the friction's normal stress, each cell's own contact stress (local) or "
+                   "Janssen's stress carried down each dense stretch, zero at its top and at its free bottom "
+                   "(janssen-column; exact friction only)."),
+    click.option("--drag", type=click.Choice(["carman-kozeny", "stokes-carman"]), default=_m("drag"),
+              show_default=True,
+              help="Air-grain drag: Carman-Kozeny as in the paper, or Stokes' single-grain drag added "
+                   "(stokes-carman: finite per grain in dilute regions)."),
+    click.option("--janssen-v2-term/--no-janssen-v2-term", "janssen_v2_term", default=_m("janssen_v2_term"),
+              show_default=True,
+              help="Keep the paper's Janssen term (v / kappa) v_z in the grains' momentum (as printed), or drop it "
+                   "(issue 37's closure)."),
     click.option("--base-pressure", "base_pressure", default="printed", show_default=True,
               metavar="printed|atmospheric|PA",
               help="Absolute air pressure of the base state: as printed (P* = 1, i.e. rho_s g D = 74 Pa), the "
@@ -74,8 +92,10 @@ _MODEL_OPTIONS = [
                    "momentum: it diverges at random close packing (not in the paper)."),
     click.option("--jamming-fr-pa", type=Number(0, 1e6, unit="Pa"), default=_m("jamming_fr_pa"), show_default=True,
               help="Its constant Fr."),
+    click.option("--jamming-c-min", type=Number(0.0, 0.99), default=_m("jamming_c_min"), show_default=True,
+              help="Its c_min, where contacts start to last (random loose packing for coulomb-janssen, 0.55-0.58)."),
     click.option("--jamming-c-max", type=Number(0.01, 0.99), default=_m("jamming_c_max"), show_default=True,
-              help=f"Its random close packing c_max (it starts at c_min = {_m('jamming_c_min'):.2f})."),
+              help="Its random close packing c_max."),
 ]
 
 
@@ -88,7 +108,9 @@ def _model_options(f):
 def _model_params(diameter_mm: float, grain_diameter_um: float, c0: float, kappa: float, mu_s: float,
                   theta_deg: float, gamma: float, air_viscosity_pa_s: float, grain_density_kg_m3: float,
                   b: float, b1_star: float | None, variant: str, friction_law: str | None, base_pressure: str,
-                  base_velocity: str, jamming: bool, jamming_fr_pa: float, jamming_c_max: float):
+                  base_velocity: str, jamming: bool, jamming_fr_pa: float, jamming_c_max: float,
+                  jamming_c_min: float = 0.50, friction_v_eps: float | None = None, wall_stress: str = "local",
+                  drag: str = "carman-kozeny", janssen_v2_term: bool = True):
     """The :class:`ModelParams` of the model options."""
     from ..stability import P_ATM_PA, ModelParams
 
@@ -106,7 +128,9 @@ def _model_params(diameter_mm: float, grain_diameter_um: float, c0: float, kappa
                        mu_s=mu_s, theta_deg=theta_deg, gamma=gamma, air_viscosity_pa_s=air_viscosity_pa_s,
                        grain_density_kg_m3=grain_density_kg_m3, b=b, B1_star_override=b1_star, variant=variant,
                        friction_law=friction_law, base_pressure_pa=base_pressure_pa, base_velocity=base_velocity,
-                       jamming=jamming, jamming_fr_pa=jamming_fr_pa, jamming_c_max=jamming_c_max)
+                       jamming=jamming, jamming_fr_pa=jamming_fr_pa, jamming_c_max=jamming_c_max,
+                       jamming_c_min=jamming_c_min, friction_v_eps=friction_v_eps, wall_stress=wall_stress, drag=drag,
+                       janssen_v2_term=janssen_v2_term)
 
 
 @click.command()
@@ -225,6 +249,9 @@ def _print_stability_warnings(lines: list[str]) -> None:
               help="Open pipe: velocity of the fed grains in units of v_c [default: the base velocity].")
 @click.option("--feed-rate-g-s", type=Number(1e-6, 1e6, unit="g/s"), default=None,
               help="Open pipe: mass flow rate of the grains fed at the top (sets their velocity).")
+@click.option("--inlet-seal-D", "inlet_seal_D", type=Number(0, 1e6, unit="D"), default=None,
+              help="Open pipe: the air enters the top only through a column of this many D of the fed grains (a "
+                   "hopper full of grains), the atmosphere beyond it [default: the pressure held at the top face].")
 @click.option("--balance/--no-balance", "balance", default=None,
               help="Add the uniform force S that makes the base state steady, as the linear analysis assumes "
                    "[default: in a periodic box, not in an open pipe].")
@@ -235,8 +262,8 @@ def _print_stability_warnings(lines: list[str]) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, output_interval_tc: float, cfl: float,
              noise: float, seed: int, feed_c: float | None, feed_v: float | None, feed_rate_g_s: float | None,
-             balance: bool | None, out_dir: Path, publication: bool, overwrite: bool, as_json: bool,
-             **model: object) -> None:
+             inlet_seal_D: float | None, balance: bool | None, out_dir: Path, publication: bool, overwrite: bool,
+             as_json: bool, **model: object) -> None:
     """Integrate the paper's 1D model in time (finite volumes) and measure what it forms.
 
     Conservative in grain and air mass (the air's mass balance replaces the printed
@@ -251,7 +278,7 @@ def simulate(boundary: str, length_D: float, n_cells: int, duration_tc: float, o
     p = _model_params(**model)
     sim = SimulationParams(boundary=boundary, length_D=length_D, n_cells=n_cells, duration_tc=duration_tc,
                            output_interval_tc=output_interval_tc, cfl=cfl, noise=noise, feed_c=feed_c, feed_v=feed_v,
-                           feed_rate_g_s=feed_rate_g_s, balance=balance)
+                           feed_rate_g_s=feed_rate_g_s, balance=balance, inlet_seal_D=inlet_seal_D)
     from .._atomic import check_output_place
 
     check_output_place(out_dir, kind="simulation")  # refuse a bad place before the run, not after

@@ -32,16 +32,19 @@ BCS = {"periodic": 0, "open": 1, "outflow": 2}
 
 # indices into the constants array
 (K_C0, K_P0, K_GAMMA, K_KAPPA, K_COS, K_LAW, K_F0, K_ALPHA, K_K0, K_BAL, K_JAM, K_FR, K_CMIN, K_CMAX, K_BC,
- K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX, K_STAGES, K_JTERM, K_WALL, K_VEPS, K_STOKES, K_DTMIN) = range(26)
+ K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX, K_STAGES, K_JTERM, K_WALL, K_VEPS, K_STOKES, K_DTMIN, K_COLUMN,
+ K_SEAL) = range(28)
 
 
-def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float, dt_floor: float = 0.0) -> np.ndarray:
+def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float, dt_floor: float = 0.0,
+         inlet_seal: float = 0.0) -> np.ndarray:
     """The constants of one integration as a float array (the scheme's constants too: a compiled
     function keeps the value of a module global it read, even from its on-disk cache)."""
     return np.array([cl.c0, cl.P0, cl.gamma, cl.kappa, cl.cos_theta, LAWS[cl.law], cl.F0, cl.alpha, cl.K0,
                      cl.balance_force, 1.0 if cl.jamming else 0.0, cl.jam_fr, cl.jam_c_min, cl.jam_c_max,
                      BCS[bc_kind], inlet[0], inlet[1], inlet[2], P_end, dx, SSP_STAGES, cl.jterm, cl.wall, cl.v_eps,
-                     1.0 if cl.stokes else 0.0, dt_floor], dtype=np.float64)
+                     1.0 if cl.stokes else 0.0, dt_floor, 1.0 if cl.column else 0.0, inlet_seal],
+                    dtype=np.float64)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -212,22 +215,80 @@ def _solve_tanh(c, aF, R, ve):
 
 
 @njit(cache=True, error_model="numpy")
+def _column_stress(U, k, push, cap):
+    """Janssen's stress carried down each dense stretch, as :func:`grainplug.simulation.scheme.column_stress`: the
+    push of its gradient and the walls' largest friction of every cell into ``push`` and ``cap``."""
+    n = U.shape[1]
+    wall, cmin, dx, cos = k[K_WALL], k[K_CMIN], k[K_DX], k[K_COS]
+    periodic = int(k[K_BC]) == 0
+    decay = math.exp(-wall * dx)
+    gain = (1.0 - decay) / wall
+    start = -1
+    for i in range(n):
+        push[i] = 0.0
+        cap[i] = 0.0
+        if start < 0 and not U[0, i] > cmin:
+            start = i
+    if start < 0:  # dense everywhere
+        if not periodic:
+            start = 0
+        else:  # the periodic solution: sigma_0 = decay^n sigma_0 + sum_j decay^(n-1-j) gain w_j
+            s = 0.0
+            for i in range(n):
+                s = decay * s + U[0, i] * cos * gain
+            s = s / (1.0 - decay**n)
+            for i in range(n):
+                s_next = decay * s + U[0, i] * cos * gain
+                push[i] = -(s_next - s) / dx
+                cap[i] = U[0, i] * cos + push[i]
+                s = s_next
+            return
+    if not periodic:
+        start = 0
+    s = 0.0
+    for t in range(n):
+        i = (start + t) % n
+        if not U[0, i] > cmin:
+            s = 0.0
+            continue
+        w = U[0, i] * cos
+        s_next = decay * s + w * gain
+        cap[i] = w - (s_next - s) / dx
+        j = i + 1
+        if j >= n:
+            j = 0 if periodic else -1
+        last = j < 0 or not U[0, j] > cmin or (periodic and t == n - 1)
+        push[i] = s / dx if last else -(s_next - s) / dx
+        s = s_next
+
+
+@njit(cache=True, error_model="numpy")
 def _sources(U, dt, k):
     law = int(k[K_LAW])
     jam, fr, cmin, cmax = k[K_JAM] != 0.0, k[K_FR], k[K_CMIN], k[K_CMAX]
     ve = k[K_VEPS]
-    for i in range(U.shape[1]):
+    column = k[K_COLUMN] != 0.0 and law == 3 and not ve > 0
+    n = U.shape[1]
+    push = np.zeros(n if column else 0)  # no allocation on the other laws' path
+    cap = np.zeros(n if column else 0)
+    if column:
+        _column_stress(U, k, push, cap)
+    for i in range(n):
         c = U[0, i]
         cs = max(c, C_FLOOR)
         v = U[1, i] / cs if c > C_FLOOR else 0.0
         G = c * k[K_COS] + k[K_BAL]
+        if column:
+            G = G + push[i]
         if law == 3 and ve > 0:  # regularised Coulomb friction on the contact stress, TR-BDF2
             F = k[K_WALL] * _pj(c, jam, fr, cmin, cmax)[0]
             a = _BETA * dt
             ug = _solve_tanh(cs, a * F, cs * v + a * (G - F * math.tanh(v / ve)) + a * G, ve)
             v1 = _solve_tanh(cs, a * F, _A * cs * ug - (_A - 1.0) * cs * v + a * G, ve)
         elif law >= 1:
-            if law == 3:
+            if column:
+                F = cap[i]
+            elif law == 3:
                 F = k[K_WALL] * _pj(c, jam, fr, cmin, cmax)[0]
             else:
                 F = k[K_F0] * (c / k[K_C0] if law == 2 else 1.0)
@@ -367,6 +428,8 @@ def _diffusion(U, dt, k, P):
         if bc == 1:
             D[0] *= 2.0
             D[n] *= 2.0
+            if k[K_SEAL] > 0:  # the air's way in crosses a column of packed grains too (Boundary.inlet_seal)
+                D[0] = 1.0 / (1.0 / D[0] + k[K_SEAL] / dx)
         else:
             D[0] = D[n] = 0.0
     for f in range(1, n):

@@ -89,6 +89,8 @@ class Closure:
     v_eps: float = 0.0
     #: Stokes' drag added to Carman-Kozeny's (``DRAG_LAWS``)
     stokes: bool = False
+    #: the coulomb-janssen friction on Janssen's stress carried down each dense stretch (``WALL_STRESSES``)
+    column: bool = False
 
     @classmethod
     def from_params(cls, p: ModelParams, *, balance: bool = True) -> Closure:
@@ -106,7 +108,8 @@ class Closure:
                    balance_force=p.base_state_residual if balance else 0.0, jamming=p.jamming,
                    jam_fr=p.jamming_fr_pa / p.P_c_pa, jam_c_min=p.jamming_c_min, jam_c_max=p.jamming_c_max,
                    jterm=1.0 if p.janssen_v2_term else 0.0, wall=4.0 * p.mu_s * p.kappa,
-                   v_eps=p.friction_v_eps or 0.0, stokes=p.drag == "stokes-carman")
+                   v_eps=p.friction_v_eps or 0.0, stokes=p.drag == "stokes-carman",
+                   column=p.wall_stress == "janssen-column")
 
     # -- closures -------------------------------------------------------------------
     def permeability(self, c: np.ndarray) -> np.ndarray:

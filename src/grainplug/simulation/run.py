@@ -145,7 +145,11 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
         feed_v = closure.v0 if params.feed_v is None else params.feed_v
         if params.feed_rate_g_s is not None:
             feed_v = feed_velocity(model, params.feed_rate_g_s, feed_c)
-        bc = Boundary("open", inlet_c=feed_c, inlet_v=feed_v, P_end=closure.P0)
+        seal = 0.0
+        if params.inlet_seal_D:  # the air enters through a column of the fed grains (a hopper), at P_end beyond it
+            rk = float(closure.permeability(np.array([feed_c]))[0])  # r = 1 at P_end = P0
+            seal = params.inlet_seal_D / rk
+        bc = Boundary("open", inlet_c=feed_c, inlet_v=feed_v, P_end=closure.P0, inlet_seal=seal)
     if params.boundary == "open" and model.jamming and bc.inlet_c >= model.jamming_c_max:
         raise ParameterError(f"the feed compactness {bc.inlet_c:g} is at or above close packing "
                              f"(jamming_c_max = {model.jamming_c_max:g}): no grain can be fed that dense")
@@ -170,7 +174,7 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
     if params.engine == "numba":
         from . import _kernel
 
-        consts = _kernel.pack(closure, bc.kind, integ.inlet, bc.P_end, params.dx, params.dt_floor_tc)
+        consts = _kernel.pack(closure, bc.kind, integ.inlet, bc.P_end, params.dx, params.dt_floor_tc, bc.inlet_seal)
 
         def advance(U: np.ndarray, t: float, t_end: float) -> tuple[np.ndarray, float, int]:
             return _kernel.advance(U, t, t_end, params.cfl, consts, budget)
@@ -190,6 +194,7 @@ def simulate(model: ModelParams, params: SimulationParams | None = None, *, rng:
             raise ParameterError(f"the simulation blew up at t = {t:.3g} t_c (a non-finite state): "
                                  "try more cells or a smaller cfl=")
         if n < 0:
+            _check_validity(U, closure, params, t)  # grains packed to c = 1 stall the step too: say that first
             raise ParameterError(_time_step_collapse(U, closure, params, t))
         _check_validity(U, closure, params, t)
         steps += n
@@ -240,9 +245,13 @@ def _time_step_collapse(U: np.ndarray, closure: Closure, params: SimulationParam
     cs = max(float(c[i]), C_FLOOR)
     air = closure.gamma * float(P[i]) / (cs * (1 - float(c[i])))
     jam = float(closure.jamming_slope(c[i:i + 1])[0])
-    why = ("the air's compressibility acting on almost no grain (a nearly emptied cell: the model has no air "
-           "inertia, so its waves there are unbounded)" if air >= jam else
-           "the jamming pressure's stiffness (grains packed near close packing)")
+    if air < jam:
+        why = "the jamming pressure's stiffness (grains packed near close packing)"
+    elif float(c[i]) > 0.5:
+        why = "the air's compressibility in a cell packed almost solid (its air squeezed out: 1 - c is nearly 0)"
+    else:
+        why = ("the air's compressibility acting on almost no grain (a nearly emptied cell: the model has no air "
+               "inertia, so its waves there are unbounded)")
     return (f"the time step fell below dt_floor_tc = {params.dt_floor_tc:g} t_c {_where(params, i, t)}, "
             f"c = {float(c[i]):.4g}: its waves travel at {float(s[i]):.3g} v_c, from {why}; the run left the "
             "model's validity")

@@ -83,12 +83,17 @@ class Boundary:
         ``"outflow"``: both ends free, no air flux through them (Riemann problems).
     inlet_c, inlet_v, P_end : float
         Inlet compactness and velocity, and the air pressure at both ends (dimensionless).
+    inlet_seal : float
+        Open pipe: the resistance of the air's way in at the top, ``H / (r K(c_h))`` for a column of ``H`` (in
+        ``D``) of packed grains it must cross from the atmosphere (a hopper), in series with the half cell to the
+        top face; 0 (default): the pressure is held at ``P_end`` at the top face.
     """
 
     kind: str = "periodic"
     inlet_c: float = 0.0
     inlet_v: float = 0.0
     P_end: float = 1.0
+    inlet_seal: float = 0.0
 
 
 def inlet_flux(c_top: float, v_top: float, c_feed: float, v_feed: float) -> float:
@@ -102,6 +107,68 @@ def inlet_flux(c_top: float, v_top: float, c_feed: float, v_feed: float) -> floa
     if c_top < c_feed:
         return c_feed * v_feed
     return c_feed * min(max(v_top, 0.0), v_feed)
+
+
+def column_stress(c: np.ndarray, weight: np.ndarray, wall: float, c_min: float, dx: float,
+                  periodic: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Janssen's stress carried down each dense stretch: the force of its gradient on every cell, and the wall
+    friction the cell can take (``WALL_STRESSES["janssen-column"]``).
+
+    A dense stretch is a run of cells with ``c > c_min``. From its top face, where ``sigma = 0``, the stress obeys
+    ``d sigma / dz = w - wall sigma`` (``w`` the weight per unit volume, ``wall = 4 mu_s kappa``: the walls fully
+    mobilised), integrated exactly across each cell of constant ``w``. A cell's friction capacity is the mean of
+    ``wall sigma`` over it, ``w - (sigma_below - sigma_above) / dx``, and the stress's gradient pushes it with
+    ``-(sigma_below - sigma_above) / dx``: inside a stretch the weight and that push are exactly the capacity (a
+    cell at rest stays, at Coulomb's limit). At the stretch's free bottom nothing pushes back, ``sigma = 0`` below
+    its lowest cell: that cell is pushed by the stress above it, ``sigma / dx`` more than its walls hold, and is
+    released. A periodic box that is dense all round carries the periodic solution (no top, no bottom).
+
+    Parameters
+    ----------
+    c, weight : ndarray, shape (n,)
+        The compactness and the weight ``c cos(theta)`` of the cells.
+    wall : float
+        ``4 mu_s kappa`` (per ``D``).
+    c_min : float
+        The compactness above which grains touch (random loose packing).
+    dx : float
+    periodic : bool
+
+    Returns
+    -------
+    push, capacity : ndarray, shape (n,)
+        The force of the stress gradient (positive downward) and the largest wall friction, per unit volume.
+    """
+    n = c.shape[0]
+    decay = math.exp(-wall * dx)
+    gain = (1.0 - decay) / wall
+    push = np.zeros(n)
+    cap = np.zeros(n)
+    dense = c > c_min
+    if not dense.any():
+        return push, cap
+    if dense.all() and periodic:  # sigma_0 = decay^n sigma_0 + sum_j decay^(n-1-j) gain w_j
+        s = float(np.sum(weight * gain * decay ** np.arange(n - 1, -1, -1))) / (1.0 - decay**n)
+        for i in range(n):
+            s_next = decay * s + weight[i] * gain
+            push[i] = -(s_next - s) / dx
+            cap[i] = weight[i] + push[i]
+            s = s_next
+        return push, cap
+    start = int(np.argmin(dense)) if periodic else 0  # a dilute cell (periodic): no stretch crosses the start
+    s = 0.0
+    for t in range(n):
+        i = (start + t) % n
+        if not dense[i]:
+            s = 0.0
+            continue
+        s_next = decay * s + weight[i] * gain
+        cap[i] = weight[i] - (s_next - s) / dx
+        j = i + 1 if i + 1 < n else (0 if periodic else -1)
+        last = j < 0 or not dense[j] or (periodic and t == n - 1)
+        push[i] = s / dx if last else -(s_next - s) / dx
+        s = s_next
+    return push, cap
 
 
 def _solve_tanh(c: np.ndarray, aF: np.ndarray, R: np.ndarray, ve: float) -> np.ndarray:
@@ -252,7 +319,10 @@ class Integrator:
         if cl.law == "coulomb-janssen" and cl.v_eps > 0:
             v1 = _regularised_coulomb(cs, v, G, cl.wall * cl.jamming_pressure(c), cl.v_eps, dt)
         elif cl.law.startswith("coulomb"):
-            if cl.law == "coulomb-janssen":
+            if cl.column:  # Janssen's stress carried down each dense stretch: its gradient's push, the walls' hold
+                push, F = column_stress(c, c * cl.cos_theta, cl.wall, cl.jam_c_min, self.dx, self.periodic)
+                G = G + push
+            elif cl.law == "coulomb-janssen":
                 F = cl.wall * cl.jamming_pressure(c)
             else:
                 F = cl.F0 * (c / cl.c0 if cl.law == "coulomb-weight" else 1.0) * np.ones_like(c)
@@ -288,6 +358,8 @@ class Integrator:
         D = 0.5 * (rk_ext[:-1] + rk_ext[1:])
         if self.bc.kind == "open":
             D[[0, -1]] *= 2.0  # the held pressure is half a cell away
+            if self.bc.inlet_seal > 0:  # ... and at the top, beyond a column of packed grains too (in series)
+                D[0] = 1.0 / (1.0 / D[0] + self.bc.inlet_seal / self.dx)
         elif self.bc.kind == "outflow":
             D[[0, -1]] = 0.0
         J = cl.gamma * P / np.maximum(m, 1e-300)

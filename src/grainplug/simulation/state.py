@@ -79,6 +79,10 @@ class SimulationParams:
         cell, where the air's compressibility acts on almost no grain, or grains packed near close
         packing, where the jamming pressure stiffens): the model has left its validity there, and
         going on would take hours.
+    inlet_seal_D : float, optional
+        Open pipe: the air enters the top only through a column of this many ``D`` of the fed grains (a hopper
+        full of grains), in series with the pipe, the atmosphere beyond it; its resistance is ``H / K(feed_c)``.
+        None (default): the air pressure is held at the base pressure at the top face.
     """
 
     boundary: str = "periodic"
@@ -94,6 +98,7 @@ class SimulationParams:
     feed_rate_g_s: float | None = None
     engine: str = "numba"
     dt_floor_tc: float = 1e-5
+    inlet_seal_D: float | None = None
 
     def __post_init__(self) -> None:
         checks = [
@@ -114,6 +119,9 @@ class SimulationParams:
             (self.feed_rate_g_s is None or (math.isfinite(self.feed_rate_g_s) and self.feed_rate_g_s > 0),
              "the feed rate must be positive (g/s)"),
             (self.feed_rate_g_s is None or self.feed_v is None, "give the feed velocity or the feed rate, not both"),
+            (self.inlet_seal_D is None or (math.isfinite(self.inlet_seal_D) and 0 <= self.inlet_seal_D <= 1e6),
+             "inlet_seal_D (the hopper's grain column the air crosses, in D) must be between 0 and 1e6"),
+            (self.boundary == "open" or self.inlet_seal_D is None, "inlet_seal_D applies to the open pipe only"),
             (self.boundary == "open" or (self.feed_c is None and self.feed_v is None and self.feed_rate_g_s is None),
              "the feed (compactness, velocity, rate) applies to the open pipe only (boundary=\"open\")"),
         ]

@@ -40,6 +40,16 @@ DRAG_LAWS = {
     "stokes-carman": "Stokes' single-grain drag added: beta = 18 mu c (1 + 9 c) / (d^2 (1 - c)), which is "
                      "Stokes' 18 mu c / d^2 for dilute grains and within 10 % of Carman-Kozeny in a plug (issue 37)",
 }
+#: where the coulomb-janssen friction's normal stress comes from
+WALL_STRESSES = {
+    "local": "the contact stress of each cell is its own jamming pressure sigma_c(c) (zero below c_min): a uniform "
+             "plug is held uniformly, its bottom edge included",
+    "janssen-column": "Janssen's stress carried down each dense stretch (c > c_min): zero at the stretch's top, "
+                      "d sigma / dz = c cos(theta) - 4 mu_s kappa sigma below it (the walls fully mobilised), and zero "
+                      "again at its free bottom; its gradient carries the weight down to the walls, so a cell inside "
+                      "a stretch is held exactly at Coulomb's limit, while the weight the walls could not hold pushes "
+                      "on the lowest grains, which are released (issue 37)",
+}
 #: base velocities: the printed v* = 1, or the one at which friction carries the weight
 BASE_VELOCITIES = ("printed", "balanced")
 #: atmospheric pressure, Pa
@@ -111,6 +121,10 @@ class ModelParams:
         ``F = 4 mu_s kappa sigma_c tanh(v / v_eps)``. None (default): exact, set-valued Coulomb friction.
     drag : str
         One of :data:`DRAG_LAWS` (``"carman-kozeny"`` as in the paper).
+    wall_stress : str
+        One of :data:`WALL_STRESSES`: the normal stress of the ``coulomb-janssen`` friction, each cell's own
+        (``"local"``, the default) or carried down each dense stretch (``"janssen-column"``, with the exact
+        Coulomb law only: a regularised law cannot hold a cell exactly at its limit).
 
     Notes
     -----
@@ -143,6 +157,7 @@ class ModelParams:
     janssen_v2_term: bool = True
     friction_v_eps: float | None = None
     drag: str = "carman-kozeny"
+    wall_stress: str = "local"
 
     def __post_init__(self) -> None:
         from ..params import as_number
@@ -184,6 +199,14 @@ class ModelParams:
             (not self.jamming or self.c0 < self.jamming_c_max,
              "c0 must be below the jamming compactness c_max (random close packing)"),
             (self.drag in DRAG_LAWS, f"drag must be one of {', '.join(DRAG_LAWS)}"),
+            (self.wall_stress in WALL_STRESSES,
+             f"wall stress must be one of {', '.join(WALL_STRESSES)}"),
+            (self.wall_stress == "local" or self.law == "coulomb-janssen",
+             "the janssen-column wall stress is the coulomb-janssen friction's: give friction_law="
+             "\"coulomb-janssen\""),
+            (self.wall_stress == "local" or self.friction_v_eps is None,
+             "the janssen-column stress holds a stretch's cells exactly at Coulomb's limit, which only the exact "
+             "law can hold: leave friction_v_eps= unset"),
             (self.friction_v_eps is None or (math.isfinite(self.friction_v_eps) and self.friction_v_eps > 0),
              "the friction's regularisation velocity v_eps must be positive (None: exact Coulomb friction)"),
             (self.friction_v_eps is None or self.law == "coulomb-janssen",
@@ -192,7 +215,7 @@ class ModelParams:
              "the coulomb-janssen friction acts on the contact stress: it needs jamming=True"),
             (self.base_velocity != "balanced" or not self.law.startswith("coulomb")
              or (self.law == "coulomb-janssen" and self.friction_v_eps is not None
-                 and self.janssen_stress_ratio > 1.0),
+                 and self.janssen_stress_ratio > 1.0) or self.wall_stress == "janssen-column",
              "with Coulomb friction the velocity does not set the friction: no velocity balances the weight "
              "(use the v2 or v|v| law, or the printed base velocity; coulomb-janssen balances with a v_eps and a "
              "contact stress at c0 whose friction exceeds the weight)"),
@@ -277,7 +300,8 @@ class ModelParams:
     def is_printed(self) -> bool:
         """Whether the set-up is the paper's as printed (friction law, base pressure and velocity)."""
         return (self.law == "v2" and self.base_pressure_pa is None and self.base_velocity == "printed"
-                and not self.jamming and self.janssen_v2_term and self.drag == "carman-kozeny")
+                and not self.jamming and self.janssen_v2_term and self.drag == "carman-kozeny"
+                and self.wall_stress == "local")
 
     @property
     def P0_star(self) -> float:
@@ -292,7 +316,7 @@ class ModelParams:
     @property
     def v0_star(self) -> float:
         """Base velocity in units of ``v_c`` (1 as printed; balanced: ``sqrt(c0 cos(theta) / (2 b mu_s))``)."""
-        if self.base_velocity == "printed":
+        if self.base_velocity == "printed" or self.wall_stress == "janssen-column":  # any velocity balances
             return 1.0
         if self.law == "coulomb-janssen":  # 4 mu kappa sigma_c(c0) tanh(v0 / v_eps) = c0 cos(theta)
             return float(self.friction_v_eps or 0.0) * math.atanh(1.0 / self.janssen_stress_ratio)
@@ -324,7 +348,10 @@ class ModelParams:
 
     @property
     def base_friction(self) -> float:
-        """``F0 = F(c0, v0)``: the wall friction of the base state."""
+        """``F0 = F(c0, v0)``: the wall friction of the base state (a uniform dense column carrying Janssen's
+        stress: its saturated value, the weight)."""
+        if self.wall_stress == "janssen-column":
+            return self.c0 * math.cos(math.radians(self.theta_deg))
         if self.law == "coulomb-janssen":
             return 4.0 * self.mu_s * self.kappa * self.contact_stress * self._janssen_tanh()[0]
         v0 = self.v0_star
@@ -333,13 +360,22 @@ class ModelParams:
     @property
     def friction(self) -> float:
         """``F_v = dF/dv`` at the base state: the coefficient of ``v~`` in the perturbed momentum equation."""
+        if self.wall_stress == "janssen-column":
+            return 0.0
         if self.law == "coulomb-janssen":
             return 4.0 * self.mu_s * self.kappa * self.contact_stress * self._janssen_tanh()[1]
         return 0.0 if self.law.startswith("coulomb") else 4.0 * self.b * self.mu_s * abs(self.v0_star)
 
     @property
     def friction_c(self) -> float:
-        """``F_c = dF/dc`` at the base state: the coefficient of ``c~`` from the friction."""
+        """``F_c = dF/dc`` at the base state: the coefficient of ``c~`` from the friction.
+
+        With the ``janssen-column`` stress, a sliding uniform column's perturbation ``c~ e^{ikz}`` carries the
+        stress ``sigma~ = c~ cos(theta) / (4 mu_s kappa + i k)``, and the weight, the stress's gradient and the
+        wall friction on it cancel mode by mode: ``c~ cos(theta) - i k sigma~ - 4 mu_s kappa sigma~ = 0``, i.e.
+        ``F_c = cos(theta)`` for the stress gradient and friction together."""
+        if self.wall_stress == "janssen-column":
+            return math.cos(math.radians(self.theta_deg))
         if self.law == "coulomb-janssen":
             return 4.0 * self.mu_s * self.kappa * self.jamming_slope * self._janssen_tanh()[0]
         return self.base_friction / self.c0 if self.law == "coulomb-weight" else 0.0
@@ -400,6 +436,10 @@ class ModelParams:
             out.append(f"c0 = {self.c0:g} is above random close packing (0.64): spheres cannot pack that tight")
         if self.law == "coulomb-janssen":
             out.append("Coulomb wall friction on the contact stress (Janssen) is not the paper's closure (issue 37)")
+        if self.wall_stress == "janssen-column":
+            out.append("Janssen's stress carried down each dense stretch and zero at its free bottom (issue 37): a "
+                       "uniform column in a periodic box slides at any velocity (its weight, stress gradient and "
+                       "wall friction cancel), the linear analysis is of that neutral state")
         if not self.janssen_v2_term:
             out.append("the paper's Janssen term (v / kappa) v_z is dropped (issue 37's closure)")
         if self.drag != "carman-kozeny":
