@@ -71,8 +71,8 @@ def test_analyze_numbers_are_checked_before_anything_runs(tmp_path, capsys, movi
     (["--n-k", "1000000000000"], "--n-k: 1,000,000,000,000 wavenumbers would take about"),
     (["--plot", "x.xyz"], "--plot must name a .png, .svg or .pdf file"),
 ])
-def test_stability_numbers_and_plot_names(tmp_path, capsys, args, words):
-    os.chdir(tmp_path)
+def test_stability_numbers_and_plot_names(tmp_path, capsys, monkeypatch, args, words):
+    monkeypatch.chdir(tmp_path)  # put back afterwards: the folder is removed once the test passes
     code, err = run(capsys, "stability", *args)
     assert code == 2
     one_line(err, words)
