@@ -231,3 +231,23 @@ def test_falling_grains_alone_are_neither_plugs_about_the_threshold_nor_two_clos
     res = gp.analyze(np.stack(list(Renderer(cfg).frames())), fps=cfg.fps, mm_per_px=cfg.mm_per_px)
     assert not res.has_plugs and "plugs.near_min_length" not in codes(res), res.warnings
     assert "hint at two" not in res.statement, res.statement
+
+
+@pytest.mark.parametrize("width", [3, 6])
+def test_rain_with_a_speck_of_dense_grains_is_not_called_a_compact_flow(width):
+    """A diagram that is rain (c = 0.02) but for a thin dense streak (0.5-1 % of it: too little for two phases) was
+    called "compact flow by its grey level" (the mean of its two classes' levels); it is dilute."""
+    from grainplug.diagram import Diagram
+    from grainplug.measures.diagram import measure_diagram
+
+    rng = np.random.default_rng(0)
+    n_t, n_x = 400, 600
+    c = 0.02 + 0.003 * rng.standard_normal((n_t, n_x))
+    for t in range(n_t):
+        a = int(400 - 0.3 * t)
+        c[t, a: a + width] = 0.58
+    values = np.clip(200 - 250 * c, 1, 200).astype(np.float32)
+    found = measure_diagram(Diagram(values, np.arange(n_t) / 100.0, np.arange(n_x) * 0.1875, 0.1875), fps=100.0,
+                            background_level=200.0)
+    assert "single phase" in found.statement and "dilute" in found.statement, found.statement
+    assert "compact" not in found.statement

@@ -215,7 +215,9 @@ def confirm_px(min_plug_mm: float, mm_per_px: float) -> int:
     return max(1, int(round(min_plug_mm / 3 / mm_per_px)))
 
 def single_phase(norm: Normalized, background: float) -> str:
-    level = float(np.median([norm.plug_level, norm.bubble_level]))
+    """What a single phase is, by the grey level of most of the diagram (the larger of its two classes: a few
+    dense specks in rain are not a compact flow) against the background's."""
+    level = float(norm.plug_level if norm.plug_fraction >= 0.5 else norm.bubble_level)
     if background <= 0:
         return "compact flow or empty tube"
     if 0.75 <= level / background <= 1.35:
