@@ -203,6 +203,15 @@ def test_a_feed_at_close_packing_is_refused():
                                                           duration_tc=1.0, feed_c=0.65, feed_rate_g_s=0.5))
 
 
+def _plug_under_rain(p: ModelParams, sim: SimulationParams, top_D: float) -> tuple[np.ndarray, np.ndarray]:
+    """The cells' centres (D) and a start: a still plug at c = 0.60 below ``top_D``, rain at c = 0.02 falling at
+    2 v_c above it, the air at the base pressure."""
+    cl = Closure.from_params(p, balance=False)
+    z = (np.arange(sim.n_cells) + 0.5) * sim.dx
+    return z, cl.conserved(np.where(z > top_D, 0.60, 0.02), np.where(z > top_D, 0.0, 2.0),
+                           np.full(sim.n_cells, cl.P0))
+
+
 def test_a_held_plug_climbs_as_the_rain_lands_on_it():
     """A plug the walls hold (c = 0.60 > c*) at the bottom, rain fed at 0.5 g/s above it: its top climbs at the
     speed mass conservation gives, -q / (c_plug - c_rain), within 15 % (q the fed volume flux per area)."""
@@ -210,9 +219,7 @@ def test_a_held_plug_climbs_as_the_rain_lands_on_it():
     n, length = 200, 100.0
     sim = SimulationParams(boundary="open", length_D=length, n_cells=n, duration_tc=60.0, output_interval_tc=0.5,
                            feed_c=0.58, feed_rate_g_s=0.5, noise=0.0)
-    cl = Closure.from_params(p, balance=False)
-    z = (np.arange(n) + 0.5) * sim.dx
-    U0 = cl.conserved(np.where(z > 70.0, 0.60, 0.02), np.where(z > 70.0, 0.0, 2.0), np.full(n, cl.P0))
+    z, U0 = _plug_under_rain(p, sim, 70.0)
     res = simulate(p, sim, initial=U0)
     below = z > 5.0
     top = np.array([z[below][np.argmax(row[below] > 0.5)] for row in res.c])
@@ -325,9 +332,7 @@ def test_the_engines_agree_on_the_carried_stress_and_conserve_grain():
     n, length = 80, 40.0
     sim = SimulationParams(boundary="open", length_D=length, n_cells=n, duration_tc=4.0, output_interval_tc=0.5,
                            feed_c=0.58, feed_rate_g_s=0.5, noise=0.0)
-    cl = Closure.from_params(p, balance=False)
-    z = (np.arange(n) + 0.5) * sim.dx
-    U0 = cl.conserved(np.where(z > 20.0, 0.60, 0.02), np.where(z > 20.0, 0.0, 2.0), np.full(n, cl.P0))
+    _, U0 = _plug_under_rain(p, sim, 20.0)
     a = simulate(p, sim, initial=U0)
     b = simulate(p, sim.replace(engine="numpy"), initial=U0)
     assert a.n_steps == b.n_steps > 0
