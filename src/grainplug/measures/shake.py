@@ -121,6 +121,10 @@ class Shake:
 CHUNK_SAMPLES = 1 << 17
 #: frames spread over the record on which a probe is first tried: registered in full only where it measures
 TRIAL_FRAMES = 48
+#: ... along the tube (profiles of every position, a thousand samples or more: fewer frames suffice to see structure)
+TRIAL_ALONG_FRAMES = 24
+#: Gauss-Newton steps of that first try (its standard error is what is asked of it, not the shifts to a thousandth)
+TRIAL_ITERATIONS = 3
 
 
 def register(profiles: np.ndarray, *, n_iter: int = 4, chunk: int | None = None,
@@ -330,7 +334,8 @@ def measure_shake(across: list[np.ndarray], along: list[tuple[np.ndarray, float,
 ALONG_REGISTERED_SAMPLES = 640
 
 
-def register_along(profile: np.ndarray, step: float = 1.0, *, continuous: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def register_along(profile: np.ndarray, step: float = 1.0, *, continuous: bool = True,
+                   n_iter: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """The shift (px along the tube, about the median) of every frame's profile along the tube, and its standard
     error: :func:`register_wide` (shifts of a few pixels) on at most :data:`REGISTERED_SAMPLES` samples
     (neighbours averaged); ``step``: the positions along the tube one sample of ``profile`` stands for;
@@ -341,7 +346,7 @@ def register_along(profile: np.ndarray, step: float = 1.0, *, continuous: bool =
         n = P.shape[1] // k * k
         P = P[:, :n].reshape(len(P), -1, k).mean(axis=2)
     search = max(3, int(np.ceil(SAMPLE_SEARCH_PX / (k * step))))
-    s, sd = register_wide(P, search_px=search, continuous=continuous)
+    s, sd = register_wide(P, search_px=search, continuous=continuous, n_iter=n_iter)
     return s * k * step, sd * k * step
 
 
@@ -350,18 +355,18 @@ def best_along(profiles: list[np.ndarray | None]) -> int | None:
     a motion along it best (the smallest standard error), if any can (:func:`along_sd_px`); None when none."""
     sds = [np.inf if p is None else along_sd_px(p) for p in profiles]
     k = int(np.argmin(sds)) if sds else 0
-    return k if sds and sds[k] <= 1.5 * MEASURABLE_ALONG_SD_PX else None
+    return k if sds and sds[k] <= MEASURABLE_ALONG_SD_PX else None  # no margin: a marginal one costs its reading
 
 
 def along_sd_px(profile: np.ndarray, step: float = 1.0) -> float:
     """The typical standard error (px) of a motion along the tube registered on ``profile``, tried on at most
-    :data:`TRIAL_FRAMES` of its frames spread over the record (a plain wall or a flat background is so found without
-    registering every frame); inf when it is too short."""
+    :data:`TRIAL_ALONG_FRAMES` of its frames spread over the record (a plain wall or a flat background is so found
+    without registering every frame); inf when it is too short."""
     if not profile.size or profile.shape[1] < 8:
         return float("inf")
     p = profile
-    trial = p[np.unique(np.linspace(0, len(p) - 1, min(len(p), TRIAL_FRAMES)).round().astype(int))]
-    return float(np.median(register_along(trial, step, continuous=False)[1]))
+    trial = p[np.unique(np.linspace(0, len(p) - 1, min(len(p), TRIAL_ALONG_FRAMES)).round().astype(int))]
+    return float(np.median(register_along(trial, step, continuous=False, n_iter=TRIAL_ITERATIONS)[1]))
 
 
 def _along_measurable(profile: np.ndarray, step: float) -> bool:
@@ -493,12 +498,13 @@ def _continuous_path(score: np.ndarray, lags: np.ndarray) -> np.ndarray:
 
 
 def register_wide(profiles: np.ndarray, *, search_px: int = SAMPLE_SEARCH_PX,
-                  continuous: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                  continuous: bool = False, n_iter: int = 8) -> tuple[np.ndarray, np.ndarray]:
     """:func:`register` for shifts of up to ``search_px`` (a few pixels, beyond the reach of its Gauss-Newton steps
     from zero): each profile's gradient is first matched in whole pixels with the median's (its cross-correlation's
     peak), the profiles moved back, their median taken again as the reference, and :func:`register` refines.
     ``continuous``: the profiles are the frames of a record, in order: the whole-pixel shifts are the path that
     matches well and moves least from frame to frame (:func:`_continuous_path`), not each frame's best alone.
+    ``n_iter``: Gauss-Newton steps after the whole-pixel match (fewer for a first look at a few frames).
 
     Returns the shifts (samples, positive: the profile moved to higher indices, about their median) and their
     standard errors.
@@ -516,12 +522,12 @@ def register_wide(profiles: np.ndarray, *, search_px: int = SAMPLE_SEARCH_PX,
     whole = (_continuous_path(score, lags) if continuous and n_t > 1 else lags[np.argmax(score, axis=1)]).astype(float)
     whole -= np.median(whole).round()
     if not whole.any():  # a steady camera: Gauss-Newton from zero is enough
-        return register(profiles)
+        return register(profiles, n_iter=min(n_iter, 4))
     # p(x + w): each profile moved back by its whole pixels (held at its ends)
     idx = np.clip(np.arange(n_x)[None, :] + whole.astype(np.int64)[:, None], 0, n_x - 1)
     back = np.take_along_axis(np.asarray(profiles, np.float32), idx, axis=1)
     # Gauss-Newton from the whole-pixel guess: the moved-back profiles registered, the guess added back
-    s_fine, sd = register(back, n_iter=8, reference=np.median(back, axis=0))
+    s_fine, sd = register(back, n_iter=n_iter, reference=np.median(back, axis=0))
     s = whole + s_fine
     return s - np.median(s), sd
 
