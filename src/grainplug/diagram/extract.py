@@ -167,21 +167,22 @@ class Probes:
         return core, across, beside, self.beside_at[where]
 
     def along(self, values: np.ndarray) -> list[tuple[np.ndarray, float, str]]:
-        """The profiles along the tube of what does not move with the grains (views of ``values``) that were read,
-        each with its spacing in positions along the tube (1: every position) and what it is
-        (:meth:`near_profiles`). The background beside the tube read every :data:`BESIDE_STEP` positions (for the
-        lamp) is not one: the profile beside the tube at every position sees the same, sharper."""
-        return [(p, 1.0, name) for p, name in zip(self.near_profiles(values), NEAR_NAMES, strict=True)
-                if p is not None]
+        """The profiles along the tube of what does not move with the grains (views of ``values``), each with its
+        spacing in positions along the tube and what it is: the ones read at every position (:meth:`near_profiles`),
+        and the background beside the tube every :data:`BESIDE_STEP` (where the frame reaches it all)."""
+        out = [(p, 1.0, name) for p, name in zip(self.near_profiles(values), NEAR_NAMES, strict=True)
+               if p is not None]
+        if self.beside.size and (self.beside >= 0).all():
+            cols = self.beside
+            out.append((values[:, cols[0]: cols[-1] + 1], float(BESIDE_STEP), "the background beside the tube"))
+        return out
 
-    def near_of(self, band: Band, frames: list[np.ndarray], *, at_most: int = 16) -> list[np.ndarray | None]:
-        """:meth:`near_profiles` of a few frames (at most ``at_most``, spread over them: ``frames x positions``
-        each), reading those profiles' samples of ``band`` only (:meth:`grainplug.band.Band.profile`, plainly)."""
+    def near_of(self, band: Band, frames: list[np.ndarray]) -> list[np.ndarray | None]:
+        """:meth:`near_profiles` of a few frames (``frames x positions`` each), reading those profiles' samples of
+        ``band`` only (:meth:`grainplug.band.Band.profile`, plainly)."""
         cols = [c for c in self.near[: len(NEAR_NAMES)] if c.size]
         if not cols or not frames:
             return [None] * len(NEAR_NAMES)
-        frames = [frames[k] for k in np.unique(np.linspace(0, len(frames) - 1, min(len(frames), at_most)).round()
-                                               .astype(int))]
         every = np.concatenate(cols)
         used = max(int((band.weights[every] != 0).sum(axis=1).max()), 1)  # their samples lead, the padding follows
         sub = Band(band.rows[every, :used], band.cols[every, :used], band.weights[every, :used], band.frame_shape)
