@@ -337,7 +337,7 @@ ALONG_REGISTERED_SAMPLES = 640
 def register_along(profile: np.ndarray, step: float = 1.0, *, continuous: bool = True,
                    n_iter: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """The shift (px along the tube, about the median) of every frame's profile along the tube, and its standard
-    error: :func:`register_wide` (shifts of a few pixels) on at most :data:`REGISTERED_SAMPLES` samples
+    error: :func:`register_wide` (shifts of a few pixels) on at most :data:`ALONG_REGISTERED_SAMPLES` samples
     (neighbours averaged); ``step``: the positions along the tube one sample of ``profile`` stands for;
     ``continuous``: the rows are a record's frames in order (:func:`register_wide`), not frames spread over it."""
     P = np.asarray(profile, np.float32)
