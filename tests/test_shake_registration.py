@@ -194,3 +194,36 @@ def test_the_advice_a_mark_beside_the_tube_makes_the_motion_along_it_measured():
     err_after = abs(after.summary["celerity_m_s"] / -0.02 - 1.0)
     assert err_after < 0.015 and err_after <= err_before + 1e-3, (err_before, err_after)
     assert abs(after.summary["plug_length_mm"] / t["record"]["plug_length_mm"] - 1.0) < 0.03
+
+
+def _textured_record(n_t: int, n_x: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A fixed texture (a label's print) seen through a camera that shakes and wanders along it, with noise."""
+    smooth = np.convolve(np.cumsum(rng.normal(size=n_x + 60)), np.ones(5) / 5, mode="same")
+    t = np.arange(n_t)
+    shift = 2.0 * np.sin(2 * np.pi * t / 60.0) + 1.5 * t / n_t
+    x = np.arange(n_x)
+    P = np.stack([np.interp(x + 30 + s, np.arange(n_x + 60), smooth) for s in shift]).astype(np.float32)
+    return P + rng.normal(0.0, 0.05, P.shape).astype(np.float32), shift
+
+
+def test_the_motion_along_is_registered_in_memory_that_does_not_grow_with_the_record():
+    import tracemalloc
+
+    from grainplug.measures.shake import register_along
+
+    def run(n_t: int) -> tuple[int, float]:
+        P, shift = _textured_record(n_t, 1000, np.random.default_rng(2))
+        tracemalloc.start()
+        try:
+            s, _ = register_along(P)
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+        err = (s - s.mean()) + (shift - shift.mean())  # the texture moved up: the profile's shift is -shift
+        return peak, float(np.std(err))
+
+    (short, err_short), (long, err_long) = run(600), run(2400)
+    assert max(err_short, err_long) < 0.02, (err_short, err_long)
+    # 1800 more frames are 7.2 MB of profile: the registration's working memory may not follow them (it held
+    # four copies, 29 MB more, before it worked a chunk of frames at a time)
+    assert long - short < 0.1 * 1800 * 1000 * 4, (short, long)

@@ -119,6 +119,9 @@ class Shake:
 
 #: the registration's working arrays hold at most this many samples (frames x profile length) at once
 CHUNK_SAMPLES = 1 << 17
+#: the profile registered on is the median of at most this many frames spread over the record (its noise is a
+#: shift common to all frames, taken out with their median): a long record is not copied whole to take it
+REFERENCE_FRAMES = 512
 #: frames spread over the record on which a probe is first tried: registered in full only where it measures
 TRIAL_FRAMES = 48
 #: ... along the tube (profiles of every position, a thousand samples or more: fewer frames suffice to see structure)
@@ -127,8 +130,24 @@ TRIAL_ALONG_FRAMES = 24
 TRIAL_ITERATIONS = 3
 
 
+def _spread(n: int, k: int) -> np.ndarray:
+    """At most ``k`` indices spread evenly over ``range(n)`` (all of them when ``n <= k``)."""
+    return np.arange(n) if n <= k else np.unique(np.linspace(0, n - 1, k).round().astype(np.int64))
+
+
+def _moved_back(P: np.ndarray, whole: np.ndarray | None, rows: slice | np.ndarray) -> np.ndarray:
+    """Rows ``rows`` of ``P`` (float32), each moved back by its whole samples ``whole`` (held at its ends)."""
+    block = np.asarray(P[rows], np.float32)
+    if whole is None:
+        return block
+    n_x = P.shape[1]
+    idx = np.clip(np.arange(n_x)[None, :] + np.asarray(whole[rows], np.int64)[:, None], 0, n_x - 1)
+    return np.take_along_axis(block, idx, axis=1)
+
+
 def register(profiles: np.ndarray, *, n_iter: int = 4, chunk: int | None = None,
-             reference: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+             reference: np.ndarray | None = None,
+             whole: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Shift (samples, positive: the profile moved to higher indices) of each row of ``profiles`` against
     their median over the rows, and its standard error.
 
@@ -142,16 +161,22 @@ def register(profiles: np.ndarray, *, n_iter: int = 4, chunk: int | None = None,
         Frames registered at once (the working memory is that of ``chunk`` frames, whatever the record's length);
         by default as many as :data:`CHUNK_SAMPLES` allows.
     reference : ndarray, optional
-        The profile registered on (by default the rows' median).
+        The profile registered on (by default the median of at most :data:`REFERENCE_FRAMES` rows spread over
+        them).
+    whole : ndarray of int, optional
+        Whole samples each row is first moved back by (:func:`register_wide`); the shifts returned include them.
+        The rows are moved a chunk at a time: no moved copy of the record is held.
     """
-    P = np.asarray(profiles, np.float32)
+    P = np.asarray(profiles)
     n_t, n_x = P.shape
     chunk = chunk or max(8, CHUNK_SAMPLES // max(n_x, 1))
-    ref = (np.median(P, axis=0) if reference is None else np.asarray(reference)).astype(np.float64)
+    if reference is None:
+        reference = np.median(_moved_back(P, whole, _spread(n_t, REFERENCE_FRAMES)), axis=0)
+    ref = np.asarray(reference).astype(np.float64)
     grad = np.gradient(ref)
     var = np.zeros(n_x)
     for lo in range(0, n_t, chunk):  # the variance about the reference, a chunk at a time
-        var += ((P[lo: lo + chunk] - ref[None, :]) ** 2).sum(axis=0)
+        var += ((_moved_back(P, whole, slice(lo, lo + chunk)) - ref[None, :]) ** 2).sum(axis=0)
     var = var / max(n_t, 1) + 1e-6 * (np.var(ref) + 1e-12)
     w = grad**2 / var
     w[[0, -1]] = 0.0  # the ends have a one-sided gradient
@@ -160,8 +185,10 @@ def register(profiles: np.ndarray, *, n_iter: int = 4, chunk: int | None = None,
     if not np.any(w > 0):
         return s, sd
     for lo in range(0, n_t, chunk):
-        s[lo: lo + chunk], sd[lo: lo + chunk] = _gauss_newton(P[lo: lo + chunk].astype(np.float64), ref, grad, w,
-                                                              n_iter)
+        s[lo: lo + chunk], sd[lo: lo + chunk] = _gauss_newton(
+            _moved_back(P, whole, slice(lo, lo + chunk)).astype(np.float64), ref, grad, w, n_iter)
+    if whole is not None:
+        s += whole
     s -= np.median(s)
     return s, sd
 
@@ -340,11 +367,15 @@ def register_along(profile: np.ndarray, step: float = 1.0, *, continuous: bool =
     error: :func:`register_wide` (shifts of a few pixels) on at most :data:`ALONG_REGISTERED_SAMPLES` samples
     (neighbours averaged); ``step``: the positions along the tube one sample of ``profile`` stands for;
     ``continuous``: the rows are a record's frames in order (:func:`register_wide`), not frames spread over it."""
-    P = np.asarray(profile, np.float32)
+    P = np.asarray(profile)
     k = max(1, P.shape[1] // ALONG_REGISTERED_SAMPLES)
-    if k > 1:
+    if k > 1:  # averaged a chunk of frames at a time: only the averaged profile is held
         n = P.shape[1] // k * k
-        P = P[:, :n].reshape(len(P), -1, k).mean(axis=2)
+        binned = np.empty((len(P), n // k), np.float32)
+        chunk = max(8, CHUNK_SAMPLES // n)
+        for lo in range(0, len(P), chunk):
+            binned[lo: lo + chunk] = np.asarray(P[lo: lo + chunk, :n], np.float32).reshape(-1, n // k, k).mean(axis=2)
+        P = binned
     search = max(3, int(np.ceil(SAMPLE_SEARCH_PX / (k * step))))
     s, sd = register_wide(P, search_px=search, continuous=continuous, n_iter=n_iter)
     return s * k * step, sd * k * step
@@ -509,27 +540,25 @@ def register_wide(profiles: np.ndarray, *, search_px: int = SAMPLE_SEARCH_PX,
     Returns the shifts (samples, positive: the profile moved to higher indices, about their median) and their
     standard errors.
     """
-    P = np.asarray(profiles, np.float32)
+    P = np.asarray(profiles)
     n_t, n_x = P.shape
     k = int(min(search_px, n_x // 4))
-    d = np.gradient(P, axis=1)
-    ref = np.median(d, axis=0)
+    chunk = max(8, CHUNK_SAMPLES // max(n_x, 1))  # the gradients are taken a chunk of frames at a time
+    ref = np.median(np.gradient(np.asarray(P[_spread(n_t, REFERENCE_FRAMES)], np.float32), axis=1), axis=0)
     lags = np.arange(-k, k + 1)
     score = np.empty((n_t, len(lags)))
     core = slice(k, n_x - k)
-    for j, lag in enumerate(lags):  # d_t(x) ~ ref(x - lag)
-        score[:, j] = (d[:, core] * ref[k - lag: n_x - k - lag][None, :]).sum(axis=1)
-    whole = (_continuous_path(score, lags) if continuous and n_t > 1 else lags[np.argmax(score, axis=1)]).astype(float)
-    whole -= np.median(whole).round()
+    for lo in range(0, n_t, chunk):
+        d = np.gradient(np.asarray(P[lo: lo + chunk], np.float32), axis=1)[:, core]
+        for j, lag in enumerate(lags):  # d_t(x) ~ ref(x - lag)
+            score[lo: lo + chunk, j] = (d * ref[k - lag: n_x - k - lag][None, :]).sum(axis=1)
+    whole = (_continuous_path(score, lags) if continuous and n_t > 1 else lags[np.argmax(score, axis=1)])
+    whole = whole - int(np.median(whole).round())
     if not whole.any():  # a steady camera: Gauss-Newton from zero is enough
-        return register(profiles, n_iter=min(n_iter, 4))
-    # p(x + w): each profile moved back by its whole pixels (held at its ends)
-    idx = np.clip(np.arange(n_x)[None, :] + whole.astype(np.int64)[:, None], 0, n_x - 1)
-    back = np.take_along_axis(np.asarray(profiles, np.float32), idx, axis=1)
-    # Gauss-Newton from the whole-pixel guess: the moved-back profiles registered, the guess added back
-    s_fine, sd = register(back, n_iter=n_iter, reference=np.median(back, axis=0))
-    s = whole + s_fine
-    return s - np.median(s), sd
+        return register(P, n_iter=min(n_iter, 4))
+    # Gauss-Newton from the whole-pixel guess: the profiles moved back by it (p(x + w), a chunk at a time), their
+    # median the reference, the guess added back
+    return register(P, n_iter=n_iter, whole=whole.astype(np.int64))
 
 
 def across_profiles(frames: list[np.ndarray], *, orientation: str, tilt_deg: float,
