@@ -657,6 +657,31 @@ def test_play_keeps_the_movie_s_time_slowed_as_stated_and_the_label_on_the_image
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
+def test_play_shows_the_movie_s_own_frames_at_the_rate_stated(analysis):
+    """Play with the frames read from the movie and drawn by the server (not stand-ins): at the default 25 frames a
+    second (this 250 fps movie slowed 10 times), nearly every frame is shown. Drawn by matplotlib (60 ms a frame
+    here), about half were skipped."""
+    import numpy as np
+
+    sync_api = pytest.importorskip("playwright.sync_api")
+    errors: list[str] = []
+    with (ReviewServer(analysis) as srv, sync_api.sync_playwright() as p,
+          chromium_page(p, "--disable-background-networking", errors=errors) as page):
+        page.goto(srv.url)
+        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+        assert page.eval_on_selector("#speed", "s => s.options[s.selectedIndex].text") == "slowed 10×: 25 frames/s"
+        page.evaluate(_WATCH_LABEL)
+        page.click("#play")
+        page.wait_for_function("() => document.getElementById('play').textContent === 'play'", timeout=30_000)
+        seen = page.evaluate("window.seen")
+    assert errors == []
+    t, label, width = (np.array(c, float) for c in zip(*seen, strict=True))
+    assert label[0] == 0 and label[-1] == 119 and (width > 100).all()  # the frames themselves, not stand-ins
+    assert len(label) >= 100, len(label)
+    assert t[-1] - t[0] == pytest.approx(119 / 25.0, abs=0.4)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
 def test_write_outputs_says_what_it_wrote_or_why_not(copy, monkeypatch):
     """"Write outputs" said nothing: it says, beside the button, the folder and the files written with the number
     of corrections; and when the writing fails, the reason, in red there and in the page's error line."""
