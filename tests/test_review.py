@@ -609,6 +609,23 @@ _WATCH_LABEL = """() => {
 }"""
 
 
+def _played(folder, sync_api) -> tuple[str, list, str, list[str]]:
+    """Play the review of ``folder`` once through in Chromium at the default speed: the speed's label, what was
+    seen (:data:`_WATCH_LABEL`), the line under the buttons, and the page's script errors."""
+    errors: list[str] = []
+    with (ReviewServer(folder) as srv, sync_api.sync_playwright() as p,
+          chromium_page(p, "--disable-background-networking", errors=errors) as page):
+        page.goto(srv.url)
+        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
+        speed = page.eval_on_selector("#speed", "s => s.options[s.selectedIndex].text")
+        page.evaluate(_WATCH_LABEL)
+        page.click("#play")
+        page.wait_for_function("() => document.getElementById('play').textContent === 'play'", timeout=30_000)
+        seen = page.evaluate("window.seen")
+        info = page.evaluate("() => document.getElementById('play-info')?.textContent ?? ''")
+    return speed, seen, info, errors
+
+
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (scripts/ensure_chromium.sh)")
 @pytest.mark.parametrize("draw_s", [0.0, 0.15])
 def test_play_keeps_the_movie_s_time_slowed_as_stated_and_the_label_on_the_image(analysis, monkeypatch, draw_s):
@@ -627,18 +644,8 @@ def test_play_keeps_the_movie_s_time_slowed_as_stated_and_the_label_on_the_image
         return numbered_png(k)
 
     monkeypatch.setattr(ReviewSession, "frame_png", frame_png)
-    errors: list[str] = []
-    with (ReviewServer(analysis) as srv, sync_api.sync_playwright() as p,
-          chromium_page(p, "--disable-background-networking", errors=errors) as page):
-        page.goto(srv.url)
-        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
-        speed = page.eval_on_selector("#speed", "s => s.options[s.selectedIndex].text")
-        assert speed == "slowed 10×: 25 frames/s"
-        page.evaluate(_WATCH_LABEL)
-        page.click("#play")
-        page.wait_for_function("() => document.getElementById('play').textContent === 'play'", timeout=30_000)
-        seen = page.evaluate("window.seen")
-        info = page.evaluate("() => document.getElementById('play-info')?.textContent ?? ''")
+    speed, seen, info, errors = _played(analysis, sync_api)
+    assert speed == "slowed 10×: 25 frames/s"
     assert errors == []
     t, label, shown = (np.array(c, float) for c in zip(*seen, strict=True))
     assert (label == shown).all(), [s for s in seen if s[1] != s[2]][:5]  # the label is the image's
@@ -664,16 +671,8 @@ def test_play_shows_the_movie_s_own_frames_at_the_rate_stated(analysis):
     import numpy as np
 
     sync_api = pytest.importorskip("playwright.sync_api")
-    errors: list[str] = []
-    with (ReviewServer(analysis) as srv, sync_api.sync_playwright() as p,
-          chromium_page(p, "--disable-background-networking", errors=errors) as page):
-        page.goto(srv.url)
-        page.wait_for_selector("#tracks tbody tr", timeout=20_000)
-        assert page.eval_on_selector("#speed", "s => s.options[s.selectedIndex].text") == "slowed 10×: 25 frames/s"
-        page.evaluate(_WATCH_LABEL)
-        page.click("#play")
-        page.wait_for_function("() => document.getElementById('play').textContent === 'play'", timeout=30_000)
-        seen = page.evaluate("window.seen")
+    speed, seen, _, errors = _played(analysis, sync_api)
+    assert speed == "slowed 10×: 25 frames/s"
     assert errors == []
     t, label, width = (np.array(c, float) for c in zip(*seen, strict=True))
     assert label[0] == 0 and label[-1] == 119 and (width > 100).all()  # the frames themselves, not stand-ins
