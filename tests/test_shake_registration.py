@@ -227,3 +227,21 @@ def test_the_motion_along_is_registered_in_memory_that_does_not_grow_with_the_re
     # 1800 more frames are 7.2 MB of profile: the registration's working memory may not follow them (it held
     # four copies, 29 MB more, before it worked a chunk of frames at a time)
     assert long - short < 0.1 * 1800 * 1000 * 4, (short, long)
+
+
+@pytest.mark.parametrize("along_rms_px", [0.05, 1.0])
+def test_the_warning_says_the_diagram_was_held_still_only_when_it_was(along_rms_px):
+    """A motion along the tube measured but within its noise leaves the diagram as read: the warning said it had
+    been held still all the same."""
+    from grainplug.checks import shaken
+    from grainplug.measures.shake import Shake
+
+    t = np.arange(250) / 250.0
+    along = along_rms_px * np.sqrt(2) * np.sin(2 * np.pi * 8 * t)
+    shake = Shake(0.6 * np.sin(2 * np.pi * 8 * t), along, 0.42, float(np.std(along)), 8.0, True, "the tube's walls",
+                  along_sd_px=0.01)
+    (text,) = shaken(shake, None)
+    held = shake.held_along
+    assert held == (along_rms_px >= 0.2)
+    assert ("held still" in text) == held and ("left as read" in text) == (not held)
+    assert codes_of([text]) == ["shake.corrected"]

@@ -17,7 +17,7 @@ from .errors import ParameterError, non_finite_frames
 from .measures import Motion
 from .measures.flow import assumed_down
 from .measures.grains import GrainMotion
-from .measures.shake import Shake
+from .measures.shake import SHAKE_MIN_RMS_PX, Shake
 from .measures.still import STILL_CONTENTS, BlindStretch, still_tracks
 from .params import AnalysisParams
 from .plugs import Runs, Tracks
@@ -275,8 +275,13 @@ def shaken(shake: Shake | None, motion: Motion | None) -> list[str]:
     parts = [f"{v:.2g} px rms {name}" for v, name in ((shake.rms_across_px, "across the tube"),
                                                      (shake.rms_along_px, "along it")) if v is not None]
     if shake.along_px is not None:
-        fix = ("the diagram was held still against the tube (its motion along the tube measured on "
-               f"{shake.along_source}), and a plug motion at that frequency is not reported as the plugs'")
+        if shake.held_along:
+            fix = ("the diagram was held still against the tube (its motion along the tube measured on "
+                   f"{shake.along_source}), and a plug motion at that frequency is not reported as the plugs'")
+        else:  # measured, and too small to move the diagram for
+            fix = (f"its motion along the tube, measured on {shake.along_source}, stays within its noise or "
+                   f"{SHAKE_MIN_RMS_PX:g} px rms, so the diagram was left as read; a plug motion at that frequency is "
+                   "not reported as the plugs'")
         return [coded("shake.corrected", f"the camera shook{f} ({', '.join(parts)}): {fix}")]
     osc = "" if motion is None or motion.regime != "oscillating" else " (the oscillation reported is at another)"
     drift = ""
