@@ -184,8 +184,7 @@ class Probes:
         if not cols or not frames:
             return [None] * len(NEAR_NAMES)
         every = np.concatenate(cols)
-        # their samples lead, the padding follows (a sample may weigh nothing where the line passes a pixel's centre)
-        used = max(int(((band.weights[every] != 0) * np.arange(1, band.weights.shape[1] + 1)).max()), 1)
+        used = max(int((band.weights[every] != 0).sum(axis=1).max()), 1)  # their samples lead, the padding follows
         sub = Band(band.rows[every, :used], band.cols[every, :used], band.weights[every, :used], band.frame_shape)
         values = np.stack([sub.profile(f) for f in frames])
         out: list[np.ndarray | None] = [None] * len(NEAR_NAMES)
@@ -262,9 +261,9 @@ def probes_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTIO
     groups_w: list[np.ndarray] = []
     n = core.n_positions
 
-    def add(r: np.ndarray, c: np.ndarray, weight: np.ndarray | None = None) -> np.ndarray:
-        """Groups of canonical pixels (one group a row of ``r``/``c``, equal weights where in the frame, or
-        ``weight``'s); returns their output columns, -1 for a group wholly out of the frame."""
+    def add(r: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Groups of canonical pixels (one group a row of ``r``/``c``, equal weights where in the frame);
+        returns their output columns, -1 for a group wholly out of the frame."""
         inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
         ok = inside.any(axis=1)
         k = int(ok.sum())
@@ -273,7 +272,7 @@ def probes_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTIO
         m = min(width, r.shape[1])
         rr[:, :m] = np.clip(r[ok][:, :m], 0, h - 1)
         cc[:, :m] = np.clip(c[ok][:, :m], 0, w - 1)
-        ww[:, :m] = inside[ok][:, :m] * (1.0 if weight is None else weight[ok][:, :m])
+        ww[:, :m] = inside[ok][:, :m]
         ww /= ww.sum(axis=1, keepdims=True)
         rr[:, m:], cc[:, m:] = rr[:, :1], cc[:, :1]  # padding: a sample of the group, weight 0
         start = n + sum(len(g) for g in groups_r)
@@ -299,24 +298,16 @@ def probes_along_tube(tube: TubeGeometry, *, core_fraction: float = CORE_FRACTIO
         if not read:  # kept in place: the profiles' order says what each is
             near.append(np.zeros(0, np.int64))
             continue
-        # a pixel a side, every position, interpolated linearly across between the two pixels the line passes (the
-        # nearest pixel would jump a column where the line crosses one: a step in the profile fixed to the sensor,
-        # on which the motion along the tube registers as none); a side out of the frame anywhere is dropped (its
-        # switch from two sides to one would be an edge fixed to the frame, not to the tube)
+        # a pixel a side, every position; a side out of the frame anywhere is dropped (its switch from two sides to
+        # one would be an edge fixed to the frame, not to the tube)
         r = rows[:, None]
-        sides, weights = [], []
+        sides = []
         for sign in (-1.0, 1.0):
-            x = tube.axis_x(r.astype(float)) + sign * offset
-            if width < 4:  # a band too narrow to hold two pixels a side (a bore of a few pixels): the nearest
-                x = np.rint(x)
-            c0 = np.floor(x).astype(np.int64)
-            f = (x - c0).astype(np.float32)
-            c = np.concatenate([c0, c0 + 1], axis=1)
+            c = np.rint(tube.axis_x(r.astype(float)) + sign * offset).astype(np.int64)
             if ((c >= 0) & (c < w) & (r >= 0) & (r < h)).all():
                 sides.append(c)
-                weights.append(np.concatenate([1.0 - f, f], axis=1))
-        near.append(add(np.repeat(r, 2 * len(sides), axis=1), np.concatenate(sides, axis=1),
-                        np.concatenate(weights, axis=1)) if sides else np.zeros(0, np.int64))
+        near.append(add(np.repeat(r, len(sides), axis=1), np.concatenate(sides, axis=1)) if sides
+                    else np.zeros(0, np.int64))
     offsets = np.arange(-np.ceil(ACROSS_WIDTHS * d), np.ceil(ACROSS_WIDTHS * d) + 1)
     heights = rows[np.linspace(0, n - 1, ACROSS_PROFILES + 2).round().astype(int)[1:-1]]
     tall = width
