@@ -151,7 +151,7 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
         # of the profiles along the tube's walls, just beyond them and beside the tube, the one that measures its
         # motion along best is read, if one can (something still on it: a clamp, a label, a ruler; tried on the
         # sampled frames): plain glass, and the others, cost nothing (each costs a fifth of the core's reading)
-        best = best_along(probes.near_of(probe_band, sample))
+        best = best_along(probes.near_of(probe_band, sample), probes.near_jumps(probe_band))
         probe_band, axis_px, probes = probes_along_tube(tube, near=tuple(best == k for k in range(len(probes.near))))
         sample_idx, sample = _keep_for_figure(sample_idx, sample)  # free the rest before streaming
         laps("tube_s")

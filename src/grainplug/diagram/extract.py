@@ -195,6 +195,23 @@ class Probes:
                 start += c.size
         return out
 
+    def near_jumps(self, band: Band) -> list[np.ndarray | None]:
+        """Where each profile of :meth:`near_profiles` jumps a pixel across the tube (True at a position whose
+        samples are not the previous position's shifted along): there the profile steps by the image's gradient
+        across, a step fixed to the sensor, not to the tube (None for a profile not read)."""
+        out: list[np.ndarray | None] = []
+        for c in self.near[: len(NEAR_NAMES)]:
+            if not c.size:
+                out.append(None)
+                continue
+            r, k = band.rows[c], band.cols[c]
+            # the pixel's coordinate across the tube: the one that stays put from one position to the next
+            across = k if (np.diff(r[:, 0]) != 0).mean() >= (np.diff(k[:, 0]) != 0).mean() else r
+            jump = np.zeros(len(c), bool)
+            jump[1:] = (np.diff(across, axis=0) != 0).any(axis=1)
+            out.append(jump)
+        return out
+
     def near_profiles(self, values: np.ndarray) -> list[np.ndarray | None]:
         """The profiles along the tube in its walls and just beyond them (views of ``values``; None for one not
         read), in the order of :data:`NEAR_NAMES`."""

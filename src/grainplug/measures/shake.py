@@ -381,10 +381,29 @@ def register_along(profile: np.ndarray, step: float = 1.0, *, continuous: bool =
     return s * k * step, sd * k * step
 
 
-def best_along(profiles: list[np.ndarray | None]) -> int | None:
+#: a profile along the tube with more than this share of its structure (its mean's squared gradient) within a sample
+#: of the positions where it jumps a pixel across is read on the sampling's steps, fixed to the sensor: not tried
+SAMPLING_STEP_SHARE = 0.5
+
+
+def sampling_step_share(profile: np.ndarray, jumps: np.ndarray) -> float:
+    """The share of ``profile``'s structure (the squared gradient of its mean over the frames) that lies within a
+    sample of ``jumps`` (positions where its pixels jump across the tube: :meth:`Probes.near_jumps
+    <grainplug.diagram.extract.Probes.near_jumps>`)."""
+    g2 = np.gradient(np.mean(np.asarray(profile, np.float64), axis=0)) ** 2
+    near = np.convolve(np.asarray(jumps, float), np.ones(3), mode="same") > 0
+    total = float(g2.sum())
+    return float(g2[near].sum()) / total if total > 0 else 0.0
+
+
+def best_along(profiles: list[np.ndarray | None], jumps: list[np.ndarray | None] | None = None) -> int | None:
     """Which of the profiles along the tube (on a few frames spread over the record: the sampled frames) measures
-    a motion along it best (the smallest standard error), if any can (:func:`along_sd_px`); None when none."""
-    sds = [np.inf if p is None else along_sd_px(p) for p in profiles]
+    a motion along it best (the smallest standard error), if any can (:func:`along_sd_px`); None when none.
+    ``jumps``: where each jumps a pixel across the tube; one whose structure is mostly there
+    (:data:`SAMPLING_STEP_SHARE`, :func:`sampling_step_share`) is the sampling's, fixed to the sensor: not tried."""
+    jumps = jumps if jumps is not None else [None] * len(profiles)
+    sds = [np.inf if p is None or (j is not None and sampling_step_share(p, j) > SAMPLING_STEP_SHARE)
+           else along_sd_px(p) for p, j in zip(profiles, jumps, strict=True)]
     k = int(np.argmin(sds)) if sds else 0
     return k if sds and sds[k] <= MEASURABLE_ALONG_SD_PX else None  # no margin: a marginal one costs its reading
 
