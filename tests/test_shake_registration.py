@@ -247,3 +247,44 @@ def test_the_warning_says_the_diagram_was_held_still_only_when_it_was(along_rms_
     assert held == (along_rms_px >= 0.2)
     assert ("held still" in text) == held and ("left as read" in text) == (not held)
     assert codes_of([text]) == ["shake.corrected"]
+
+
+def test_a_wall_profile_read_on_its_own_pixel_steps_is_not_tried_for_the_motion_along():
+    """A profile along a line that crosses the wall jumps a pixel column now and then: it steps there, fixed to the
+    sensor, and a camera's motion along the tube registered on those steps reads as none. Such a profile is not
+    tried; one whose structure (a clamp's edges) lies elsewhere is, and a real tube found straight has no jumps."""
+    from grainplug.measures.shake import best_along
+
+    rng = np.random.default_rng(4)
+    n_t, n_x = 24, 600
+    jumps = np.zeros(n_x, bool)
+    jumps[[90, 190, 280, 375, 470, 560]] = True
+    level = 50.0 + 25.0 * (np.cumsum(jumps) % 2)  # the wall's dark edge, then its bright side, column by column
+    steps = level[None, :] + rng.normal(0.0, 0.5, (n_t, n_x))
+    x = np.arange(n_x)
+    shift = rng.uniform(-1.5, 1.5, n_t)
+    clamp = np.stack([80.0 - 40.0 * ((x >= 250 + s) & (x < 330 + s)) for s in shift])  # a clamp's overhang
+    clamp = clamp + rng.normal(0.0, 0.5, clamp.shape)
+    assert best_along([steps.astype(np.float32)]) == 0  # without the jumps the steps pass the trial
+    assert best_along([steps.astype(np.float32)], [jumps]) is None
+    assert best_along([clamp.astype(np.float32)], [jumps]) == 0
+    assert best_along([steps.astype(np.float32), clamp.astype(np.float32)], [jumps, jumps]) == 1
+
+
+def test_a_tilted_tube_s_wall_profiles_know_where_they_jump_a_pixel():
+    from grainplug.diagram.extract import probes_along_tube
+
+    for tilt, expected in ((0.0, 0), (1.0, 3)):
+        tube = _tilted_tube(tilt)
+        band, _, probes = probes_along_tube(tube)
+        jumps = probes.near_jumps(band)
+        for j in jumps:
+            assert j is not None
+            # a line at 1 deg crosses a column every 57 rows, 3 times over 200 rows at least; a straight one never
+            assert (j.sum() >= expected) if expected else not j.any()
+
+
+def _tilted_tube(tilt_deg: float):
+    from grainplug.calibration.tube import TubeGeometry
+
+    return TubeGeometry("vertical", tilt_deg, 40.3, 20.0, 1.0, "test", (200, 96))
