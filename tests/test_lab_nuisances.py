@@ -204,15 +204,19 @@ def test_a_clamp_over_a_short_oscillating_record_is_found_by_its_still_edge(tmp_
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["shake 1 px 20 Hz + wander 3 px, c=-0.02", "shake 1 px 8 Hz, static plugs"])
-def test_a_wander_along_plain_glass_is_said_not_measured(tmp_path, name):
+@pytest.mark.parametrize(("name", "seed"), [("shake 1 px 20 Hz + wander 3 px, c=-0.02", 2),
+                                            ("shake 1 px 8 Hz, static plugs", 2),
+                                            ("shake 1 px 8 Hz, static plugs", 3)])
+def test_a_wander_along_plain_glass_is_said_not_measured(tmp_path, name, seed):
     """With nothing fixed to the tube in view (plain walls before a flat lamp), the camera's motion along the tube
     cannot be told from the plugs'. With seed 2 these two cases miss their targets (a 4.5-6 px wander along, little
     across: celerity +4.7 % outside its interval; still plugs drifting 0.7 mm/s, called propagative): what is
-    asked of them is that the result says so, in the warning that tells the fix (a mark beside the tube)."""
+    asked of them is that the result says so, in the warning that tells the fix (a mark beside the tube). With
+    seed 3 the still plugs' tube is found 1.3 times wide and tilted: its wall profiles step where they jump a pixel
+    column, and the motion along registered on those steps as none, without the warning."""
     import dataclasses
 
-    case = dataclasses.replace(CASES[name], seed=2)
+    case = dataclasses.replace(CASES[name], seed=seed)
     movie = tmp_path / case.movie_name()
     render_movie(movie, case.scene, np.random.default_rng(case.seed))
     res = gp.analyze(movie, **case.analysis_kwargs())
