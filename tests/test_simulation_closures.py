@@ -429,8 +429,6 @@ def test_the_cli_takes_the_closures_switches(tmp_path, capsys):
     (["--drag", "negative"], "--drag"),
     (["--jamming", "--jamming-c-min", "0.7"], "c_min < c_max"),
     (["--wall-stress", "everywhere"], "--wall-stress"),
-    (["--static-friction-ratio", "0.5"], "--static-friction-ratio"),
-    (["--static-friction-ratio", "1.5"], "exact Coulomb law"),
 ])
 @pytest.mark.parametrize("command", ["stability", "simulate"])
 def test_the_cli_refuses_bad_closures_in_one_line(tmp_path, capsys, command, args, needle):
@@ -487,75 +485,3 @@ def test_the_cli_refuses_a_bad_inlet_seal_in_one_line(tmp_path, capsys, args, ne
     assert code == 2
     assert_one_line_error(code, err, needle)
     assert not (tmp_path / "sim").exists()
-
-
-LOCAL_EXACT = dict(grain_diameter_um=200, c0=0.585, base_pressure_pa=P_ATM_PA, jamming=True, jamming_c_min=0.56,
-                   friction_law="coulomb-janssen", janssen_v2_term=False, drag="stokes-carman")
-
-
-def _c_at_stress_ratio(p: ModelParams, ratio: float) -> float:
-    """The compactness whose contact stress's wall friction is ``ratio`` times its weight (bisection)."""
-    cl = Closure.from_params(p, balance=False)
-    lo, hi = p.jamming_c_min + 1e-6, p.jamming_c_max - 1e-3
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        f = cl.wall * float(cl.jamming_pressure(np.array([mid]))[0]) / (mid * cl.cos_theta)
-        lo, hi = (mid, hi) if f < ratio else (lo, mid)
-    return 0.5 * (lo + hi)
-
-
-@pytest.mark.parametrize("engine", ["numpy", "numba"])
-def test_static_friction_holds_at_rest_what_kinetic_friction_lets_slide(engine):
-    """A cell whose walls' (kinetic) friction is 0.8 of its weight: at rest it starts to fall with one coefficient,
-    and stays with a static friction 1.5 times the kinetic one; sliding, it feels the kinetic friction whatever the
-    static one (its speed grows by (weight - friction) dt / c); a cell moving up is stopped, then held."""
-    from grainplug.simulation import _kernel
-    from grainplug.simulation.scheme import Integrator
-
-    dt = 1e-3
-    c = _c_at_stress_ratio(ModelParams(**LOCAL_EXACT), 0.8)
-    out = {}
-    for ratio in (1.0, 1.5):
-        p = ModelParams(**LOCAL_EXACT, static_friction_ratio=ratio)
-        cl = Closure.from_params(p, balance=False)
-        U = cl.conserved(np.full(3, c), np.array([0.0, 0.5, -1e-6]), np.full(3, cl.P0))
-        if engine == "numpy":
-            v1 = Integrator(cl, 3, 0.25).sources(U, dt)[1] / c
-        else:
-            k = _kernel.pack(cl, "periodic", np.zeros(3), cl.P0, 0.25)
-            W = U.copy()
-            _kernel._sources(W, dt, k)
-            v1 = W[1] / c
-        out[ratio] = v1
-    weight = c * Closure.from_params(ModelParams(**LOCAL_EXACT), balance=False).cos_theta
-    gain = 0.2 * weight * dt / c  # (weight - 0.8 weight) dt / c
-    assert out[1.0][0] == pytest.approx(gain, rel=1e-6) and out[1.5][0] == 0.0
-    assert out[1.0][1] == pytest.approx(0.5 + gain, rel=1e-9) and out[1.5][1] == out[1.0][1]
-    assert out[1.5][2] == 0.0  # a slow upward slide stopped by gravity and friction, then held at rest
-
-
-def test_a_static_friction_below_the_kinetic_one_or_without_an_exact_law_is_refused():
-    with pytest.raises(ParameterError, match="static friction ratio"):
-        ModelParams(**LOCAL_EXACT, static_friction_ratio=0.9)
-    with pytest.raises(ParameterError, match="exact Coulomb law"):
-        ModelParams(**LOCAL_EXACT, friction_v_eps=0.01, static_friction_ratio=1.5)
-    with pytest.raises(ParameterError, match="exact Coulomb law"):
-        ModelParams(static_friction_ratio=1.5)  # the paper's v2 law
-
-
-def test_static_friction_does_not_keep_a_carried_stress_plug_from_sliding_out():
-    """Issue 37's negative result, held: with Janssen's stress carried down a plug at the outlet, a static friction
-    1.5 times the kinetic one changes nothing. The jamming pressure's waves set every cell of the plug sliding
-    within 0.02 s, and the carried stress makes the kinetic friction exactly the weight plus the push: no sliding
-    cell stops, so the static margin never acts; the plug leaves as with one coefficient."""
-    runs = {}
-    for ratio in (1.0, 1.5):
-        p = ModelParams(**COLUMN, static_friction_ratio=ratio)
-        sim = SimulationParams(boundary="open", length_D=40.0, n_cells=80, duration_tc=6.0, output_interval_tc=0.25,
-                               feed_c=0.58, feed_rate_g_s=0.5, noise=0.0)
-        _, U0 = _plug_under_rain(p, sim, 20.0)
-        runs[ratio] = simulate(p, sim, initial=U0)
-    a, b = runs[1.0], runs[1.5]
-    np.testing.assert_allclose(a.c, b.c, rtol=0, atol=1e-12)
-    at_rest = (np.abs(b.v[4:]) < 1e-12) & (b.c[4:] > 0.56)
-    assert not at_rest.any()

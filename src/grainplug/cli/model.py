@@ -72,10 +72,6 @@ _MODEL_OPTIONS = [
               help="coulomb-janssen only: the friction's normal stress, each cell's own contact stress (local) or "
                    "Janssen's stress carried down each dense stretch, zero at its top and at its free bottom "
                    "(janssen-column; exact friction only)."),
-    click.option("--static-friction-ratio", type=Number(1.0, 10.0), default=_m("static_friction_ratio"),
-              show_default=True,
-              help="Exact Coulomb laws only: static over kinetic wall friction (a cell at rest stays while the force "
-                   "on it is below this times the friction; a sliding one feels the kinetic friction)."),
     click.option("--drag", type=click.Choice(["carman-kozeny", "stokes-carman"]), default=_m("drag"),
               show_default=True,
               help="Air-grain drag: Carman-Kozeny as in the paper, or Stokes' single-grain drag added "
@@ -114,7 +110,7 @@ def _model_params(diameter_mm: float, grain_diameter_um: float, c0: float, kappa
                   b: float, b1_star: float | None, variant: str, friction_law: str | None, base_pressure: str,
                   base_velocity: str, jamming: bool, jamming_fr_pa: float, jamming_c_max: float,
                   jamming_c_min: float = 0.50, friction_v_eps: float | None = None, wall_stress: str = "local",
-                  drag: str = "carman-kozeny", janssen_v2_term: bool = True, static_friction_ratio: float = 1.0):
+                  drag: str = "carman-kozeny", janssen_v2_term: bool = True):
     """The :class:`ModelParams` of the model options."""
     from ..stability import P_ATM_PA, ModelParams
 
@@ -134,7 +130,7 @@ def _model_params(diameter_mm: float, grain_diameter_um: float, c0: float, kappa
                        friction_law=friction_law, base_pressure_pa=base_pressure_pa, base_velocity=base_velocity,
                        jamming=jamming, jamming_fr_pa=jamming_fr_pa, jamming_c_max=jamming_c_max,
                        jamming_c_min=jamming_c_min, friction_v_eps=friction_v_eps, wall_stress=wall_stress, drag=drag,
-                       janssen_v2_term=janssen_v2_term, static_friction_ratio=static_friction_ratio)
+                       janssen_v2_term=janssen_v2_term)
 
 
 @click.command()

@@ -91,9 +91,6 @@ class Closure:
     stokes: bool = False
     #: the coulomb-janssen friction on Janssen's stress carried down each dense stretch (``WALL_STRESSES``)
     column: bool = False
-    #: static over kinetic friction (exact Coulomb laws): a cell at rest stays while the force on it is below this
-    #: times the friction
-    static_ratio: float = 1.0
 
     @classmethod
     def from_params(cls, p: ModelParams, *, balance: bool = True) -> Closure:
@@ -112,7 +109,7 @@ class Closure:
                    jam_fr=p.jamming_fr_pa / p.P_c_pa, jam_c_min=p.jamming_c_min, jam_c_max=p.jamming_c_max,
                    jterm=1.0 if p.janssen_v2_term else 0.0, wall=4.0 * p.mu_s * p.kappa,
                    v_eps=p.friction_v_eps or 0.0, stokes=p.drag == "stokes-carman",
-                   column=p.wall_stress == "janssen-column", static_ratio=p.static_friction_ratio)
+                   column=p.wall_stress == "janssen-column")
 
     # -- closures -------------------------------------------------------------------
     def permeability(self, c: np.ndarray) -> np.ndarray:

@@ -331,10 +331,9 @@ class Integrator:
             u_free = u + dt * (g - F) / cs
             t_stop = np.where(g < F, u * cs / np.maximum(F - g, 1e-300), np.inf)
             rest = np.maximum(dt - t_stop, 0.0)
-            held = np.abs(g) <= cl.static_ratio * F  # the static friction holds a cell at rest
-            # at rest: stays while |g| <= the static friction, else moves the other way (g < -F)
-            u_after = np.where(held, 0.0, (g + F) * rest / cs)
-            u1 = np.where((v == 0) & held, 0.0, np.where(u_free >= 0, u_free, u_after))
+            # at rest: stays while |g| <= F, else moves the other way (g < -F)
+            u_after = np.where(np.abs(g) <= F, 0.0, (g + F) * rest / cs)
+            u1 = np.where(u_free >= 0, u_free, u_after)
             v1 = sgn * u1
         else:  # v|v| (the printed v^2 law given the sign of v), trapezoidal rule
             a = 0.5 * dt * cl.alpha

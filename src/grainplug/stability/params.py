@@ -125,10 +125,6 @@ class ModelParams:
         One of :data:`WALL_STRESSES`: the normal stress of the ``coulomb-janssen`` friction, each cell's own
         (``"local"``, the default) or carried down each dense stretch (``"janssen-column"``, with the exact
         Coulomb law only: a regularised law cannot hold a cell exactly at its limit).
-    static_friction_ratio : float
-        Static over kinetic wall friction, 1 to 10 (1, the default: one coefficient). With an exact Coulomb law, a
-        cell at rest stays at rest while the force on it is below this times the (kinetic) friction; a sliding cell
-        feels the kinetic friction. It does not change the linear analysis of a sliding base state.
 
     Notes
     -----
@@ -162,7 +158,6 @@ class ModelParams:
     friction_v_eps: float | None = None
     drag: str = "carman-kozeny"
     wall_stress: str = "local"
-    static_friction_ratio: float = 1.0
 
     def __post_init__(self) -> None:
         from ..params import as_number
@@ -212,11 +207,6 @@ class ModelParams:
             (self.wall_stress == "local" or self.friction_v_eps is None,
              "the janssen-column stress holds a stretch's cells exactly at Coulomb's limit, which only the exact "
              "law can hold: leave friction_v_eps= unset"),
-            (math.isfinite(self.static_friction_ratio) and 1.0 <= self.static_friction_ratio <= 10.0,
-             "the static friction ratio (static over kinetic friction) must be between 1 and 10"),
-            (self.static_friction_ratio == 1.0 or (self.law.startswith("coulomb") and self.friction_v_eps is None),
-             "static friction above kinetic friction needs an exact Coulomb law (coulomb-*, no friction_v_eps): "
-             "only it holds a cell at rest"),
             (self.friction_v_eps is None or (math.isfinite(self.friction_v_eps) and self.friction_v_eps > 0),
              "the friction's regularisation velocity v_eps must be positive (None: exact Coulomb friction)"),
             (self.friction_v_eps is None or self.law == "coulomb-janssen",
