@@ -42,16 +42,18 @@ log = logging.getLogger("closures_janssen_column")
 LENGTH_D, PLUG_D, DURATION_TC = 100.0, 30.0, 60.0
 
 
-def model(*, c_min: float = 0.56, column: bool = True) -> ModelParams:
-    kw = dict(wall_stress="janssen-column") if column else dict(friction_v_eps=0.01)
+def model(*, c_min: float = 0.56, column: bool = True, stick: float = 1.0) -> ModelParams:
+    kw = (dict(wall_stress="janssen-column", mu_static_over_kinetic=stick) if column
+          else dict(friction_v_eps=0.01))
     return ModelParams(grain_diameter_um=200, c0=0.585, base_pressure_pa=P_ATM_PA, jamming=True, jamming_c_min=c_min,
                        friction_law="coulomb-janssen", janssen_v2_term=False, drag="stokes-carman", **kw)
 
 
 def run(start: str, *, rate: float = 0.5, cells: int = 400, c_min: float = 0.56, c_plug: float = 0.60,
-        column: bool = True) -> tuple[dict[str, object], SimulationResult]:
-    """One run; ``start`` is "held" (a plug of c_plug at the outlet, rain above), "dense" or "rain"."""
-    m = model(c_min=c_min, column=column)
+        column: bool = True, stick: float = 1.0) -> tuple[dict[str, object], SimulationResult]:
+    """One run; ``start`` is "held" (a plug of c_plug at the outlet, rain above), "dense" or "rain"; ``stick`` is
+    the static over kinetic friction (closures_static_friction.py)."""
+    m = model(c_min=c_min, column=column, stick=stick)
     feed_c = 0.5846 if start == "dense" else 0.58
     sim = SimulationParams(boundary="open", length_D=LENGTH_D, n_cells=cells, duration_tc=DURATION_TC,
                            output_interval_tc=0.25, feed_c=feed_c, feed_rate_g_s=rate, noise=0.0)
@@ -87,11 +89,11 @@ def run(start: str, *, rate: float = 0.5, cells: int = 400, c_min: float = 0.56,
 
 
 def sealed(length_D: float, cells: int, duration_tc: float, *, seal_D: float = 30.0,
-           rate: float = 0.5) -> tuple[dict[str, object], SimulationResult]:
+           rate: float = 0.5, stick: float = 1.0) -> tuple[dict[str, object], SimulationResult]:
     """A dense feed (c = 0.5846) into a pipe whose air enters the top only through ``seal_D`` of the fed grains (a
     hopper): the suction, the dense column's lower front (c > 0.3) and its climb (fitted over the run's second
     half), and the movie measures."""
-    m = model()
+    m = model(stick=stick)
     fc = 0.5846
     sim = SimulationParams(boundary="open", length_D=length_D, n_cells=cells, duration_tc=duration_tc,
                            output_interval_tc=0.25, feed_c=fc, feed_rate_g_s=rate, noise=0.0, inlet_seal_D=seal_D)

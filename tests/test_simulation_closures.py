@@ -485,3 +485,91 @@ def test_the_cli_refuses_a_bad_inlet_seal_in_one_line(tmp_path, capsys, args, ne
     assert code == 2
     assert_one_line_error(code, err, needle)
     assert not (tmp_path / "sim").exists()
+
+
+# -- static friction above kinetic friction (ModelParams.mu_static_over_kinetic) -----------------------------
+#: the local contact stress with exact Coulomb friction, at the paper's conditions
+LOCAL_EXACT = dict(grain_diameter_um=200, c0=0.585, base_pressure_pa=P_ATM_PA, jamming=True, jamming_c_min=0.56,
+                   friction_law="coulomb-janssen", janssen_v2_term=False, drag="stokes-carman")
+
+
+def _c_at_ratio(cl: Closure, ratio: float) -> float:
+    """The compactness whose contact stress's wall friction is ``ratio`` times its weight (bisection)."""
+    lo, hi = cl.jam_c_min + 1e-9, cl.jam_c_max - 1e-6
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if cl.wall * float(cl.jamming_pressure(np.array([mid]))[0]) / (mid * cl.cos_theta) < ratio:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+def test_static_friction_holds_a_cell_at_rest_within_its_margin_and_slides_on_kinetic_friction(engine):
+    """The exact set-valued law with static friction ``r F`` above the kinetic ``F`` (r = 2), one source step on
+    cells whose weight is 0.8 F, 1.5 F and 3 F (their friction over weight 1.25, 0.67, 0.33): at rest, the first two
+    stay (1.5 F is within the static margin, which r = 1 does not give), the third slides at ``(g - F) dt / c``;
+    the same cells sliding down at 0.01 v_c: the kinetic friction F decelerates the first to rest (and static
+    friction keeps it there), the others accelerate at ``(g - F) / c``."""
+    from grainplug.simulation import _kernel
+    from grainplug.simulation.scheme import Integrator
+
+    dt = 1e-3
+    for r, held in ((2.0, [True, True, False]), (1.0, [True, False, False])):
+        p = ModelParams(**LOCAL_EXACT, mu_static_over_kinetic=r)
+        cl = Closure.from_params(p, balance=False)
+        c = np.array([_c_at_ratio(cl, q) for q in (1.25, 1 / 1.5, 1 / 3)])
+        g = c * cl.cos_theta
+        F = cl.wall * cl.jamming_pressure(c)
+        for v0 in (0.0, 0.01):
+            U = cl.conserved(c, np.full(3, v0), np.full(3, cl.P0))
+            if engine == "numpy":
+                v1 = Integrator(cl, 3, 1.0).sources(U, dt)[1] / c
+            else:
+                k = _kernel.pack(cl, "periodic", np.zeros(3), cl.P0, 1.0)
+                U1 = U.copy()
+                _kernel._sources(U1, dt, k)
+                v1 = U1[1] / c
+            expect = np.maximum(v0 + (g - F) * dt / c, 0.0)
+            if v0 == 0.0:
+                expect = np.where(held, 0.0, expect)
+            np.testing.assert_allclose(v1, expect, rtol=1e-12, atol=1e-15)
+
+
+def test_with_static_friction_the_engines_agree_and_conserve_grain():
+    """A plug on the carried stress with static friction twice the kinetic one, rain landing on it: both engines
+    give the same run to 1e-9 and the grain budget closes to round-off."""
+    p = ModelParams(**COLUMN, mu_static_over_kinetic=2.0)
+    sim = SimulationParams(boundary="open", length_D=40.0, n_cells=80, duration_tc=4.0, output_interval_tc=0.5,
+                           feed_c=0.58, feed_rate_g_s=0.5, noise=0.0)
+    _, U0 = _plug_under_rain(p, sim, 20.0)
+    a = simulate(p, sim, initial=U0)
+    b = simulate(p, sim.replace(engine="numpy"), initial=U0)
+    assert a.n_steps == b.n_steps > 0
+    np.testing.assert_allclose(a.c, b.c, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(a.v, b.v, rtol=1e-9, atol=1e-9)
+    assert a.grain_budget_residual < 1e-12 and b.grain_budget_residual < 1e-12
+
+
+@pytest.mark.parametrize(("setup", "needle"), [
+    ({**COLUMN, "mu_static_over_kinetic": 0.9}, "at least the kinetic one"),
+    ({**COLUMN, "mu_static_over_kinetic": math.inf}, "at least the kinetic one"),
+    ({**LOCAL_EXACT, "friction_v_eps": 0.01, "mu_static_over_kinetic": 2.0}, "exact"),
+    ({"mu_static_over_kinetic": 2.0}, "exact"),
+])
+def test_static_below_kinetic_friction_is_refused_in_one_line(setup, needle):
+    with pytest.raises(ParameterError, match=needle) as e:
+        ModelParams(**setup)
+    assert "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("command", ["stability", "simulate"])
+def test_the_cli_refuses_static_below_kinetic_friction_in_one_line(tmp_path, capsys, command):
+    from test_cli_basics import assert_one_line_error, run
+
+    extra = ["--out", tmp_path / "sim"] if command == "simulate" else []
+    code, _, err = run(capsys, command, "--friction-law", "coulomb-janssen", "--jamming",
+                       "--mu-static-over-kinetic", "0.5", *extra)
+    assert_one_line_error(code, err, "--mu-static-over-kinetic")
+    assert not (tmp_path / "sim").exists()

@@ -72,6 +72,11 @@ _MODEL_OPTIONS = [
               help="coulomb-janssen only: the friction's normal stress, each cell's own contact stress (local) or "
                    "Janssen's stress carried down each dense stretch, zero at its top and at its free bottom "
                    "(janssen-column; exact friction only)."),
+    click.option("--mu-static-over-kinetic", type=Number(1.0, 1e3), default=_m("mu_static_over_kinetic"),
+              show_default=True,
+              help="Exact Coulomb laws only: static over kinetic wall friction (>= 1; --mu-s is then the kinetic "
+                   "coefficient): a cell at rest stays while the force on it is below this times the friction "
+                   "(stick-slip; issue 37)."),
     click.option("--drag", type=click.Choice(["carman-kozeny", "stokes-carman"]), default=_m("drag"),
               show_default=True,
               help="Air-grain drag: Carman-Kozeny as in the paper, or Stokes' single-grain drag added "
@@ -110,7 +115,7 @@ def _model_params(diameter_mm: float, grain_diameter_um: float, c0: float, kappa
                   b: float, b1_star: float | None, variant: str, friction_law: str | None, base_pressure: str,
                   base_velocity: str, jamming: bool, jamming_fr_pa: float, jamming_c_max: float,
                   jamming_c_min: float = 0.50, friction_v_eps: float | None = None, wall_stress: str = "local",
-                  drag: str = "carman-kozeny", janssen_v2_term: bool = True):
+                  drag: str = "carman-kozeny", janssen_v2_term: bool = True, mu_static_over_kinetic: float = 1.0):
     """The :class:`ModelParams` of the model options."""
     from ..stability import P_ATM_PA, ModelParams
 
@@ -130,7 +135,7 @@ def _model_params(diameter_mm: float, grain_diameter_um: float, c0: float, kappa
                        friction_law=friction_law, base_pressure_pa=base_pressure_pa, base_velocity=base_velocity,
                        jamming=jamming, jamming_fr_pa=jamming_fr_pa, jamming_c_max=jamming_c_max,
                        jamming_c_min=jamming_c_min, friction_v_eps=friction_v_eps, wall_stress=wall_stress, drag=drag,
-                       janssen_v2_term=janssen_v2_term)
+                       janssen_v2_term=janssen_v2_term, mu_static_over_kinetic=mu_static_over_kinetic)
 
 
 @click.command()

@@ -33,7 +33,7 @@ BCS = {"periodic": 0, "open": 1, "outflow": 2}
 # indices into the constants array
 (K_C0, K_P0, K_GAMMA, K_KAPPA, K_COS, K_LAW, K_F0, K_ALPHA, K_K0, K_BAL, K_JAM, K_FR, K_CMIN, K_CMAX, K_BC,
  K_IN_C, K_IN_Q, K_IN_M, K_PEND, K_DX, K_STAGES, K_JTERM, K_WALL, K_VEPS, K_STOKES, K_DTMIN, K_COLUMN,
- K_SEAL) = range(28)
+ K_SEAL, K_STICK) = range(29)
 
 
 def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float, dt_floor: float = 0.0,
@@ -43,7 +43,7 @@ def pack(cl: Closure, bc_kind: str, inlet: np.ndarray, P_end: float, dx: float, 
     return np.array([cl.c0, cl.P0, cl.gamma, cl.kappa, cl.cos_theta, LAWS[cl.law], cl.F0, cl.alpha, cl.K0,
                      cl.balance_force, 1.0 if cl.jamming else 0.0, cl.jam_fr, cl.jam_c_min, cl.jam_c_max,
                      BCS[bc_kind], inlet[0], inlet[1], inlet[2], P_end, dx, SSP_STAGES, cl.jterm, cl.wall, cl.v_eps,
-                     1.0 if cl.stokes else 0.0, dt_floor, 1.0 if cl.column else 0.0, inlet_seal],
+                     1.0 if cl.stokes else 0.0, dt_floor, 1.0 if cl.column else 0.0, inlet_seal, cl.stick],
                     dtype=np.float64)
 
 
@@ -294,13 +294,14 @@ def _sources(U, dt, k):
                 F = k[K_F0] * (c / k[K_C0] if law == 2 else 1.0)
             sgn = (1.0 if v > 0 else -1.0) if v != 0 else (1.0 if G >= 0 else -1.0)
             u, g = sgn * v, sgn * G
+            Fs = k[K_STICK] * F  # static: the hold of a cell at rest
             u_free = u + dt * (g - F) / cs
-            if u_free >= 0:
+            if u_free >= 0 and not (u == 0 and g <= Fs):
                 u1 = u_free
             else:
                 t_stop = u * cs / max(F - g, 1e-300) if g < F else math.inf
                 rest = max(dt - t_stop, 0.0)
-                u1 = 0.0 if abs(g) <= F else (g + F) * rest / cs
+                u1 = 0.0 if abs(g) <= Fs else (g + F) * rest / cs
             v1 = sgn * u1
         else:
             a = 0.5 * dt * k[K_ALPHA]

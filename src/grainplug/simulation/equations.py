@@ -91,6 +91,8 @@ class Closure:
     stokes: bool = False
     #: the coulomb-janssen friction on Janssen's stress carried down each dense stretch (``WALL_STRESSES``)
     column: bool = False
+    #: static over kinetic friction of the exact Coulomb laws (1: one coefficient)
+    stick: float = 1.0
 
     @classmethod
     def from_params(cls, p: ModelParams, *, balance: bool = True) -> Closure:
@@ -109,7 +111,7 @@ class Closure:
                    jam_fr=p.jamming_fr_pa / p.P_c_pa, jam_c_min=p.jamming_c_min, jam_c_max=p.jamming_c_max,
                    jterm=1.0 if p.janssen_v2_term else 0.0, wall=4.0 * p.mu_s * p.kappa,
                    v_eps=p.friction_v_eps or 0.0, stokes=p.drag == "stokes-carman",
-                   column=p.wall_stress == "janssen-column")
+                   column=p.wall_stress == "janssen-column", stick=p.mu_static_over_kinetic)
 
     # -- closures -------------------------------------------------------------------
     def permeability(self, c: np.ndarray) -> np.ndarray:

@@ -328,12 +328,13 @@ class Integrator:
                 F = cl.F0 * (c / cl.c0 if cl.law == "coulomb-weight" else 1.0) * np.ones_like(c)
             sgn = np.where(v != 0, np.sign(v), np.where(G >= 0, 1.0, -1.0))
             u, g = sgn * v, sgn * G  # mirrored so that u >= 0
+            Fs = cl.stick * F  # static friction: the hold of a cell at rest (kinetic F while it slides)
             u_free = u + dt * (g - F) / cs
             t_stop = np.where(g < F, u * cs / np.maximum(F - g, 1e-300), np.inf)
             rest = np.maximum(dt - t_stop, 0.0)
-            # at rest: stays while |g| <= F, else moves the other way (g < -F)
-            u_after = np.where(np.abs(g) <= F, 0.0, (g + F) * rest / cs)
-            u1 = np.where(u_free >= 0, u_free, u_after)
+            # at rest (from the start or after stopping): stays while |g| <= Fs, else slides (kinetic F)
+            u_after = np.where(np.abs(g) <= Fs, 0.0, (g + F) * rest / cs)
+            u1 = np.where((u_free >= 0) & ~((u == 0) & (g <= Fs)), u_free, u_after)
             v1 = sgn * u1
         else:  # v|v| (the printed v^2 law given the sign of v), trapezoidal rule
             a = 0.5 * dt * cl.alpha

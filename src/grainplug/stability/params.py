@@ -125,6 +125,11 @@ class ModelParams:
         One of :data:`WALL_STRESSES`: the normal stress of the ``coulomb-janssen`` friction, each cell's own
         (``"local"``, the default) or carried down each dense stretch (``"janssen-column"``, with the exact
         Coulomb law only: a regularised law cannot hold a cell exactly at its limit).
+    mu_static_over_kinetic : float
+        Static over kinetic wall friction, ``>= 1``, for the exact (set-valued) Coulomb laws only (issue 37's
+        stick-slip trial). ``mu_s`` is then the kinetic coefficient: a sliding cell feels the friction ``F``, a
+        cell at rest stays at rest while the force on it is below ``mu_static_over_kinetic * F``. The carried
+        Janssen stress is built with the kinetic coefficient. 1 (default): one coefficient, as before.
 
     Notes
     -----
@@ -158,6 +163,7 @@ class ModelParams:
     friction_v_eps: float | None = None
     drag: str = "carman-kozeny"
     wall_stress: str = "local"
+    mu_static_over_kinetic: float = 1.0
 
     def __post_init__(self) -> None:
         from ..params import as_number
@@ -209,6 +215,11 @@ class ModelParams:
              "law can hold: leave friction_v_eps= unset"),
             (self.friction_v_eps is None or (math.isfinite(self.friction_v_eps) and self.friction_v_eps > 0),
              "the friction's regularisation velocity v_eps must be positive (None: exact Coulomb friction)"),
+            (math.isfinite(self.mu_static_over_kinetic) and self.mu_static_over_kinetic >= 1.0,
+             "static friction must be at least the kinetic one: mu_static_over_kinetic >= 1"),
+            (self.mu_static_over_kinetic == 1.0 or (self.law.startswith("coulomb") and self.friction_v_eps is None),
+             "mu_static_over_kinetic needs the exact (set-valued) Coulomb friction: a coulomb-* law without "
+             "friction_v_eps"),
             (self.friction_v_eps is None or self.law == "coulomb-janssen",
              "friction_v_eps regularises the coulomb-janssen friction law only"),
             (self.law != "coulomb-janssen" or self.jamming,
@@ -301,7 +312,7 @@ class ModelParams:
         """Whether the set-up is the paper's as printed (friction law, base pressure and velocity)."""
         return (self.law == "v2" and self.base_pressure_pa is None and self.base_velocity == "printed"
                 and not self.jamming and self.janssen_v2_term and self.drag == "carman-kozeny"
-                and self.wall_stress == "local")
+                and self.wall_stress == "local" and self.mu_static_over_kinetic == 1.0)
 
     @property
     def P0_star(self) -> float:
