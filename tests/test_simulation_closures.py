@@ -325,10 +325,12 @@ def test_the_carried_stress_is_janssens_profile():
     np.testing.assert_allclose(cap, 0.58, rtol=1e-13)
 
 
-def test_the_engines_agree_on_the_carried_stress_and_conserve_grain():
-    """A plug held at the outlet of an open pipe, rain landing on it: both engines give the same run to 1e-9, and
-    the grain budget closes to round-off."""
-    p = ModelParams(**COLUMN)
+@pytest.mark.parametrize("static_over_kinetic", [1.0, 2.0])
+def test_the_engines_agree_on_the_carried_stress_and_conserve_grain(static_over_kinetic):
+    """A plug held at the outlet of an open pipe, rain landing on it (with one friction coefficient, and with static
+    friction twice the kinetic one): both engines give the same run to 1e-9, and the grain budget closes to
+    round-off."""
+    p = ModelParams(**COLUMN, mu_static_over_kinetic=static_over_kinetic)
     n, length = 80, 40.0
     sim = SimulationParams(boundary="open", length_D=length, n_cells=n, duration_tc=4.0, output_interval_tc=0.5,
                            feed_c=0.58, feed_rate_g_s=0.5, noise=0.0)
@@ -338,7 +340,7 @@ def test_the_engines_agree_on_the_carried_stress_and_conserve_grain():
     assert a.n_steps == b.n_steps > 0
     np.testing.assert_allclose(a.c, b.c, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(a.v, b.v, rtol=1e-9, atol=1e-9)
-    assert a.grain_budget_residual < 1e-12
+    assert a.grain_budget_residual < 1e-12 and b.grain_budget_residual < 1e-12
 
 
 def test_a_periodic_dense_column_decays_at_the_linear_rates_and_conserves():
@@ -535,21 +537,6 @@ def test_static_friction_holds_a_cell_at_rest_within_its_margin_and_slides_on_ki
             if v0 == 0.0:
                 expect = np.where(held, 0.0, expect)
             np.testing.assert_allclose(v1, expect, rtol=1e-12, atol=1e-15)
-
-
-def test_with_static_friction_the_engines_agree_and_conserve_grain():
-    """A plug on the carried stress with static friction twice the kinetic one, rain landing on it: both engines
-    give the same run to 1e-9 and the grain budget closes to round-off."""
-    p = ModelParams(**COLUMN, mu_static_over_kinetic=2.0)
-    sim = SimulationParams(boundary="open", length_D=40.0, n_cells=80, duration_tc=4.0, output_interval_tc=0.5,
-                           feed_c=0.58, feed_rate_g_s=0.5, noise=0.0)
-    _, U0 = _plug_under_rain(p, sim, 20.0)
-    a = simulate(p, sim, initial=U0)
-    b = simulate(p, sim.replace(engine="numpy"), initial=U0)
-    assert a.n_steps == b.n_steps > 0
-    np.testing.assert_allclose(a.c, b.c, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(a.v, b.v, rtol=1e-9, atol=1e-9)
-    assert a.grain_budget_residual < 1e-12 and b.grain_budget_residual < 1e-12
 
 
 @pytest.mark.parametrize(("setup", "needle"), [
