@@ -440,3 +440,16 @@ def test_ctrl_c_is_one_line():
 
     with pytest.raises(Interrupted, match="interrupted"):
         group.main(["stop"], standalone_mode=False)
+
+
+@pytest.mark.parametrize("command", ["info", "analyze"])
+def test_a_text_file_is_not_a_movie(tmp_path, command):
+    """FFmpeg reads any text as a terminal's screen (its tty demuxer): `info` called a README a 7-frame 25 fps
+    movie, and `analyze` failed with an internal error. Both refuse it in one line."""
+    text = tmp_path / "notes.txt"
+    text.write_text("Plugs at 0.5 g/s, humidity 45 %.\n" * 200)
+    extra = ["--out", tmp_path / "out"] if command == "analyze" else []
+    code, _, err = gp_run(command, text, *extra)
+    assert code == 2
+    one_error(err, "notes.txt", "not a movie")
+    assert not (tmp_path / "out").exists()

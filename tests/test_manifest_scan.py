@@ -73,3 +73,27 @@ def test_no_movie_is_one_line(tmp_path, capsys):
     assert main(["manifest", str(tmp_path)]) != 0
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "holds no file" in err
+
+
+def test_movies_in_subfolders_keep_their_subfolder_and_the_batch_finds_them(tmp_path, capsys):
+    """`--glob '*/*'` over a campaign kept one run a folder: every movie was listed by its file name alone (all three
+    `movie.cine`, at the manifest's folder), so the batch found none. Their paths keep their subfolder, and so do
+    their run names; a manifest written elsewhere points at them too."""
+    camp = tmp_path / "camp"
+    for k in range(3):
+        made = synthesize(SynthConfig(n_frames=60, seed=k, fps=250.0, rgb=False), tmp_path / f"m{k}", fmt="cine")
+        (camp / f"s{k}").mkdir(parents=True)
+        shutil.copy(made.movie, camp / f"s{k}" / "movie.cine")
+    for target in (camp / "manifest.csv", tmp_path / "elsewhere" / "m.csv"):
+        target.parent.mkdir(exist_ok=True)
+        assert main(["manifest", str(camp), "--glob", "*/*", "--out", str(target)]) == 0
+        rows = _rows(target)
+        assert [r["run"] for r in rows] == ["s0_movie", "s1_movie", "s2_movie"]
+        assert all((target.parent / r["movie"]).resolve() == (camp / f"s{k}" / "movie.cine").resolve()
+                   for k, r in enumerate(rows))
+    capsys.readouterr()
+    out = tmp_path / "campaign"
+    assert main(["batch", str(camp / "manifest.csv"), "--out", str(out), "--no-figures"]) == 0, \
+        capsys.readouterr().err
+    table = list(csv.DictReader((out / "campaign.csv").read_text().splitlines()))
+    assert [r["status"] for r in table] == ["ok"] * 3

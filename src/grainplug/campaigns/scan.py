@@ -39,7 +39,8 @@ class ScannedMovie:
 
 
 def _run_name(path: Path, taken: set[str]) -> str:
-    base = re.sub(r"[^A-Za-z0-9_.-]+", "_", path.stem).strip("._") or "run"
+    """The run's name from the movie's path within the folder (``s1/movie.cine``: ``s1_movie``), made unique."""
+    base = re.sub(r"[^A-Za-z0-9_.-]+", "_", path.with_suffix("").as_posix()).strip("._") or "run"
     name, k = base, 2
     while name.lower() in taken:
         name, k = f"{base}_{k}", k + 1
@@ -72,6 +73,7 @@ def scan_folder(folder: str | Path, *, glob: str | None = None) -> list[ScannedM
     out: list[ScannedMovie] = []
     taken: set[str] = set()
     for p in files:
+        where = p.relative_to(top)  # a file in a subfolder (a --glob such as */*) keeps its subfolder
         try:
             with open_movie(p) as movie:
                 info = movie.info
@@ -83,7 +85,7 @@ def scan_folder(folder: str | Path, *, glob: str | None = None) -> list[ScannedM
             continue
         details = dict(info.details)
         row: dict[str, object] = {
-            "run": _run_name(p, taken), "movie": p.name, "fps": info.fps, "record_fps": info.record_fps,
+            "run": _run_name(where, taken), "movie": where.as_posix(), "fps": info.fps, "record_fps": info.record_fps,
             "n_frames": info.n_frames,
             "duration_s": None if not info.fps else round(info.n_frames / info.fps, 6),
             "width": info.width, "height": info.height, "bit_depth": info.bit_depth, "camera": info.camera,

@@ -239,7 +239,7 @@ def manifest(folder: Path, out: Path | None, glob_: str | None, force: bool) -> 
     scanned = scan_folder(folder, glob=glob_)
     if target.resolve().parent != folder.resolve():  # the movies' paths relative to the manifest
         rel = Path(os.path.relpath(folder.resolve(), target.resolve().parent))
-        scanned = [dataclasses.replace(s, row={**s.row, "movie": (rel / s.path.name).as_posix()})
+        scanned = [dataclasses.replace(s, row={**s.row, "movie": (rel / str(s.row["movie"])).as_posix()})
                    if not s.error else s for s in scanned]
     text = manifest_text(scanned)
     with atomic_file(target, inputs=[s.path for s in scanned]) as tmp:

@@ -48,7 +48,7 @@ def plot_diagram(res: AnalysisResult, *, ax: Axes | None = None, max_markers: in
                    interpolation="none", interpolation_stage="data", extent=(t[0], t[-1], s[-1], s[0]))
     if own_figure:  # a colour bar in someone else's axes would take their space
         cbar = fig.colorbar(im, cax=fig.add_axes((0.91, 0.09, 0.012, 0.81)))
-        cbar.set_label("grey level (camera units)", fontsize=pt(8))
+        cbar.set_label("grey level, the light divided out (camera units at its median)", fontsize=pt(8))
         cbar.ax.tick_params(labelsize=pt(7))
     runs = res.runs
     if len(runs):

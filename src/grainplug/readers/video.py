@@ -47,6 +47,11 @@ def _output_format(pix_fmt: str | None) -> tuple[str, int, int]:
     return "rgb24", 3, 8
 
 
+#: FFmpeg's demuxers of text, which it renders as video: a README or a .txt file is not a movie
+TEXT_FORMATS = frozenset({"tty", "ansi", "bin", "xbin", "adf", "idf", "ass", "srt", "webvtt", "subviewer",
+                          "microdvd", "jacosub", "sami", "realtext", "mpl2", "vplayer", "pjs", "stl", "lrc"})
+
+
 class VideoMovie(Movie):
     """A movie in any container FFmpeg reads (AVI, MP4, MKV, MOV; MJPEG, H.264, FFV1, raw).
 
@@ -66,6 +71,9 @@ class VideoMovie(Movie):
         try:
             if not container.streams.video:
                 raise MovieError(f"{path} holds no video stream — pass a movie file")
+            if container.format.name.split(",")[0] in TEXT_FORMATS:  # FFmpeg "plays" any text as a terminal's screen
+                raise MovieError(f"{path} is text, not a movie (FFmpeg would draw it as a terminal's screen: "
+                                 f"{container.format.name}) — pass a movie file")
             stream = container.streams.video[0]
             ctx = stream.codec_context
             width, height = ctx.width, ctx.height
