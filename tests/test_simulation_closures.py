@@ -560,3 +560,15 @@ def test_the_cli_refuses_static_below_kinetic_friction_in_one_line(tmp_path, cap
                        "--mu-static-over-kinetic", "0.5", *extra)
     assert_one_line_error(code, err, "--mu-static-over-kinetic")
     assert not (tmp_path / "sim").exists()
+
+
+@pytest.mark.parametrize("variant", ["printed", "frozen-friction"])
+def test_simulate_says_when_the_model_run_is_stable_by_design(tmp_path, capsys, variant):
+    """`grainplug simulate` with its defaults (the printed model, which is stable) ended with "no waves" and no hint
+    of why; `stability` says which variant gives the paper's instability, and so does `simulate` now."""
+    from test_cli_basics import run
+
+    code, out, _ = run(capsys, "simulate", "--variant", variant, "--length-D", 40, "--cells", 64, "--duration-tc", 20,
+                       "--out", tmp_path / "sim")
+    assert code == 0
+    assert ("--variant frozen-friction gives" in out) == (variant == "printed"), out

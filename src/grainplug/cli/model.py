@@ -328,6 +328,9 @@ def simulation_lines(summary: dict) -> list[str]:
                    "is steady (--no-balance leaves it out)")
     if lin["most_unstable_lambda_D"] is None:
         out.append("linear theory      stable: no wavelength grows")
+        if summary.get("model", {}).get("printed_setup"):
+            out.append("note               the printed model is stable, so no waves are expected; --variant "
+                       "frozen-friction gives the paper's long-wave instability (docs/model.md)")
     else:
         edge = lin.get("most_unstable_at_range_edge")
         what = "most unstable" if not edge else f"largest growth (at {edge} of k* in [0.001, 3]: no maximum inside),"
