@@ -236,7 +236,8 @@ def tube_scale_doubts(tube: TubeGeometry, bore: BoreEstimate, facts: TubeFacts) 
         out.append(coded("scale.model_alone",
             f"the scale comes from the tube model alone ({bore.method}: bore {bore.diameter_px:.1f} px, "
             f"±{196 * bore.rel_sd:.2g} % at 95 %, glass index {facts.glass_index:g} assumed), not cross-checked "
-            "— give tube_outer_diameter_mm= to check it against the outer silhouette, or " + fix))
+            "— give tube_outer_diameter_mm= (the tube's outer diameter: its silhouette then gives the bore by "
+            "itself, a second estimate to check this one against), or " + fix))
     elif bore.agreement > AGREEMENT:
         parts = ", ".join(f"{m} {v:.1f} px" for m, v in est.items() if m != "contents")
         out.append(coded("scale.model_disagrees",
