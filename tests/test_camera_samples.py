@@ -184,6 +184,19 @@ def test_a_droplet_is_not_reported_as_holding_plugs():
     assert res.statement.startswith("no tube") and "tube.walls_unseen" in s["warning_codes"]
 
 
+@pytest.mark.parametrize("given_scale", [None, 0.1])
+def test_a_beam_with_no_wall_and_no_plug_whole_is_not_a_static_train(given_scale):
+    """pyidi's data_showcase films a vibrating beam, 7 px wide, no tube: without a scale it came out a confident
+    "static" train (has_plugs true with no plug seen whole: the tracks were the view's two ends), with a scale
+    "no plugs". Both now say there is no tube, and measure nothing."""
+    import grainplug as gp
+
+    res = gp.analyze(SAMPLES / "pyidi/data_showcase.mraw", mm_per_px=given_scale)
+    s = res.summary
+    assert s["has_plugs"] is False and s["celerity_m_s"] is None and s["regime"] in ("none", None), s["regime"]
+    assert s["plug_length_mm"] is None and s["bubble_length_mm"] is None
+
+
 def test_a_short_bands_overlay_keeps_its_time_stamp_clear_of_the_scale_bar(tmp_path):
     """In a band 40 px high (a horizontal tube filmed in a short frame) the time stamp's box covered the scale bar's
     "10 mm": it moves to the top right."""

@@ -357,8 +357,14 @@ def passing_shadow(shadow: MovingLight | None) -> list[str]:
 
 
 #: the statement of an analysis that saw neither a tube's wall nor a plug followed
-NO_TUBE = ("no tube: no wall was seen beside the moving contents and no plug was followed — nothing is measured "
-           "(a droplet or a jet is not a tube in view)")
+NO_TUBE = ("no tube: no wall was seen beside the moving contents and no plug was followed or seen whole — nothing "
+           "is measured (a droplet, a jet or a beam is not a tube in view)")
+
+
+def nothing_whole_without_walls(tube: TubeGeometry, n_whole_plugs: int) -> bool:
+    """Whether a back-lit "tube" showed no wall and no plug was seen whole: what was followed is then the ends of
+    something else cut by the view (a vibrating beam, a jet), not plugs; nothing is measured on it."""
+    return bool(walls_unseen(tube, has_plugs=True)) and n_whole_plugs == 0
 
 
 def walls_unseen(tube: TubeGeometry, *, has_plugs: bool) -> list[str]:
@@ -367,7 +373,7 @@ def walls_unseen(tube: TubeGeometry, *, has_plugs: bool) -> list[str]:
     w = tube.walls
     if not tube.back_lit or w is None or np.isfinite(w.outer_half_px) or np.isfinite(w.stripe_half_px):
         return []
-    plugs = ("; no plug was followed either, so this is likely no tube" if not has_plugs else
+    plugs = ("; no plug was followed or seen whole either, so this is likely no tube" if not has_plugs else
              "; the plugs measured may be something else's")
     return [coded("tube.walls_unseen",
         f"in back light, no tube wall was seen beside the moving contents ({tube.inner_diameter_px:.0f} px wide){plugs}"

@@ -42,6 +42,7 @@ from .checks import (
     cut_by_the_frame,
     given_scale_doubts,
     implausible,
+    nothing_whole_without_walls,
     other_moving_regions,
     passing_shadow,
     saturated_share,
@@ -230,6 +231,8 @@ def analyze(source: object, params: AnalysisParams | None = None, *,
                               backwards=runs_backwards(flow.direction), resample_at=at)
     # plugs: two materials, runs of grains, and edges followed over frames (a droplet's few frames of a blob are not)
     has_plugs = bool(norm.two_phase and len(runs) > 0 and motion is not None)
+    if has_plugs and nothing_whole_without_walls(tube, 0 if lengths is None else lengths.n_plugs_measured):
+        has_plugs, motion, lengths = False, None, None  # no wall, no plug whole: not a tube (NO_TUBE)
     spacing_mm = float(np.median(np.diff(diagram.position_mm))) if len(diagram.position_mm) > 1 else mm_per_px
     creep = grain_velocity(diagram.values, diagram.time_s, spacing_mm, diagram.position_mm,
                            runs.frame, runs.start, runs.stop) if has_plugs else None
