@@ -364,14 +364,20 @@ NO_TUBE = ("no tube: no wall was seen beside the moving contents and no plug was
 def nothing_whole_without_walls(tube: TubeGeometry, n_whole_plugs: int) -> bool:
     """Whether a back-lit "tube" showed no wall and no plug was seen whole: what was followed is then the ends of
     something else cut by the view (a vibrating beam, a jet), not plugs; nothing is measured on it."""
-    return bool(walls_unseen(tube, has_plugs=True)) and n_whole_plugs == 0
+    return _no_wall_seen(tube) and n_whole_plugs == 0
+
+
+def _no_wall_seen(tube: TubeGeometry) -> bool:
+    """A back-lit "tube" whose walls showed neither the outer silhouette nor the bright stripes."""
+    w = tube.walls
+    return bool(tube.back_lit and w is not None and not np.isfinite(w.outer_half_px)
+                and not np.isfinite(w.stripe_half_px))
 
 
 def walls_unseen(tube: TubeGeometry, *, has_plugs: bool) -> list[str]:
     """A warning when a back-lit "tube" shows no wall: neither the outer silhouette nor the walls' bright stripes
     beside the moving contents (a droplet, a jet, a moving object that is not in a tube)."""
-    w = tube.walls
-    if not tube.back_lit or w is None or np.isfinite(w.outer_half_px) or np.isfinite(w.stripe_half_px):
+    if not _no_wall_seen(tube):
         return []
     plugs = ("; no plug was followed or seen whole either, so this is likely no tube" if not has_plugs else
              "; the plugs measured may be something else's")

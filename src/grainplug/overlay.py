@@ -68,6 +68,12 @@ def _to_bgr8(frame: np.ndarray, top: float) -> np.ndarray:
     return np.ascontiguousarray(g[:, :, :3][:, :, ::-1])
 
 
+def sensor_top(res: AnalysisResult) -> float:
+    """The top value of the analysed movie's samples (its bit depth's; 255 when unknown): what
+    :func:`draw_frame` scales to 8 bits."""
+    return float((1 << int(res.info.bit_depth)) - 1) if res.info.bit_depth else 255.0
+
+
 def draw_frame(res: AnalysisResult, frame: np.ndarray, k: int, *, top_value: float = 255.0) -> np.ndarray:
     """Frame ``k`` of the analysis as a BGR uint8 image cropped around the tube, with the detection on it."""
     import cv2
@@ -192,7 +198,7 @@ def write_overlay(folder: str | Path, out: str | Path | None = None, *, slowdown
                              "ending in .webm", param="out")
     refuse_overwriting_inputs([target], [path])  # an overlay named as the movie would replace it
     _refuse_another_movie(res.input, path)
-    top = float((1 << int(res.info.bit_depth)) - 1) if res.info.bit_depth else 255.0
+    top = sensor_top(res)
     p = res.params
     try:
         movie = open_movie(path, fps=p.fps, glob=p.glob, allow_truncated=True)

@@ -322,13 +322,11 @@ class ReviewSession:
         movie = self._movie(run)
         if movie is None:
             raise GrainplugError(run.movie_error or "no movie")
-        from ..overlay import analysed_region, draw_frame
+        from ..overlay import analysed_region, draw_frame, sensor_top
 
         with self._lock:  # one reader at a time
             frame = analysed_region(run.result, movie.read(run.offset + k))
-        info = run.result.info
-        top = float((1 << int(info.bit_depth)) - 1) if info.bit_depth else 255.0
-        ok, png = cv2.imencode(".png", draw_frame(run.result, frame, k, top_value=top),
+        ok, png = cv2.imencode(".png", draw_frame(run.result, frame, k, top_value=sensor_top(run.result)),
                                [cv2.IMWRITE_PNG_COMPRESSION, 1])
         if not ok:
             raise GrainplugError(f"frame {k} could not be encoded as a PNG image")
